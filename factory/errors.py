@@ -1,0 +1,33 @@
+"""All of factory's error types (the base lives in :mod:`factory.schema.errors`)."""
+
+from __future__ import annotations
+
+from factory.schema.errors import FactoryError, SchemaError, SchemaVersionError, UnsafePathError
+
+
+class ConfigError(FactoryError):
+    """The configuration is invalid (unknown stage or key, missing ``run_dir``, bad shard)."""
+
+
+class StoreError(FactoryError):
+    """The run directory is unusable (wrong manifest version, unwritable, missing inputs)."""
+
+
+class CompileError(FactoryError):
+    """A scene cannot be compiled into a MuJoCo model."""
+
+
+class RenderError(FactoryError):
+    """No OpenGL backend could render offscreen."""
+
+
+__all__ = [
+    "CompileError",
+    "ConfigError",
+    "FactoryError",
+    "RenderError",
+    "SchemaError",
+    "SchemaVersionError",
+    "StoreError",
+    "UnsafePathError",
+]

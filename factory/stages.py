@@ -1,0 +1,102 @@
+"""The stage registry: ``name -> "module:function"``, resolved lazily.
+
+A stage function takes a :class:`StageContext` and returns a JSON-ready summary dict. Importing
+this module imports no stage.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from factory.config import FactoryConfig
+from factory.errors import ConfigError
+from factory.store import RunStore, Shard
+
+STAGES: dict[str, str] = {
+    "list": "factory.stages:list_stages",
+    "ingest": "factory.scenes.ingest:run",
+    "compile": "factory.scenes.build:run_compile",
+    "render": "factory.scenes.build:run_render",
+    "all": "factory.stages:run_all",
+}
+"""Every stage, in pipeline order."""
+
+DESCRIPTIONS: dict[str, str] = {
+    "list": "print the stages and profiles",
+    "ingest": "bring scenes into run_dir (scene.json, SAGE layout/folder/zip; default: examples)",
+    "compile": "compile each scene to MuJoCo: scenes/<id>/model.xml (+ meshes under assets/)",
+    "render": "render top-down and corner views: scenes/<id>/renders/*.png",
+    "all": "run the stages listed in all.stages, in order",
+}
+
+PROFILES: dict[str, str] = {
+    "small": "CPU only, minutes: CI and tests",
+    "default": "one workstation",
+    "full": "cluster scale (SLURM arrays)",
+}
+
+
+@dataclass
+class StageContext:
+    """What a stage gets: the typed config, the run store and this process's shard."""
+
+    cfg: FactoryConfig
+    store: RunStore | None
+    shard: Shard
+
+    def require_store(self) -> RunStore:
+        if self.store is None:
+            raise ConfigError(
+                f"stage {self.cfg.stage!r} needs a run directory: pass run_dir=PATH"
+            )
+        return self.store
+
+
+StageFn = Callable[[StageContext], dict[str, Any]]
+
+
+def check_stage(name: str) -> str:
+    """Returns ``name`` if it is a stage, else raises :class:`ConfigError` listing them."""
+    if name not in STAGES:
+        raise ConfigError(
+            f"unknown stage {name!r}: choose one of {', '.join(STAGES)} "
+            "(python -m factory stage=list)"
+        )
+    return name
+
+
+def resolve(name: str) -> StageFn:
+    """Imports and returns the function of stage ``name``."""
+    module, func = STAGES[check_stage(name)].split(":")
+    fn: StageFn = getattr(importlib.import_module(module), func)
+    return fn
+
+
+def stage_table() -> str:
+    width = max(map(len, STAGES))
+    lines = ["stages:"] + [f"  {n:<{width}}  {DESCRIPTIONS[n]}" for n in STAGES]
+    lines += ["profiles:"] + [f"  {n:<{width}}  {d}" for n, d in PROFILES.items()]
+    return "\n".join(lines)
+
+
+def list_stages(ctx: StageContext) -> dict[str, Any]:
+    """``stage=list``: prints the stages and profiles."""
+    print(stage_table())
+    return {"stages": list(STAGES), "profiles": list(PROFILES)}
+
+
+def run_all(ctx: StageContext) -> dict[str, Any]:
+    """``stage=all``: runs ``all.stages`` in order; stops at the first failure."""
+    from factory.runner import run_stage
+
+    for name in ctx.cfg.all.stages:
+        check_stage(name)
+        if name in ("all", "list"):
+            raise ConfigError(f"all.stages may not contain {name!r}")
+    results = {}
+    for name in ctx.cfg.all.stages:
+        results[name] = run_stage(name, ctx)
+    return results
