@@ -117,8 +117,11 @@ def execute(cfg: Any) -> dict[str, Any]:
     from factory.stages import StageContext, check_stage
     from factory.store import RunStore, resolve_shard
 
+    from factory.scenes.gl import configure_gl
+
     check_stage(cfg.stage)
     setup_logging(cfg.log_level)
+    configure_gl(cfg.render.gl)  # before anything imports mujoco
     shard = resolve_shard(cfg.shard.index, cfg.shard.count)
     store = None if cfg.run_dir in (None, "") else RunStore(cfg.run_dir)
     return run_stage(cfg.stage, StageContext(cfg=cfg, store=store, shard=shard))

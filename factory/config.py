@@ -68,6 +68,19 @@ class RenderConfig:
 
 
 @dataclass
+class ExportConfig:
+    """``stage=export``: write scenes back out in another format.
+
+    Attributes:
+        format: ``sage`` (SAGE's packed layout: ``<id>.json`` + ``objects/*.ply``).
+        out: output folder; empty means ``<run_dir>/export/<format>``.
+    """
+
+    format: str = "sage"
+    out: str | None = None
+
+
+@dataclass
 class AllConfig:
     """``stage=all``: the stages to run, in order."""
 
@@ -98,6 +111,7 @@ class FactoryConfig:
     ingest: IngestConfig = field(default_factory=IngestConfig)
     compile: CompileConfig = field(default_factory=CompileConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
+    export: ExportConfig = field(default_factory=ExportConfig)
     all: AllConfig = field(default_factory=AllConfig)
 
 

@@ -17,6 +17,10 @@ class CompileError(FactoryError):
     """A scene cannot be compiled into a MuJoCo model."""
 
 
+class StageFailed(FactoryError):
+    """Some work items of a stage failed (the others are complete)."""
+
+
 class RenderError(FactoryError):
     """No OpenGL backend could render offscreen."""
 
@@ -28,6 +32,7 @@ __all__ = [
     "RenderError",
     "SchemaError",
     "SchemaVersionError",
+    "StageFailed",
     "StoreError",
     "UnsafePathError",
 ]

@@ -61,3 +61,35 @@ def run_stage(name: str, ctx: StageContext) -> dict[str, Any]:
     store.record_stage(name, ctx.shard, "done", config, seconds=seconds, result=result)
     log.info("stage %s done in %.1f s: %s", name, seconds, result)
     return result
+
+
+def run_items(
+    what: str, items: list[str], fn: Any, progress: bool = True
+) -> dict[str, Any]:
+    """Applies ``fn(item) -> "done" | "skipped"`` to every item, with a progress bar.
+
+    A :class:`~factory.errors.FactoryError` on one item is logged and the others go on; at the
+    end, any failure raises one error naming how many failed and the first reason. Items done
+    before a failure stay done (their outputs are complete, written atomically).
+
+    Returns:
+        ``{"done": n, "skipped": n, "total": n}``.
+    """
+    from tqdm import tqdm
+
+    from factory.errors import FactoryError, StageFailed
+
+    counts = {"done": 0, "skipped": 0}
+    failures: list[tuple[str, str]] = []
+    for item in tqdm(items, desc=what, unit="item", disable=not progress or None):
+        try:
+            counts[fn(item)] += 1
+        except FactoryError as e:
+            log.error("%s %s failed: %s", what, item, e)
+            failures.append((item, str(e)))
+    if failures:
+        item, reason = failures[0]
+        raise StageFailed(
+            f"{what}: {len(failures)} of {len(items)} item(s) failed; first: {item}: {reason}"
+        )
+    return {**counts, "total": len(items)}

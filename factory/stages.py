@@ -20,6 +20,7 @@ STAGES: dict[str, str] = {
     "ingest": "factory.scenes.ingest:run",
     "compile": "factory.scenes.build:run_compile",
     "render": "factory.scenes.build:run_render",
+    "export": "factory.scenes.build:run_export",
     "all": "factory.stages:run_all",
 }
 """Every stage, in pipeline order."""
@@ -29,6 +30,7 @@ DESCRIPTIONS: dict[str, str] = {
     "ingest": "bring scenes into run_dir (scene.json, SAGE layout/folder/zip; default: examples)",
     "compile": "compile each scene to MuJoCo: scenes/<id>/model.xml (+ meshes under assets/)",
     "render": "render top-down and corner views: scenes/<id>/renders/*.png",
+    "export": "write scenes back out (export.format=sage: layout JSON + PLY meshes)",
     "all": "run the stages listed in all.stages, in order",
 }
 

@@ -1,0 +1,4 @@
+"""Scene generation and scene artifacts (ingest, renders, SAGE meshes).
+
+Submodules are imported where they are used; this package imports nothing heavy.
+"""

@@ -1,0 +1,433 @@
+"""Scene -> ``mujoco.MjSpec`` -> ``MjModel`` and a standalone ``model.xml``.
+
+What a compiled scene holds:
+
+* a ground plane (collision) and one visual floor slab per room, with its floor material;
+* walls as boxes around their door and window openings (:mod:`factory.sim.walls`), glass panes
+  in windows, and optionally a ceiling;
+* one body per object, named by the object's id, at its bottom centre
+  (``pos_obj_in_world``) with its rotation: a free joint unless the object is static
+  (wall-mounted or ``physics.static``); geoms from the asset's convex collision parts (or, with
+  none listed, the hull of its visual mesh); an object without an asset is a box of its
+  dimensions (logged). Mass is the scene's (uniform density over the collision geometry),
+  sliding friction the scene's.
+
+Mesh and texture files stay in ``<run_dir>/assets/`` and ``model.xml`` refers to them by
+relative path, so plain ``mujoco.MjModel.from_xml_path(".../model.xml")`` loads it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from factory.errors import CompileError
+from factory.schema import AssetMeta, Room, Scene, SceneObject, SchemaError, load_asset_meta
+from factory.sim.materials import DEFAULT_FLOOR, DEFAULT_WALL, SURFACES, object_rgba, surface
+from factory.sim.walls import opening_rect, solid_rects
+
+log = logging.getLogger(__name__)
+
+FLOOR_SLAB = 0.01
+"""Thickness of the visual floor slab of a room (m); its top is at z = 0.0005."""
+
+TORSIONAL_FRICTION = 0.005
+ROLLING_FRICTION = 0.0001
+
+GROUP_ARCH = 0
+GROUP_VISUAL = 2
+GROUP_COLLISION = 3
+
+
+@dataclass
+class CompileOptions:
+    """Options of the compiler (mirrors :class:`factory.config.CompileConfig`).
+
+    Attributes:
+        ceiling: add a ceiling slab per room.
+        timestep: simulation step (s).
+        offscreen_size: offscreen framebuffer width and height (px).
+    """
+
+    ceiling: bool = False
+    timestep: float = 0.002
+    offscreen_size: int = 1280
+
+
+@dataclass
+class CompiledScene:
+    """A compiled scene.
+
+    Attributes:
+        spec: the MjSpec (meshes referenced by absolute path).
+        model: the compiled model.
+        boxed: ids of objects compiled as boxes because they have no asset.
+        assets_root: where asset meshes were read (``None`` if none was used).
+    """
+
+    spec: mujoco.MjSpec
+    model: mujoco.MjModel
+    boxed: list[str] = field(default_factory=list)
+    assets_root: Path | None = None
+
+
+def _yaw_quat(yaw: float) -> list[float]:
+    return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+
+class _Builder:
+    def __init__(self, scene: Scene, assets_root: Path | None, options: CompileOptions):
+        self.scene = scene
+        self.assets_root = assets_root
+        self.options = options
+        self.spec = mujoco.MjSpec()
+        self.spec.modelname = scene.id
+        self.materials: set[str] = set()
+        self.boxed: list[str] = []
+        self.mesh_assets: dict[str, AssetMeta] = {}
+        self.dynamic_geoms: dict[str, list[mujoco.MjsGeom]] = {}
+
+    # ---- global settings
+    def setup(self) -> None:
+        spec = self.spec
+        spec.option.timestep = self.options.timestep
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.compiler.degree = False
+        if self.assets_root is not None:
+            spec.meshdir = str(self.assets_root)
+            spec.texturedir = str(self.assets_root)
+        vis = spec.visual
+        vis.global_.offwidth = self.options.offscreen_size
+        vis.global_.offheight = self.options.offscreen_size
+        vis.quality.shadowsize = 4096
+        vis.headlight.ambient = [0.35, 0.35, 0.35]
+        vis.headlight.diffuse = [0.45, 0.45, 0.45]
+        vis.headlight.specular = [0.1, 0.1, 0.1]
+        vis.map.znear = 0.01
+        tex = spec.add_texture(
+            name="ground_tex",
+            type=mujoco.mjtTexture.mjTEXTURE_2D,
+            builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+            rgb1=[0.42, 0.44, 0.46],
+            rgb2=[0.36, 0.38, 0.40],
+            width=256,
+            height=256,
+        )
+        ground = spec.add_material(name="ground", texrepeat=[1, 1], texuniform=True)
+        ground.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
+        spec.worldbody.add_geom(
+            name="ground",
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[0, 0, 0.05],
+            material="ground",
+            group=GROUP_ARCH,
+        )
+        xmin, ymin, xmax, ymax = self.scene.bounds_xy()
+        cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
+        spec.worldbody.add_light(
+            name="sun",
+            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+            pos=[cx, cy, 10.0],
+            dir=[0.3, 0.2, -1.0],
+            diffuse=[0.55, 0.55, 0.52],
+            specular=[0.1, 0.1, 0.1],
+            castshadow=True,
+        )
+
+    def material(self, key: str, name: str, default_rgba: tuple[float, ...] | None = None) -> str:
+        """A material for a named surface (architecture) or an explicit colour (objects)."""
+        mat_name = f"mat/{key}"
+        if mat_name in self.materials:
+            return mat_name
+        self.materials.add(mat_name)
+        if default_rgba is not None:
+            self.spec.add_material(name=mat_name, rgba=list(default_rgba), roughness=0.6)
+            return mat_name
+        default = DEFAULT_FLOOR if key.startswith("floor") else DEFAULT_WALL
+        surf = surface(name, default)
+        mat = self.spec.add_material(
+            name=mat_name, rgba=list(surf.rgba), roughness=surf.roughness, metallic=surf.metallic
+        )
+        if surf.checker:
+            r, g, b, _ = surf.rgba
+            tex = self.spec.add_texture(
+                name=f"tex/{key}",
+                type=mujoco.mjtTexture.mjTEXTURE_2D,
+                builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+                rgb1=[1.0, 1.0, 1.0],
+                rgb2=[0.88, 0.88, 0.88],
+                width=128,
+                height=128,
+            )
+            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
+            mat.texrepeat = [2.0, 2.0]
+            mat.texuniform = True
+            mat.rgba = [r, g, b, 1.0]
+        return mat_name
+
+    # ---- architecture
+    def room(self, room: Room) -> None:
+        spec = self.spec
+        w, ln = room.dimensions.width, room.dimensions.length
+        x0, y0, z0 = room.position.as_tuple()
+        spec.worldbody.add_geom(
+            name=f"{room.id}/floor",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            pos=[x0 + w / 2, y0 + ln / 2, z0 + 0.0005 - FLOOR_SLAB / 2],
+            size=[w / 2, ln / 2, FLOOR_SLAB / 2],
+            material=self.material(f"floor/{room.floor_material}", room.floor_material),
+            contype=0,
+            conaffinity=0,
+            group=GROUP_ARCH,
+        )
+        if self.options.ceiling:
+            spec.worldbody.add_geom(
+                name=f"{room.id}/ceiling",
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                pos=[x0 + w / 2, y0 + ln / 2, z0 + room.ceiling_height + 0.05],
+                size=[w / 2, ln / 2, 0.05],
+                material=self.material("wall/ceiling", "plaster"),
+                group=GROUP_ARCH,
+            )
+        spec.worldbody.add_light(
+            name=f"{room.id}/light",
+            type=mujoco.mjtLightType.mjLIGHT_POINT,
+            pos=[x0 + w / 2, y0 + ln / 2, z0 + room.ceiling_height - 0.2],
+            diffuse=[0.35, 0.35, 0.33],
+            specular=[0.05, 0.05, 0.05],
+            castshadow=False,
+        )
+        for wall in room.walls:
+            openings = [op for op in (*room.doors, *room.windows) if op.wall_id == wall.id]
+            dx, dy = wall.end.x - wall.start.x, wall.end.y - wall.start.y
+            length = wall.length
+            ux, uy = dx / length, dy / length
+            quat = _yaw_quat(math.atan2(dy, dx))
+            mat = self.material(f"wall/{wall.material}", wall.material)
+            half_t = wall.thickness / 2
+            for k, r in enumerate(solid_rects(wall, openings)):
+                u0 = r.u0 - (half_t if r.u0 <= 1e-9 else 0.0)
+                u1 = r.u1 + (half_t if r.u1 >= length - 1e-9 else 0.0)
+                uc, zc = (u0 + u1) / 2, (r.z0 + r.z1) / 2
+                spec.worldbody.add_geom(
+                    name=f"{room.id}/{wall.id}/{k}",
+                    type=mujoco.mjtGeom.mjGEOM_BOX,
+                    pos=[wall.start.x + ux * uc, wall.start.y + uy * uc, wall.start.z + zc],
+                    quat=quat,
+                    size=[(u1 - u0) / 2, half_t, (r.z1 - r.z0) / 2],
+                    material=mat,
+                    group=GROUP_ARCH,
+                )
+            for win in (op for op in room.windows if op.wall_id == wall.id):
+                r = opening_rect(wall, win)
+                uc, zc = (r.u0 + r.u1) / 2, (r.z0 + r.z1) / 2
+                spec.worldbody.add_geom(
+                    name=f"{room.id}/{win.id}/glass",
+                    type=mujoco.mjtGeom.mjGEOM_BOX,
+                    pos=[wall.start.x + ux * uc, wall.start.y + uy * uc, wall.start.z + zc],
+                    quat=quat,
+                    size=[(r.u1 - r.u0) / 2, 0.005, (r.z1 - r.z0) / 2],
+                    rgba=list(SURFACES["glass"].rgba),
+                    contype=0,
+                    conaffinity=0,
+                    group=GROUP_ARCH,
+                )
+
+    # ---- objects
+    def _asset(self, obj: SceneObject) -> AssetMeta | None:
+        if obj.asset is None or not obj.asset.asset_id or self.assets_root is None:
+            return None
+        folder = self.assets_root / obj.asset.asset_id
+        if not (folder / "meta.json").is_file():
+            return None
+        try:
+            return load_asset_meta(folder)
+        except SchemaError as e:
+            raise CompileError(f"object {obj.id!r}: {e}") from None
+
+    def obj(self, obj: SceneObject) -> None:
+        spec = self.spec
+        body = spec.worldbody.add_body(
+            name=obj.id, pos=list(obj.position.as_tuple()), quat=list(obj.rotation.quat_wxyz())
+        )
+        if not obj.is_static:
+            body.add_freejoint(name=f"{obj.id}/free")
+        friction = [obj.physics.friction, TORSIONAL_FRICTION, ROLLING_FRICTION]
+        rgba = tuple(obj.appearance.rgba) if obj.appearance.rgba else object_rgba(obj.category)
+        meta = self._asset(obj)
+        geoms: list[mujoco.MjsGeom] = []
+        if meta is None:
+            self.boxed.append(obj.id)
+            d = obj.dimensions
+            geoms.append(
+                body.add_geom(
+                    name=f"{obj.id}/box",
+                    type=mujoco.mjtGeom.mjGEOM_BOX,
+                    pos=[0, 0, d.height / 2],
+                    size=[d.width / 2, d.length / 2, d.height / 2],
+                    friction=friction,
+                    material=self.material(f"obj/{obj.id}", "", rgba),
+                    group=GROUP_VISUAL,
+                )
+            )
+        else:
+            assert obj.asset is not None
+            scale = list(obj.asset.scale.as_tuple())
+            aid = meta.asset_id
+            visual_mesh = f"{aid}/visual"
+            if visual_mesh not in self.mesh_assets:
+                spec.add_mesh(name=visual_mesh, file=f"{aid}/{meta.visual}", scale=scale)
+                self.mesh_assets[visual_mesh] = meta
+            if meta.texture:
+                tex_name = f"tex/{aid}"
+                mat_name = f"mat/{aid}"
+                if mat_name not in self.materials:
+                    self.materials.add(mat_name)
+                    spec.add_texture(
+                        name=tex_name, type=mujoco.mjtTexture.mjTEXTURE_2D,
+                        file=f"{aid}/{meta.texture}",
+                    )
+                    m = spec.add_material(name=mat_name)
+                    m.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex_name
+                    if obj.appearance.roughness is not None:
+                        m.roughness = obj.appearance.roughness
+                    if obj.appearance.metallic is not None:
+                        m.metallic = obj.appearance.metallic
+                material = mat_name
+            else:
+                material = self.material(f"obj/{obj.id}", "", rgba)
+            if meta.collision:
+                body.add_geom(
+                    name=f"{obj.id}/visual",
+                    type=mujoco.mjtGeom.mjGEOM_MESH,
+                    meshname=visual_mesh,
+                    material=material,
+                    contype=0,
+                    conaffinity=0,
+                    density=0,
+                    group=GROUP_VISUAL,
+                )
+                for k, part in enumerate(meta.collision):
+                    mesh_name = f"{aid}/collision_{k}"
+                    if mesh_name not in self.mesh_assets:
+                        spec.add_mesh(name=mesh_name, file=f"{aid}/{part}", scale=scale)
+                        self.mesh_assets[mesh_name] = meta
+                    geoms.append(
+                        body.add_geom(
+                            name=f"{obj.id}/collision_{k}",
+                            type=mujoco.mjtGeom.mjGEOM_MESH,
+                            meshname=mesh_name,
+                            friction=friction,
+                            rgba=[0.5, 0.5, 0.5, 0.4],
+                            group=GROUP_COLLISION,
+                        )
+                    )
+            else:
+                geoms.append(
+                    body.add_geom(
+                        name=f"{obj.id}/visual",
+                        type=mujoco.mjtGeom.mjGEOM_MESH,
+                        meshname=visual_mesh,
+                        material=material,
+                        friction=friction,
+                        group=GROUP_VISUAL,
+                    )
+                )
+        if not obj.is_static:
+            for g in geoms:
+                g.density = 1.0
+            self.dynamic_geoms[obj.id] = geoms
+
+
+def _build(scene: Scene, assets_root: str | Path | None, options: CompileOptions | None) -> _Builder:
+    root = Path(assets_root).resolve() if assets_root else None
+    b = _Builder(scene, root, options or CompileOptions())
+    b.setup()
+    for room in scene.rooms:
+        b.room(room)
+    for obj in scene.objects:
+        b.obj(obj)
+    return b
+
+
+def build_spec(
+    scene: Scene, assets_root: str | Path | None = None, options: CompileOptions | None = None
+) -> tuple[mujoco.MjSpec, list[str]]:
+    """Builds the MjSpec of a scene; returns it and the ids of objects compiled as boxes.
+
+    Dynamic geoms have density 1 here; :func:`compile_scene` sets the scene's masses.
+    """
+    b = _build(scene, assets_root, options)
+    return b.spec, b.boxed
+
+
+def compile_scene(
+    scene: Scene, assets_root: str | Path | None = None, options: CompileOptions | None = None
+) -> CompiledScene:
+    """Compiles a scene into a MuJoCo model.
+
+    Args:
+        scene: a validated scene.
+        assets_root: the run's ``assets/`` folder (objects whose asset is found there use its
+            meshes; the others become boxes).
+        options: compiler options.
+
+    Returns:
+        the compiled scene; every dynamic object body has exactly the scene's mass.
+
+    Raises:
+        CompileError: MuJoCo rejects the model (the message says which part).
+    """
+    b = _build(scene, assets_root, options)
+    spec, boxed, dynamic = b.spec, b.boxed, b.dynamic_geoms
+    try:
+        model = spec.compile()
+        # Uniform density per object so that its body mass is exactly the scene's mass.
+        for obj in scene.objects:
+            if obj.id not in dynamic:
+                continue
+            volume = float(model.body_mass[model.body(obj.id).id])
+            if volume <= 0:
+                raise CompileError(f"object {obj.id!r}: its collision geometry has no volume")
+            for g in dynamic[obj.id]:
+                g.density = obj.physics.mass / volume
+        model = spec.compile()
+    except ValueError as e:
+        raise CompileError(f"scene {scene.id!r} does not compile in MuJoCo: {e}") from None
+    if boxed:
+        log.info(
+            "scene %s: %d object(s) have no asset and compile as boxes of their dimensions: %s",
+            scene.id, len(boxed), ", ".join(boxed[:10]) + (" ..." if len(boxed) > 10 else ""),
+        )
+    return CompiledScene(
+        spec=spec,
+        model=model,
+        boxed=boxed,
+        assets_root=Path(assets_root).resolve() if assets_root else None,
+    )
+
+
+def model_xml(compiled: CompiledScene, model_dir: str | Path) -> str:
+    """The MJCF text of a compiled scene, with asset paths relative to ``model_dir``."""
+    spec = compiled.spec
+    if compiled.assets_root is not None:
+        rel = os.path.relpath(compiled.assets_root, Path(model_dir).resolve())
+        spec.meshdir = rel
+        spec.texturedir = rel
+    try:
+        return spec.to_xml()
+    finally:
+        if compiled.assets_root is not None:
+            spec.meshdir = str(compiled.assets_root)
+            spec.texturedir = str(compiled.assets_root)
+
+
+def body_masses(model: mujoco.MjModel, names: list[str]) -> np.ndarray:
+    """Masses (kg) of the bodies named ``names``: ``(len(names),)``."""
+    return np.array([model.body_mass[model.body(n).id] for n in names])
