@@ -415,17 +415,20 @@ def compile_scene(
 
 def model_xml(compiled: CompiledScene, model_dir: str | Path) -> str:
     """The MJCF text of a compiled scene, with asset paths relative to ``model_dir``."""
-    spec = compiled.spec
-    if compiled.assets_root is not None:
-        rel = os.path.relpath(compiled.assets_root, Path(model_dir).resolve())
-        spec.meshdir = rel
-        spec.texturedir = rel
-    try:
-        return spec.to_xml()
-    finally:
-        if compiled.assets_root is not None:
-            spec.meshdir = str(compiled.assets_root)
-            spec.texturedir = str(compiled.assets_root)
+    import xml.etree.ElementTree as ET
+
+    text = compiled.spec.to_xml()
+    if compiled.assets_root is None:
+        return text
+    rel = os.path.relpath(compiled.assets_root, Path(model_dir).resolve())
+    root = ET.fromstring(text)
+    compiler = root.find("compiler")
+    if compiler is None:  # pragma: no cover - MuJoCo always writes one with meshdir set
+        compiler = ET.SubElement(root, "compiler")
+    compiler.set("meshdir", rel)
+    compiler.set("texturedir", rel)
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="unicode") + "\n"
 
 
 def body_masses(model: mujoco.MjModel, names: list[str]) -> np.ndarray:
