@@ -74,9 +74,10 @@ def _composition_message(exc: BaseException) -> str:
         unknown = isinstance(cause, ConfigKeyError | ConfigAttributeError) or " not in '" in str(
             cause
         )
-        if unknown and getattr(cause, "full_key", None):
+        full_key = getattr(cause, "full_key", None)
+        if unknown and full_key:
             return (
-                f"unknown config key {cause.full_key!r}: check the spelling "
+                f"unknown config key {full_key!r}: check the spelling "
                 "(python -m factory stage=list --cfg job prints every key)"
             )
         if isinstance(cause, OmegaConfBaseException) and getattr(cause, "full_key", None):
@@ -114,10 +115,9 @@ def compose(overrides: list[str]) -> Any:
 def execute(cfg: Any) -> dict[str, Any]:
     """Runs ``cfg.stage`` (the typed config) and returns its summary."""
     from factory.runner import run_stage, setup_logging
+    from factory.scenes.gl import configure_gl
     from factory.stages import StageContext, check_stage
     from factory.store import RunStore, resolve_shard
-
-    from factory.scenes.gl import configure_gl
 
     check_stage(cfg.stage)
     setup_logging(cfg.log_level)

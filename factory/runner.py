@@ -7,7 +7,8 @@ import logging
 import time
 from typing import Any
 
-from factory.stages import StageContext, resolve
+from factory.errors import StoreError
+from factory.stages import CREATES_RUN, StageContext, resolve
 
 log = logging.getLogger("factory")
 
@@ -35,10 +36,15 @@ def run_stage(name: str, ctx: StageContext) -> dict[str, Any]:
     store = ctx.store if name == "list" else ctx.require_store()
     if store is None or name in ("list", "all"):
         return fn(dataclasses.replace(ctx, cfg=dataclasses.replace(ctx.cfg, stage=name)))
+    if name not in CREATES_RUN and not store.root.is_dir():
+        raise StoreError(
+            f"run_dir {store.root} does not exist: start the run with stage=ingest or stage=all"
+        )
     from omegaconf import OmegaConf
 
-    config = OmegaConf.to_container(OmegaConf.structured(ctx.cfg))
-    assert isinstance(config, dict)
+    config: dict[str, Any] = OmegaConf.to_container(  # type: ignore[assignment]
+        OmegaConf.structured(ctx.cfg)
+    )
     store.logs_dir.mkdir(parents=True, exist_ok=True)
     file_handler = logging.FileHandler(store.logs_dir / f"{name}-{ctx.shard.name}.log")
     file_handler.setFormatter(logging.Formatter(_FORMAT))
@@ -50,7 +56,11 @@ def run_stage(name: str, ctx: StageContext) -> dict[str, Any]:
         result = fn(dataclasses.replace(ctx, cfg=dataclasses.replace(ctx.cfg, stage=name)))
     except BaseException as e:
         store.record_stage(
-            name, ctx.shard, "failed", config, error=f"{type(e).__name__}: {e}",
+            name,
+            ctx.shard,
+            "failed",
+            config,
+            error=f"{type(e).__name__}: {e}",
             seconds=time.perf_counter() - t0,
         )
         raise
@@ -63,9 +73,7 @@ def run_stage(name: str, ctx: StageContext) -> dict[str, Any]:
     return result
 
 
-def run_items(
-    what: str, items: list[str], fn: Any, progress: bool = True
-) -> dict[str, Any]:
+def run_items(what: str, items: list[str], fn: Any, progress: bool = True) -> dict[str, Any]:
     """Applies ``fn(item) -> "done" | "skipped"`` to every item, with a progress bar.
 
     A :class:`~factory.errors.FactoryError` on one item is logged and the others go on; at the
@@ -89,7 +97,8 @@ def run_items(
             failures.append((item, str(e)))
     if failures:
         item, reason = failures[0]
+        reason = reason if item in reason else f"{item}: {reason}"
         raise StageFailed(
-            f"{what}: {len(failures)} of {len(items)} item(s) failed; first: {item}: {reason}"
+            f"{what}: {len(failures)} of {len(items)} item(s) failed; first: {reason}"
         )
     return {**counts, "total": len(items)}

@@ -25,6 +25,9 @@ STAGES: dict[str, str] = {
 }
 """Every stage, in pipeline order."""
 
+CREATES_RUN: frozenset[str] = frozenset({"ingest", "all"})
+"""Stages that may start a new run directory; the others need an existing one."""
+
 DESCRIPTIONS: dict[str, str] = {
     "list": "print the stages and profiles",
     "ingest": "bring scenes into run_dir (scene.json, SAGE layout/folder/zip; default: examples)",
@@ -51,9 +54,7 @@ class StageContext:
 
     def require_store(self) -> RunStore:
         if self.store is None:
-            raise ConfigError(
-                f"stage {self.cfg.stage!r} needs a run directory: pass run_dir=PATH"
-            )
+            raise ConfigError(f"stage {self.cfg.stage!r} needs a run directory: pass run_dir=PATH")
         return self.store
 
 

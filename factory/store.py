@@ -142,9 +142,7 @@ class Shard:
         return order[self.index :: self.count]
 
 
-def resolve_shard(
-    index: int | None, count: int | None, env: dict[str, str] | None = None
-) -> Shard:
+def resolve_shard(index: int | None, count: int | None, env: dict[str, str] | None = None) -> Shard:
     """The shard from explicit values, else from SLURM's array variables, else ``0 of 1``.
 
     ``SLURM_ARRAY_TASK_ID`` is taken relative to ``SLURM_ARRAY_TASK_MIN`` so that arrays such as

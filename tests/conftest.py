@@ -76,12 +76,36 @@ def sage_layout() -> dict[str, Any]:
     living = _walls("living", 4.0, 0.0, 5.0, 3.5, h)
     bedroom_objects = [
         _obj("bed_0", "bedroom", "bed", (1.5, 1.75, 0.0), (1.6, 2.0, 0.55), "floor", 90.0, 60.0),
-        _obj("nightstand_0", "bedroom", "nightstand", (0.35, 0.4, 0.0), (0.45, 0.4, 0.5),
-             "bedroom", 0.0, 8.0),
-        _obj("lamp_0", "bedroom", "lamp", (0.35, 0.4, 0.5), (0.15, 0.15, 0.35), "nightstand_0",
-             0.0, 0.9),
-        _obj("painting_0", "bedroom", "painting", (2.0, 3.4, 1.4), (0.8, 0.03, 0.6),
-             "bedroom_north", 180.0, 2.0),
+        _obj(
+            "nightstand_0",
+            "bedroom",
+            "nightstand",
+            (0.35, 0.4, 0.0),
+            (0.45, 0.4, 0.5),
+            "bedroom",
+            0.0,
+            8.0,
+        ),
+        _obj(
+            "lamp_0",
+            "bedroom",
+            "lamp",
+            (0.35, 0.4, 0.5),
+            (0.15, 0.15, 0.35),
+            "nightstand_0",
+            0.0,
+            0.9,
+        ),
+        _obj(
+            "painting_0",
+            "bedroom",
+            "painting",
+            (2.0, 3.4, 1.4),
+            (0.8, 0.03, 0.6),
+            "bedroom_north",
+            180.0,
+            2.0,
+        ),
     ]
     bedroom_objects[1]["placement_constraints"] = [{"type": "near", "target": "bed_0"}]
     bedroom_objects[0]["metallic"] = 0.0
@@ -90,8 +114,16 @@ def sage_layout() -> dict[str, Any]:
     living_objects = [
         _obj("sofa_0", "living", "sofa", (6.5, 0.6, 0.0), (2.1, 0.9, 0.85), "floor", 0.0, 45.0),
         _obj("tv_0", "living", "tv", (8.9, 1.75, 1.2), (0.08, 1.2, 0.7), "wall", -90.0, 12.0),
-        _obj("table_0", "living", "coffee_table", (6.5, 1.9, 0.0), (1.1, 0.6, 0.45), "floor",
-             0.1 + 0.2, 15.0),
+        _obj(
+            "table_0",
+            "living",
+            "coffee_table",
+            (6.5, 1.9, 0.0),
+            (1.1, 0.6, 0.45),
+            "floor",
+            0.1 + 0.2,
+            15.0,
+        ),
         _obj("cup_0", "living", "cup", (6.3, 1.9, 0.45), (0.08, 0.08, 0.1), "table_0", 33.3, 0.25),
     ]
     return {
@@ -178,7 +210,9 @@ def write_box_ply(path: Path, dims: tuple[float, float, float]) -> None:
     uvs = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
     tex_tris = [t for _ in quads for t in ((0, 1, 2), (0, 2, 3))]
     vertex = np.array(verts, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
-    face = np.empty(len(tris), dtype=[("vertex_indices", "i4", (3,)), ("texcoord_indices", "i4", (3,))])
+    face = np.empty(
+        len(tris), dtype=[("vertex_indices", "i4", (3,)), ("texcoord_indices", "i4", (3,))]
+    )
     face["vertex_indices"] = tris
     face["texcoord_indices"] = tex_tris
     texcoord = np.array(uvs, dtype=[("u", "f4"), ("v", "f4")])
@@ -211,7 +245,9 @@ def write_sage_package(folder: Path, layout: dict[str, Any] | None = None) -> Pa
             if obj["id"] in ("bed_0", "sofa_0", "cup_0"):
                 d = obj["dimensions"]
                 sid = obj["source_id"]
-                write_box_ply(folder / "objects" / f"{sid}.ply", (d["width"], d["length"], d["height"]))
+                write_box_ply(
+                    folder / "objects" / f"{sid}.ply", (d["width"], d["length"], d["height"])
+                )
                 write_texture(folder / "objects" / f"{sid}_texture.png", (60 + 50 * i, 90, 140))
     (folder / f"{layout['id']}.json").write_text(json.dumps(layout, indent=2))
     return folder

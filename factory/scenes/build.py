@@ -35,9 +35,7 @@ def _digest(*parts: bytes) -> str:
 def _scene_ids(ctx: StageContext, store: RunStore) -> list[str]:
     ids = store.scene_ids()
     if not ids:
-        raise StoreError(
-            f"no scenes in {store.scenes_dir}: run stage=ingest (or stage=all) first"
-        )
+        raise StoreError(f"no scenes in {store.scenes_dir}: run stage=ingest (or stage=all) first")
     return ctx.shard.select(ids)
 
 
@@ -65,9 +63,9 @@ def compile_one(store: RunStore, scene_id: str, options: Any, force: bool = Fals
 
 def render_one(store: RunStore, scene_id: str, cfg: Any, force: bool = False) -> str:
     """Renders one compiled scene's views to ``renders/*.png``."""
-    from factory.scenes.render import png_bytes, render_views
-
     import mujoco
+
+    from factory.scenes.render import png_bytes, render_views
 
     xml = store.model_xml(scene_id)
     if not xml.is_file():

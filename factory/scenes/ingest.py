@@ -21,9 +21,9 @@ from typing import Any
 
 from factory.errors import ConfigError, StoreError
 from factory.runner import run_items
+from factory.scenes.sage_assets import import_sage_mesh
 from factory.schema import Scene, SchemaError, load_scene, scene_to_json
 from factory.schema.sage import extract_zip, read_package, sage_to_scene
-from factory.scenes.sage_assets import import_sage_mesh
 from factory.stages import StageContext
 from factory.store import RunStore
 
@@ -82,9 +82,7 @@ def discover(source: str | Path) -> list[SceneInput]:
         if (p / "scene.json").is_file():
             found.append(SceneInput("scene", p / "scene.json"))
             return
-        layouts = [
-            c for c in sorted(p.glob("*.json")) if c.is_file() and _json_kind(c) == "sage"
-        ]
+        layouts = [c for c in sorted(p.glob("*.json")) if c.is_file() and _json_kind(c) == "sage"]
         if layouts and (p / "objects").is_dir():
             found.append(SceneInput("sage", p))
             return
@@ -108,10 +106,7 @@ def _sage_scene(store: RunStore, inp: SceneInput) -> Scene:
             tmp = Path(tempfile.mkdtemp(prefix="sage-", dir=store.root / ".tmp"))
             folder = extract_zip(inp.path, tmp)
         pkg = read_package(folder)
-        try:
-            scene = sage_to_scene(pkg.layout)
-        except SchemaError as e:
-            raise SchemaError(f"{pkg.layout_path}: {e}") from None
+        scene = sage_to_scene(pkg.layout)
         for obj in scene.objects:
             a = obj.asset
             if a is None or a.source_id not in pkg.meshes:

@@ -13,7 +13,6 @@ import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 from factory.errors import RenderError
 from factory.scenes.gl import configure_gl
@@ -150,7 +149,9 @@ def contact_sheet(images: dict[str, np.ndarray], columns: int = 3) -> np.ndarray
     h, w, _ = ims[0].shape
     rows = math.ceil(len(ims) / columns)
     gap = 4
-    sheet = np.full((rows * h + (rows - 1) * gap, columns * w + (columns - 1) * gap, 3), 255, np.uint8)
+    sheet = np.full(
+        (rows * h + (rows - 1) * gap, columns * w + (columns - 1) * gap, 3), 255, np.uint8
+    )
     for i, im in enumerate(ims):
         r, c = divmod(i, columns)
         sheet[r * (h + gap) : r * (h + gap) + h, c * (w + gap) : c * (w + gap) + w] = im

@@ -28,7 +28,9 @@ from factory.store import RunStore, atomic_copy, atomic_write_text, sha256_bytes
 log = logging.getLogger(__name__)
 
 
-def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+def read_ply(
+    path: str | Path,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Reads a (SAGE) PLY mesh.
 
     Returns:
@@ -89,7 +91,7 @@ def obj_text(
         lines += [f"vt {u:.9g} {v:.9g}" for u, v in uv]
         lines += [
             f"f {a + 1}/{ta + 1} {b + 1}/{tb + 1} {c + 1}/{tc + 1}"
-            for (a, b, c), (ta, tb, tc) in zip(faces, face_uv)
+            for (a, b, c), (ta, tb, tc) in zip(faces, face_uv, strict=True)
         ]
     else:
         lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]

@@ -27,8 +27,8 @@ from typing import Any
 
 from factory.schema.errors import SchemaError, UnsafePathError
 from factory.schema.scene import (
-    AssetRef,
     Appearance,
+    AssetRef,
     Door,
     Euler,
     Physics,
@@ -186,7 +186,7 @@ def sage_to_scene(layout: Any) -> Scene:
     rooms_raw = _list(layout, "rooms", "the layout")
     rooms: list[Room] = []
     objects: list[SceneObject] = []
-    wall_ids: set[str] = set()
+    wall_ids: set[Any] = set()
     room_ids = {r.get("id") for r in rooms_raw if isinstance(r, dict)}
     for r in rooms_raw:
         for w in _list(_dict(r, "a room"), "walls", "a room"):

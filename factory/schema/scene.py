@@ -459,7 +459,9 @@ def validate(scene: Scene) -> Scene:
         if room.id in room_ids:
             raise SchemaError(f"{where}: duplicate room id")
         room_ids.add(room.id)
-        for name, value in zip(("width", "length", "height"), room.dimensions.as_tuple()):
+        for name, value in zip(
+            ("width", "length", "height"), room.dimensions.as_tuple(), strict=True
+        ):
             _positive(value, f"{where}: dimensions.{name}")
         _positive(room.ceiling_height, f"{where}: ceiling_height")
         local_walls: dict[str, Wall] = {}
@@ -502,7 +504,9 @@ def validate(scene: Scene) -> Scene:
     supports: dict[str, str] = {}
     for i, obj in enumerate(scene.objects):
         where = f"scene {scene.id!r}: objects[{i}] {obj.id!r}"
-        for name, value in zip(("width", "length", "height"), obj.dimensions.as_tuple()):
+        for name, value in zip(
+            ("width", "length", "height"), obj.dimensions.as_tuple(), strict=True
+        ):
             _positive(value, f"{where}: dimensions.{name}")
         _positive(obj.physics.mass, f"{where}: physics.mass")
         if obj.physics.friction < 0:

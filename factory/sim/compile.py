@@ -28,7 +28,16 @@ import mujoco
 import numpy as np
 
 from factory.errors import CompileError
-from factory.schema import AssetMeta, Room, Scene, SceneObject, SchemaError, load_asset_meta
+from factory.schema import (
+    AssetMeta,
+    Door,
+    Room,
+    Scene,
+    SceneObject,
+    SchemaError,
+    Window,
+    load_asset_meta,
+)
 from factory.sim.materials import DEFAULT_FLOOR, DEFAULT_WALL, SURFACES, object_rgba, surface
 from factory.sim.walls import opening_rect, solid_rects
 
@@ -204,7 +213,8 @@ class _Builder:
             castshadow=False,
         )
         for wall in room.walls:
-            openings = [op for op in (*room.doors, *room.windows) if op.wall_id == wall.id]
+            openings: list[Door | Window] = [d for d in room.doors if d.wall_id == wall.id]
+            openings += [w for w in room.windows if w.wall_id == wall.id]
             dx, dy = wall.end.x - wall.start.x, wall.end.y - wall.start.y
             length = wall.length
             ux, uy = dx / length, dy / length
@@ -290,7 +300,8 @@ class _Builder:
                 if mat_name not in self.materials:
                     self.materials.add(mat_name)
                     spec.add_texture(
-                        name=tex_name, type=mujoco.mjtTexture.mjTEXTURE_2D,
+                        name=tex_name,
+                        type=mujoco.mjtTexture.mjTEXTURE_2D,
                         file=f"{aid}/{meta.texture}",
                     )
                     m = spec.add_material(name=mat_name)
@@ -345,7 +356,9 @@ class _Builder:
             self.dynamic_geoms[obj.id] = geoms
 
 
-def _build(scene: Scene, assets_root: str | Path | None, options: CompileOptions | None) -> _Builder:
+def _build(
+    scene: Scene, assets_root: str | Path | None, options: CompileOptions | None
+) -> _Builder:
     root = Path(assets_root).resolve() if assets_root else None
     b = _Builder(scene, root, options or CompileOptions())
     b.setup()
@@ -403,7 +416,9 @@ def compile_scene(
     if boxed:
         log.info(
             "scene %s: %d object(s) have no asset and compile as boxes of their dimensions: %s",
-            scene.id, len(boxed), ", ".join(boxed[:10]) + (" ..." if len(boxed) > 10 else ""),
+            scene.id,
+            len(boxed),
+            ", ".join(boxed[:10]) + (" ..." if len(boxed) > 10 else ""),
         )
     return CompiledScene(
         spec=spec,

@@ -8,6 +8,7 @@ from the floor. An opening centred at ``position_on_wall`` (0..1) spans
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 from factory.schema import Door, Wall, Window
@@ -50,7 +51,7 @@ def solid_rects(wall: Wall, openings: list[Door | Window], eps: float = 1e-9) ->
     holes = [h for h in holes if h.u1 - h.u0 > eps and h.z1 - h.z0 > eps]
     cuts = sorted({0.0, wall.length, *(h.u0 for h in holes), *(h.u1 for h in holes)})
     columns: list[tuple[float, float, list[tuple[float, float]]]] = []
-    for u0, u1 in zip(cuts[:-1], cuts[1:]):
+    for u0, u1 in itertools.pairwise(cuts):
         if u1 - u0 <= eps:
             continue
         mid = (u0 + u1) / 2

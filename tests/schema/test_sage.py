@@ -58,7 +58,7 @@ def test_object_outside_rooms_is_an_error(sage_dict: dict[str, Any]) -> None:
 
 def test_malformed_layout_names_the_field(sage_dict: dict[str, Any]) -> None:
     del sage_dict["rooms"][0]["objects"][0]["dimensions"]
-    with pytest.raises(SchemaError, match="'bed_0'.*missing 'dimensions'"):
+    with pytest.raises(SchemaError, match=r"'bed_0'.*missing 'dimensions'"):
         sage_to_scene(sage_dict)
     with pytest.raises(SchemaError, match="must be an object"):
         sage_to_scene([1, 2])

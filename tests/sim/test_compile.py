@@ -10,9 +10,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from factory.scenes.sage_assets import import_sage_mesh
 from factory.schema import load_scene
 from factory.schema.sage import read_package, sage_to_scene
-from factory.scenes.sage_assets import import_sage_mesh
 from factory.sim.compile import CompileOptions, compile_scene, model_xml
 from factory.store import RunStore
 
@@ -92,7 +92,9 @@ def test_sage_package_with_meshes(tmp_path: Path, sage_package: Path) -> None:
             obj.asset.asset_id = import_sage_mesh(store, pkg.meshes[sid], pkg.textures[sid], "x")
     compiled = compile_scene(scene, store.assets_dir)
     assert sorted(set(o.id for o in scene.objects) - set(compiled.boxed)) == [
-        "bed_0", "cup_0", "sofa_0",
+        "bed_0",
+        "cup_0",
+        "sofa_0",
     ]
     model = compiled.model
     gid = model.body_geomadr[model.body("bed_0").id]
@@ -104,7 +106,7 @@ def test_sage_package_with_meshes(tmp_path: Path, sage_package: Path) -> None:
     xml = scene_dir / "model.xml"
     xml.write_text(model_xml(compiled, scene_dir))
     assert "../../assets" in xml.read_text()
-    _, moved, names = _simulate_in_subprocess(xml)
+    _, _, names = _simulate_in_subprocess(xml)
     assert "bed_0" in names and "tv_0" in names
     # the mesh's texture coordinates survive
     mid = model.geom_dataid[gid]

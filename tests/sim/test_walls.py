@@ -23,7 +23,9 @@ def test_plain_wall_is_one_box() -> None:
 
 def test_door_and_window_are_cut_out() -> None:
     door = Door(id="d", wall_id="w", position_on_wall=0.2, width=0.9, height=2.1)
-    window = Window(id="n", wall_id="w", position_on_wall=0.7, width=1.2, height=1.0, sill_height=0.9)
+    window = Window(
+        id="n", wall_id="w", position_on_wall=0.7, width=1.2, height=1.0, sill_height=0.9
+    )
     rects = solid_rects(_wall(), [door, window])
     assert _area(rects) == pytest.approx(12.5 - 0.9 * 2.1 - 1.2 * 1.0)
     # no solid rectangle overlaps an opening's centre
@@ -32,7 +34,10 @@ def test_door_and_window_are_cut_out() -> None:
     # pairwise disjoint
     for i, a in enumerate(rects):
         for b in rects[i + 1 :]:
-            assert min(a.u1, b.u1) <= max(a.u0, b.u0) + 1e-9 or min(a.z1, b.z1) <= max(a.z0, b.z0) + 1e-9
+            assert (
+                min(a.u1, b.u1) <= max(a.u0, b.u0) + 1e-9
+                or min(a.z1, b.z1) <= max(a.z0, b.z0) + 1e-9
+            )
 
 
 def test_opening_past_the_end_is_clipped() -> None:

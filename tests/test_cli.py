@@ -1,0 +1,187 @@
+"""The real command line on the small profile, and a one-line error for each bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from factory.schema.sage import scene_to_sage
+
+pytestmark = pytest.mark.slow
+
+
+def _one_line_error(out) -> str:
+    assert out.returncode == 2, (out.returncode, out.stdout, out.stderr)
+    lines = [ln for ln in out.stderr.splitlines() if ln.startswith("factory: error:")]
+    assert len(lines) == 1, out.stderr
+    assert "Traceback" not in out.stderr
+    return lines[0]
+
+
+def test_help_and_list(cli) -> None:
+    out = cli("--help")
+    assert out.returncode == 0
+    for stage in ("list", "ingest", "compile", "render", "export", "all"):
+        assert stage in out.stdout
+    out = cli("stage=list")
+    assert out.returncode == 0 and "ingest" in out.stdout and "small" in out.stdout
+
+
+def test_small_profile_end_to_end(cli, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    out = cli("stage=all", "profile=small", f"run_dir={run}")
+    assert out.returncode == 0, out.stderr
+    scene_dir = run / "scenes" / "kitchen_pick_place"
+    assert (scene_dir / "scene.json").is_file() and (scene_dir / "model.xml").is_file()
+    for view in ("top", "corner_0", "corner_1", "corner_2", "corner_3"):
+        assert (scene_dir / "renders" / f"{view}.png").stat().st_size > 1000
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["schema_version"] == 1 and manifest["config"]["profile"] == "small"
+    assert all(manifest["stages"][s]["status"] == "done" for s in ("ingest", "compile", "render"))
+    assert not list(Path.cwd().glob("outputs"))  # Hydra wrote nothing to the cwd
+    # idempotent: a re-run skips everything and changes nothing
+    before = {p: p.stat().st_mtime_ns for p in scene_dir.rglob("*") if p.is_file()}
+    again = cli("stage=all", "profile=small", f"run_dir={run}")
+    assert again.returncode == 0, again.stderr
+    after = {p: p.stat().st_mtime_ns for p in scene_dir.rglob("*") if p.is_file()}
+    assert before == after
+    shards = json.loads((run / "manifest.json").read_text())["stages"]["render"]["shards"]
+    assert shards["0-of-1"]["result"]["skipped"] == 1
+
+
+def test_sage_zip_ingest_compile_export(cli, tmp_path: Path, sage_package: Path, sage_dict) -> None:
+    archive = tmp_path / "scene.zip"
+    with zipfile.ZipFile(archive, "w") as zf:
+        for p in sage_package.rglob("*"):
+            if p.is_file():
+                zf.write(p, p.relative_to(sage_package))
+    run = tmp_path / "run"
+    out = cli(
+        "stage=all",
+        "profile=small",
+        f"run_dir={run}",
+        f"ingest.source={archive}",
+        "render.views=[top]",
+    )
+    assert out.returncode == 0, out.stderr
+    assert (run / "scenes" / sage_dict["id"] / "renders" / "top.png").is_file()
+    assert not list((run / ".tmp").iterdir())  # the extraction folder is cleaned up
+    out = cli("stage=export", f"run_dir={run}", f"export.out={tmp_path / 'exp'}")
+    assert out.returncode == 0, out.stderr
+    exported = tmp_path / "exp" / sage_dict["id"]
+    assert json.loads((exported / f"{sage_dict['id']}.json").read_text()) == sage_dict
+    for ply in (sage_package / "objects").glob("*"):
+        assert (exported / "objects" / ply.name).read_bytes() == ply.read_bytes()
+
+
+def test_shards_from_slurm_variables(cli, tmp_path: Path, example_scene_path: Path) -> None:
+    src = tmp_path / "src"
+    for i in range(5):
+        data = json.loads(example_scene_path.read_text())
+        data["id"] = f"kitchen_{i}"
+        (src / data["id"]).mkdir(parents=True)
+        (src / data["id"] / "scene.json").write_text(json.dumps(data))
+    run = tmp_path / "run"
+    for task in range(2):
+        env = {"SLURM_ARRAY_TASK_ID": str(task), "SLURM_ARRAY_TASK_COUNT": "2"}
+        out = cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}", env=env)
+        assert out.returncode == 0, out.stderr
+    assert sorted(p.name for p in (run / "scenes").iterdir()) == [f"kitchen_{i}" for i in range(5)]
+    shards = json.loads((run / "manifest.json").read_text())["stages"]["ingest"]["shards"]
+    assert {k: v["result"]["done"] for k, v in shards.items()} == {"0-of-2": 3, "1-of-2": 2}
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["stage=nope"], "unknown stage 'nope'"),
+        (["stage=list", "colour=red"], "unknown config key 'colour'"),
+        (["stage=list", "render.widht=3"], "unknown config key 'render.widht'"),
+        (["stage=list", "render.width=wide"], "bad value for 'render.width'"),
+        (["stage=list", "profile=huge"], "unknown profile 'huge'"),
+        (["stage=compile"], "needs a run directory"),
+        (["compile"], "not key=value"),
+        (["stage=list", "--frobnicate"], "unknown option"),
+        (["stage=ingest", "run_dir=RUN", "shard.index=3", "shard.count=2"], "shard.index"),
+        (["stage=compile", "run_dir=RUN"], "does not exist: start the run"),
+        (["stage=ingest", "run_dir=RUN", "ingest.source=/no/such/path"], "does not exist"),
+        (["stage=ingest", "run_dir=RUN", "ingest.examples=[nowhere]"], "unknown example"),
+    ],
+)
+def test_bad_command_lines(cli, tmp_path: Path, args: list[str], match: str) -> None:
+    args = [a.replace("RUN", str(tmp_path / "run")) for a in args]
+    assert match in _one_line_error(cli(*args))
+
+
+BAD_FILES = {
+    "truncated": ('{"schema_version": 1, "id": "k", "rooms": [{"id": ', "truncated or corrupt"),
+    "malformed": ("{not json", "truncated or corrupt"),
+    "version": ('{"schema_version": 9, "id": "k", "rooms": []}', "schema_version is 9"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_scene_files_leave_nothing_behind(cli, tmp_path: Path, case: str) -> None:
+    text, match = BAD_FILES[case]
+    src = tmp_path / "scene.json"
+    src.write_text(text)
+    run = tmp_path / "run"
+    assert match in _one_line_error(cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}"))
+    assert not (run / "scenes").exists()
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (lambda d: d["rooms"][0]["dimensions"].update(width=-4.0), "must be > 0"),
+        (lambda d: d["rooms"][1]["objects"][0]["position"].update(x=99.0), "outside every room"),
+        (lambda d: d["rooms"][0]["objects"][2].update(place_id="ghost"), "'ghost' does not exist"),
+        (lambda d: d["rooms"][0]["objects"][0].update(id="../escape"), "contains a path"),
+    ],
+    ids=["negative-dimension", "outside-rooms", "missing-support", "path-in-id"],
+)
+def test_bad_sage_layouts(cli, tmp_path: Path, sage_dict, edit, match: str) -> None:
+    edit(sage_dict)
+    src = tmp_path / "layout.json"
+    src.write_text(json.dumps(sage_dict))
+    run = tmp_path / "run"
+    assert match in _one_line_error(cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}"))
+    assert not (run / "scenes").exists() and not (run / "assets").exists()
+
+
+def test_unsafe_zip_is_refused(cli, tmp_path: Path) -> None:
+    archive = tmp_path / "evil.zip"
+    with zipfile.ZipFile(archive, "w") as zf:
+        zf.writestr("layout.json", "{}")
+        zf.writestr("../../escaped.txt", "gotcha")
+    run = tmp_path / "run"
+    line = _one_line_error(cli("stage=ingest", f"run_dir={run}", f"ingest.source={archive}"))
+    assert "unsafe path" in line
+    assert not list(tmp_path.rglob("escaped.txt"))
+    assert not (run / "scenes").exists()
+
+
+def test_changed_scene_needs_force(cli, tmp_path: Path, example_scene_path: Path) -> None:
+    run = tmp_path / "run"
+    src = tmp_path / "kitchen"
+    shutil.copytree(example_scene_path.parent, src)
+    assert cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}").returncode == 0
+    data = json.loads((src / "scene.json").read_text())
+    data["description"] = "changed"
+    (src / "scene.json").write_text(json.dumps(data))
+    line = _one_line_error(cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}"))
+    assert "force=true" in line
+    stored = json.loads((run / "scenes" / data["id"] / "scene.json").read_text())
+    assert stored["description"] != "changed"  # the existing scene is untouched
+    out = cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}", "force=true")
+    assert out.returncode == 0
+
+
+def test_sage_export_matches_sage_dict_api(sage_dict) -> None:
+    from factory.schema.sage import sage_to_scene
+
+    assert scene_to_sage(sage_to_scene(json.loads(json.dumps(sage_dict)))) == sage_dict
