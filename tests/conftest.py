@@ -287,3 +287,13 @@ def run_cli(*args: str, env: dict[str, str] | None = None, cwd: Path | None = No
 def cli():
     """``cli(*args, env=None)`` runs the real command line in a subprocess."""
     return run_cli
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests marked ``gpu`` run only where a CUDA device is present."""
+    if os.path.exists("/dev/nvidiactl"):
+        return
+    skip = pytest.mark.skip(reason="needs a CUDA device (run on the GPU machine)")
+    for item in items:
+        if "gpu" in item.keywords:
+            item.add_marker(skip)

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Sets up factory on a fresh Debian/Ubuntu machine, idempotently:
+#   1. system libraries for offscreen rendering (Mesa EGL and OSMesa), via apt-get;
+#   2. a virtual environment in .venv with factory and all its dependencies (extras all,dev).
+# A second run with an unchanged pyproject.toml takes seconds.
+# Environment: PYTHON (default python3, >= 3.11), FACTORY_SKIP_APT=1 to skip step 1.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PY=${PYTHON:-python3}
+if ! "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
+  echo "setup: factory needs Python >= 3.11; $PY is $("$PY" --version 2>&1). Set PYTHON=..." >&2
+  exit 1
+fi
+
+# 1. System packages (headless OpenGL for MuJoCo's renderer).
+SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6 libglu1-mesa)
+if [ "${FACTORY_SKIP_APT:-0}" != 1 ] && command -v apt-get >/dev/null 2>&1; then
+  missing=()
+  for p in "${SYSTEM_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    SUDO=""
+    [ "$(id -u)" = 0 ] || SUDO="sudo"
+    echo "setup: installing system packages: ${missing[*]}"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+fi
+
+# 2. Python environment.
+if [ ! -x .venv/bin/python ]; then
+  echo "setup: creating .venv with $("$PY" --version)"
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.factory-setup
+want=$(cat pyproject.toml scripts/setup.sh | sha256sum | cut -d' ' -f1)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  echo "setup: installing factory[all,dev] into .venv (first time: a few minutes)"
+  .venv/bin/python -m pip install --disable-pip-version-check -q -e ".[all,dev]"
+  echo "$want" > "$stamp"
+fi
+echo "setup: ready (.venv/bin/python -m factory --help)"
