@@ -118,5 +118,14 @@ class FactoryConfig:
 def register_configs() -> None:
     """Registers the structured configs with Hydra's ConfigStore (idempotent)."""
     from hydra.core.config_store import ConfigStore
+    from omegaconf import OmegaConf
 
     ConfigStore.instance().store(name="factory_schema", node=FactoryConfig)
+    # ``${factory_sweep_dir:${run_dir}}``: where Hydra's multirun bookkeeping goes.
+    OmegaConf.register_new_resolver("factory_sweep_dir", _sweep_dir, replace=True)
+
+
+def _sweep_dir(run_dir: str | None) -> str:
+    import tempfile
+
+    return f"{run_dir}/logs/multirun" if run_dir else f"{tempfile.gettempdir()}/factory-multirun"

@@ -78,6 +78,16 @@ def test_sage_zip_ingest_compile_export(cli, tmp_path: Path, sage_package: Path,
         assert (exported / "objects" / ply.name).read_bytes() == ply.read_bytes()
 
 
+def test_multirun_writes_only_under_run_dir(cli, tmp_path: Path) -> None:
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    run = tmp_path / "run"
+    out = cli("-m", "stage=ingest", f"run_dir={run}", "seed=1,2", cwd=cwd)
+    assert out.returncode == 0, out.stderr
+    assert list(cwd.iterdir()) == []
+    assert (run / "scenes" / "kitchen_pick_place" / "scene.json").is_file()
+
+
 def test_shards_from_slurm_variables(cli, tmp_path: Path, example_scene_path: Path) -> None:
     src = tmp_path / "src"
     for i in range(5):
