@@ -1,0 +1,175 @@
+"""The Warp backend: MuJoCo Warp, one world per candidate, graph-captured stepping.
+
+* Device: ``cuda:0`` when CUDA is present, else Warp's CPU device (slow; used to test this
+  code path without a GPU on tiny models).
+* Contact and constraint buffers (``nconmax``/``njmax`` per world) are sized from the
+  candidates' initial contacts with headroom; a world whose buffers overflow (MuJoCo Warp's
+  per-world ``overflow`` bitmask) is re-run with doubled buffers, and reported ``invalid``
+  (never stable) if it still overflows after ``max_grow`` doublings.
+* Steps are captured once into a CUDA graph of ``graph_steps`` steps and replayed.
+* Warp keeps compiled kernels in its kernel cache (``WARP_CACHE_PATH`` or ``~/.cache/warp``)
+  between runs, so only the first run on a machine pays the cold compile.
+* MuJoCo Warp computes in float32 (the CPU backend in float64): verdicts agree except for
+  candidates within float noise of a threshold.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from factory.errors import ConfigError
+from factory.sim.backend import Rollout, check_qpos, cuda_available, nonfinite_rows
+
+log = logging.getLogger(__name__)
+
+
+class WarpBackend:
+    """MuJoCo Warp settling.
+
+    Args:
+        device: Warp device (``cuda:0``, ``cpu``); default: CUDA if present, else CPU.
+        chunk: worlds per launch (bounds GPU memory).
+        graph_steps: steps per captured CUDA graph.
+        max_grow: how many times buffers may double after an overflow.
+    """
+
+    name = "warp"
+
+    def __init__(
+        self,
+        device: str | None = None,
+        chunk: int = 8192,
+        graph_steps: int = 50,
+        max_grow: int = 2,
+    ) -> None:
+        import warp as wp
+
+        wp.config.quiet = True
+        wp.init()
+        self.wp = wp
+        self.device = device or ("cuda:0" if cuda_available() else "cpu")
+        self.chunk = chunk
+        self.graph_steps = graph_steps
+        self.max_grow = max_grow
+        self._models: dict[int, Any] = {}
+
+    # ---- sizing
+    @staticmethod
+    def initial_sizes(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[int, int]:
+        """``(nconmax, njmax)`` per world from the contacts of a sample of candidates."""
+        data = mujoco.MjData(model)
+        most = 0
+        sample = qpos[np.linspace(0, len(qpos) - 1, min(len(qpos), 16)).astype(int)]
+        for q in sample:
+            data.qpos[:] = q
+            mujoco.mj_forward(model, data)
+            most = max(most, int(data.ncon))
+        nconmax = max(64, 2 * most + 4 * int(np.sum(model.jnt_type == 0)) + 16)
+        rows_per_contact = 4 if model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL else 6
+        njmax = max(256, rows_per_contact * nconmax + model.nv)
+        return int(nconmax), int(njmax)
+
+    def _warp_model(self, model: mujoco.MjModel) -> Any:
+        import mujoco_warp as mjw
+
+        key = id(model)
+        if key not in self._models:
+            with self.wp.ScopedDevice(self.device):
+                m = mjw.put_model(model)
+            bits = mjw.OverflowType
+            m.opt.warn_overflow = int(
+                bits.NEFC
+                | bits.NJMAX_NNZ
+                | bits.BROADPHASE
+                | bits.NARROWPHASE
+                | bits.CCD
+                | bits.EPA_HORIZON
+            )
+            self._models = {key: (model, m)}
+        return self._models[key][1]
+
+    # ---- stepping
+    def _run(
+        self, model: mujoco.MjModel, q: np.ndarray, nstep: int, nconmax: int, njmax: int
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        import mujoco_warp as mjw
+
+        wp = self.wp
+        m = self._warp_model(model)
+        n = len(q)
+        with wp.ScopedDevice(self.device):
+            mjd = mujoco.MjData(model)
+            d = mjw.put_data(model, mjd, nworld=n, nconmax=nconmax, njmax=njmax)
+            d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
+            t0 = time.perf_counter()
+            left = nstep
+            if self.device.startswith("cuda") and nstep >= self.graph_steps:
+                with wp.ScopedCapture() as cap:
+                    for _ in range(self.graph_steps):
+                        mjw.step(m, d)
+                left -= self.graph_steps
+                while left >= self.graph_steps:
+                    wp.capture_launch(cap.graph)
+                    left -= self.graph_steps
+            for _ in range(left):
+                mjw.step(m, d)
+            wp.synchronize()
+            seconds = time.perf_counter() - t0
+            return d.qpos.numpy().astype(np.float64), d.overflow.numpy().copy(), seconds
+
+    def settle(
+        self,
+        model: mujoco.MjModel | Sequence[mujoco.MjModel],
+        qpos0: np.ndarray,
+        nstep: int,
+    ) -> Rollout:
+        if not isinstance(model, mujoco.MjModel):
+            models = list(model)
+            if any(mm is not models[0] for mm in models):
+                raise ConfigError(
+                    "the warp backend runs one model per batch; batch candidates of one scene"
+                )
+            model = models[0]
+        q = check_qpos(model, qpos0)
+        invalid = nonfinite_rows(q)
+        reasons = ["non-finite initial pose" if b else "" for b in invalid]
+        out = q.copy()
+        seconds = 0.0
+        run = np.flatnonzero(~invalid)
+        if len(run) == 0:
+            return Rollout(out, invalid, reasons, 0.0)
+        nconmax, njmax = self.initial_sizes(model, q[run])
+        todo = run
+        for attempt in range(self.max_grow + 1):
+            overflowed = []
+            for start in range(0, len(todo), self.chunk):
+                ids = todo[start : start + self.chunk]
+                final, overflow, sec = self._run(model, q[ids], nstep, nconmax, njmax)
+                seconds += sec
+                out[ids] = final
+                overflowed.extend(ids[overflow != 0].tolist())
+                bad = ~np.isfinite(final).all(axis=1)
+                for i in ids[bad]:
+                    invalid[i] = True
+                    reasons[i] = "NaN in the final pose (simulation diverged)"
+            if not overflowed:
+                break
+            todo = np.array(overflowed, dtype=int)
+            if attempt == self.max_grow:
+                for i in todo:
+                    invalid[i] = True
+                    reasons[i] = (
+                        f"contact/constraint buffers overflowed (nconmax={nconmax}, "
+                        f"njmax={njmax}) after {self.max_grow} doublings"
+                    )
+                break
+            nconmax, njmax = 2 * nconmax, 2 * njmax
+            log.info("warp: %d world(s) overflowed; re-running them with nconmax=%d njmax=%d",
+                     len(todo), nconmax, njmax)
+        return Rollout(qpos=out, invalid=invalid, reasons=reasons, seconds=seconds)
