@@ -86,9 +86,7 @@ def resolve_backend_name(name: str) -> str:
             return "warp"
         return "cpu"
     if name not in BACKENDS:
-        raise ConfigError(
-            f"sim.backend={name!r} is not one of auto, {', '.join(BACKENDS)}"
-        )
+        raise ConfigError(f"sim.backend={name!r} is not one of auto, {', '.join(BACKENDS)}")
     return name
 
 

@@ -170,6 +170,10 @@ class WarpBackend:
                     )
                 break
             nconmax, njmax = 2 * nconmax, 2 * njmax
-            log.info("warp: %d world(s) overflowed; re-running them with nconmax=%d njmax=%d",
-                     len(todo), nconmax, njmax)
+            log.info(
+                "warp: %d world(s) overflowed; re-running them with nconmax=%d njmax=%d",
+                len(todo),
+                nconmax,
+                njmax,
+            )
         return Rollout(qpos=out, invalid=invalid, reasons=reasons, seconds=seconds)
