@@ -50,6 +50,48 @@ class CompileConfig:
 
 
 @dataclass
+class SimConfig:
+    """Batched physics and the stability protocol (the paper's thresholds by default).
+
+    Attributes:
+        backend: ``auto`` (warp with CUDA, else cpu), ``cpu``, ``warp`` or ``mjx``.
+        nthread: CPU backend threads (0: one per core).
+        duration: simulated time per check (s).
+        max_translation: an object that moved farther is unstable (m).
+        max_rotation_deg: an object that turned more is unstable (deg).
+        penetration_tol: candidates starting deeper in each other are invalid (m).
+        resettle: accept an unstable candidate if its settled pose is stable on a second run.
+        mjx_max_free_bodies: the mjx backend refuses larger models.
+    """
+
+    backend: str = "auto"
+    nthread: int = 0
+    duration: float = 2.0
+    max_translation: float = 0.2
+    max_rotation_deg: float = 8.0
+    penetration_tol: float = 0.01
+    resettle: bool = True
+    mjx_max_free_bodies: int = 8
+
+
+@dataclass
+class ValidateConfig:
+    """``stage=validate``: metrics per scene; optional repair.
+
+    Attributes:
+        collision_tol: objects interpenetrating deeper than this collide (m).
+        trimesh: also run the paper's trimesh ray test for collisions.
+        repair: settle unstable objects or remove them (and colliding ones), recording it.
+        max_repair_rounds: repair rounds per scene.
+    """
+
+    collision_tol: float = 0.01
+    trimesh: bool = True
+    repair: bool = False
+    max_repair_rounds: int = 3
+
+
+@dataclass
 class RenderConfig:
     """``stage=render``: top-down and four corner views (PNG) of each scene.
 
@@ -84,7 +126,9 @@ class ExportConfig:
 class AllConfig:
     """``stage=all``: the stages to run, in order."""
 
-    stages: list[str] = field(default_factory=lambda: ["ingest", "compile", "render"])
+    stages: list[str] = field(
+        default_factory=lambda: ["ingest", "compile", "validate", "render"]
+    )
 
 
 @dataclass
@@ -110,6 +154,8 @@ class FactoryConfig:
     shard: ShardConfig = field(default_factory=ShardConfig)
     ingest: IngestConfig = field(default_factory=IngestConfig)
     compile: CompileConfig = field(default_factory=CompileConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    validate: ValidateConfig = field(default_factory=ValidateConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
     export: ExportConfig = field(default_factory=ExportConfig)
     all: AllConfig = field(default_factory=AllConfig)

@@ -50,7 +50,7 @@ class WarpBackend:
     ) -> None:
         import warp as wp
 
-        wp.config.quiet = True
+        wp.config.quiet = True  # type: ignore[attr-defined]
         wp.init()
         self.wp = wp
         self.device = device or ("cuda:0" if cuda_available() else "cpu")

@@ -160,7 +160,10 @@ def rotation_angle_deg(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
 
 
 def body_penetration(
-    model: mujoco.MjModel, qpos: np.ndarray, bodies: np.ndarray
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    bodies: np.ndarray,
+    partners: set[int] | None = None,
 ) -> tuple[np.ndarray, list[list[str]]]:
     """Deepest interpenetration per body at each state (MuJoCo contacts, ``mj_forward``).
 
@@ -168,6 +171,7 @@ def body_penetration(
         model: the model.
         qpos: ``(n, nq)`` states.
         bodies: ``(k,)`` body ids to report.
+        partners: count only contacts with these bodies (default: any body, world included).
 
     Returns:
         ``(n, k)`` depths (m, >= 0) and, per state, the names of the deepest pair
@@ -191,6 +195,8 @@ def body_penetration(
             b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
             for b, other in ((b1, b2), (b2, b1)):
                 j = slot.get(b)
+                if partners is not None and other not in partners:
+                    continue
                 if j is not None and -c.dist > depth[i, j]:
                     depth[i, j] = -c.dist
                     names[j] = f"{model.body(b).name}|{model.body(other).name or 'world'}"

@@ -214,7 +214,7 @@ def test_mjx_agrees_with_cpu() -> None:
 @pytest.mark.slow
 def test_mjx_refuses_large_models() -> None:
     scene = load_scene("factory/data/examples/kitchen_pick_place/scene.json")
-    with pytest.raises(ConfigError, match="sim.backend=warp"):
+    with pytest.raises(ConfigError, match=r"sim\.backend=warp"):
         check_stability(compile_scene(scene).model, backend="mjx")
 
 
