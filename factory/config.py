@@ -126,9 +126,7 @@ class ExportConfig:
 class AllConfig:
     """``stage=all``: the stages to run, in order."""
 
-    stages: list[str] = field(
-        default_factory=lambda: ["ingest", "compile", "validate", "render"]
-    )
+    stages: list[str] = field(default_factory=lambda: ["ingest", "compile", "validate", "render"])
 
 
 @dataclass

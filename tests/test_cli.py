@@ -195,3 +195,31 @@ def test_sage_export_matches_sage_dict_api(sage_dict) -> None:
     from factory.schema.sage import sage_to_scene
 
     assert scene_to_sage(sage_to_scene(json.loads(json.dumps(sage_dict)))) == sage_dict
+
+
+def test_validate_and_repair(cli, tmp_path: Path, example_scene_path: Path) -> None:
+    d = json.loads(example_scene_path.read_text())
+    d["id"] = "broken"
+    objs = {o["id"]: o for o in d["objects"]}
+    objs["mug"]["position"]["z"] = 0.95
+    objs["plate"]["position"]["z"] = 0.87
+    src = tmp_path / "broken"
+    src.mkdir()
+    (src / "scene.json").write_text(json.dumps(d))
+    run = tmp_path / "run"
+    assert cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}").returncode == 0
+    out = cli("stage=validate", f"run_dir={run}", "sim.backend=cpu")
+    assert out.returncode == 0, out.stderr
+    assert "stability %" in out.stdout and "broken" in out.stdout
+    summary = json.loads((run / "validate" / "summary.json").read_text())
+    assert summary["total"]["collision_pct"] > 0 and summary["total"]["stability_pct"] < 100
+    before = (run / "scenes" / "broken" / "scene.json").read_text()
+    out = cli("stage=validate", f"run_dir={run}", "validate.repair=true")
+    assert out.returncode == 0, out.stderr
+    report = json.loads((run / "scenes" / "broken" / "report.json").read_text())["validate"]
+    actions = {(c["action"], c["object"]) for h in report["repair"] for c in h["changes"]}
+    assert ("remove", "plate") in actions and ("settle", "mug") in actions
+    assert report["metrics"]["collision"]["ratio"] == 0.0
+    assert report["metrics"]["stability"]["ratio"] == 1.0
+    after = json.loads((run / "scenes" / "broken" / "scene.json").read_text())
+    assert after != json.loads(before) and "plate" not in {o["id"] for o in after["objects"]}

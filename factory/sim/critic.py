@@ -49,8 +49,7 @@ def _remedy(kind: str, obj: str, placed: str) -> str:
         return f"placing {placed} here knocks {obj} over: keep clear of it"
     if kind == "tipped":
         return (
-            f"{placed} tips over: use a smaller or lower object, a wider base, or a flatter "
-            "support"
+            f"{placed} tips over: use a smaller or lower object, a wider base, or a flatter support"
         )
     return f"{placed} falls off: choose another support or a position nearer its centre"
 
@@ -139,4 +138,3 @@ def physics_critic(
         "max_translation_m": protocol.max_translation,
         "max_rotation_deg": protocol.max_rotation_deg,
     }
-

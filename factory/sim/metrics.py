@@ -4,7 +4,8 @@
   or a wall) by more than ``tol`` (1 cm) at rest, from MuJoCo's contacts.
 * Collision, trimesh (the paper's test): rays cast along every edge of an object's collision
   mesh against the other objects' meshes; an edge that enters another mesh means the two
-  intersect. Meshes are first shrunk by ``tol`` towards their centre so that resting contact
+  intersect; a mesh with a vertex inside another (wholly contained, which no edge reveals)
+  intersects it too. Meshes are first shrunk by ``tol`` towards their centre so that resting contact
   (touching faces) does not count, as in the MuJoCo test.
 * Stability: the fraction of free objects stable under the protocol of
   :mod:`factory.sim.stability`.
@@ -37,7 +38,9 @@ class ObjectMeshes:
         for oid in object_ids:
             bid = model.body(oid).id
             parts = []
-            for g in range(model.body_geomadr[bid], model.body_geomadr[bid] + model.body_geomnum[bid]):
+            for g in range(
+                model.body_geomadr[bid], model.body_geomadr[bid] + model.body_geomnum[bid]
+            ):
                 if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
                     continue
                 tf = np.eye(4)
@@ -88,6 +91,9 @@ def trimesh_collisions(meshes: ObjectMeshes, tol: float = 0.01) -> list[tuple[st
 
 
 def _edges_hit(src: Any, target: Any) -> bool:
+    """Whether an edge of ``src`` enters ``target``, or ``src`` lies inside it."""
+    if target.is_watertight and bool(np.any(target.contains(src.vertices))):
+        return True
     edges = src.edges_unique
     v = src.vertices
     origins = v[edges[:, 0]]
@@ -147,7 +153,9 @@ def scene_metrics(
         per_object[obj.id] = entry
     n = len(ids)
     rooms = {r.id: r.room_type for r in scene.rooms}
-    per_room: dict[str, dict[str, int]] = defaultdict(lambda: {"objects": 0, "colliding": 0, "stable": 0})
+    per_room: dict[str, dict[str, int]] = defaultdict(
+        lambda: {"objects": 0, "colliding": 0, "stable": 0}
+    )
     for oid, e in per_object.items():
         r = per_room[rooms[e["room_id"]]]
         r["objects"] += 1

@@ -257,7 +257,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
         if report["repair"]:
             text = scene_to_json(repaired)
             store.save_scene(repaired)
-            compiled = compile_scene(repaired, store.assets_dir, CompileOptions(**vars(cfg.compile)))
+            compiled = compile_scene(
+                repaired, store.assets_dir, CompileOptions(**vars(cfg.compile))
+            )
             atomic_write_text(store.model_xml(scene_id), model_xml(compiled, scene_dir))
             digest = sha256_bytes(text.encode() + b"\0" + settings)
             n = sum(len(h["changes"]) for h in report["repair"])
@@ -277,7 +279,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
     counts = run_items("validate", mine, one)
     rows.sort(key=lambda r: r["scene"])
     out_dir = store.root / "validate"
-    atomic_write_json(out_dir / f"summary-{ctx.shard.name}.json", {"schema_version": 1, "scenes": rows})
+    atomic_write_json(
+        out_dir / f"summary-{ctx.shard.name}.json", {"schema_version": 1, "scenes": rows}
+    )
     with file_lock(store.root / ".validate.lock"):
         all_rows: list[dict[str, Any]] = []
         for p in sorted(out_dir.glob("summary-*.json")):
