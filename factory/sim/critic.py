@@ -102,7 +102,7 @@ def physics_critic(
             "translation_m": float(result.translation[i, j_obj]),
             "rotation_deg": float(result.rotation_deg[i, j_obj]),
         }
-    failures = []
+    failures: list[dict[str, Any]] = []
     for i in range(len(poses)):
         if result.invalid[i]:
             kind = "interpenetrating" if "interpenetrating" in result.reasons[i] else "invalid"
@@ -127,14 +127,16 @@ def physics_critic(
                 "reason": f"{name} moved {t:.3f} m and turned {r:.1f} deg",
             }
         )
-    common = Counter((f["kind"], f["object"]) for f in failures).most_common(1)[0][0]
+    kind_obj: tuple[str, str] = Counter(
+        (str(f["kind"]), str(f["object"])) for f in failures
+    ).most_common(1)[0][0]
     return {
         "ok": False,
         "candidates": len(poses),
         "failures": failures,
         "summary": f"{len(failures)} of {len(poses)} candidates failed; most often "
-        f"{common[1]} {common[0]}",
-        "suggestion": _remedy(common[0], common[1], object_id),
+        f"{kind_obj[1]} {kind_obj[0]}",
+        "suggestion": _remedy(kind_obj[0], kind_obj[1], object_id),
         "max_translation_m": protocol.max_translation,
         "max_rotation_deg": protocol.max_rotation_deg,
     }

@@ -156,7 +156,7 @@ def scene_metrics(
     per_room: dict[str, dict[str, int]] = defaultdict(
         lambda: {"objects": 0, "colliding": 0, "stable": 0}
     )
-    for oid, e in per_object.items():
+    for e in per_object.values():
         r = per_room[rooms[e["room_id"]]]
         r["objects"] += 1
         r["colliding"] += int(e["colliding"])
