@@ -62,6 +62,7 @@ class SimConfig:
         penetration_tol: candidates starting deeper in each other are invalid (m).
         resettle: accept an unstable candidate if its settled pose is stable on a second run.
         mjx_max_free_bodies: the mjx backend refuses larger models.
+        timestep: simulation step of the checks (s); empty keeps the scene model's (2 ms).
     """
 
     backend: str = "auto"
@@ -72,6 +73,7 @@ class SimConfig:
     penetration_tol: float = 0.01
     resettle: bool = True
     mjx_max_free_bodies: int = 8
+    timestep: float | None = None
 
 
 @dataclass

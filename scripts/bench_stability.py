@@ -162,9 +162,11 @@ def run_case(backend_name: str, model: Any, batch: int, protocol: StabilityProto
     }
 
 
-def agreement(model: Any, n: int, protocol: StabilityProtocol) -> dict[str, Any]:
+def agreement(
+    model: Any, n: int, protocol: StabilityProtocol, spread: float
+) -> dict[str, Any]:
     """cpu vs warp verdicts on the same n candidates (wide jitter: a mix of outcomes)."""
-    q = candidates(model, n, seed=7, spread=0.25)
+    q = candidates(model, n, seed=7, spread=spread)
     cpu = check_stability(model, q, backend="cpu", protocol=protocol)
     warp = check_stability(model, q, backend="warp", protocol=protocol)
     same = cpu.stable == warp.stable
@@ -192,16 +194,19 @@ def main() -> None:
     p.add_argument("--nthread", type=int, default=0)
     p.add_argument("--agree", type=int, default=0, help="cpu vs warp agreement on N candidates")
     p.add_argument("--agree-objects", type=int, default=20)
+    p.add_argument("--timestep", type=float, default=None, help="check step (s); default 2 ms")
+    p.add_argument("--spread", type=float, default=0.21, help="agreement jitter (m)")
     p.add_argument("--out", default=None)
     args = p.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    protocol = StabilityProtocol(resettle=False)
+    protocol = StabilityProtocol(resettle=False, timestep=args.timestep)
     defaults = {"cpu": [8, 32], "warp": [1024, 4096, 8192], "mjx": [64]}
     results: dict[str, Any] = {
         "schema_version": 1,
         "benchmark": "stability",
         "machine": machine(),
         "protocol": vars(protocol),
+        "step_s": args.timestep or 0.002,
         "cases": [],
     }
     with tempfile.TemporaryDirectory() as tmp:
@@ -220,7 +225,8 @@ def main() -> None:
             scene = bench_scene(args.agree_objects, assets)
             model = compile_scene(scene, assets).model
             results["agreement"] = {"objects": args.agree_objects,
-                                    **agreement(model, args.agree, protocol)}
+                                    "spread_m": args.spread,
+                                    **agreement(model, args.agree, protocol, args.spread)}
             log.info("agreement: %s", results["agreement"])
     print(json.dumps(results, indent=2))
     out = Path(args.out) if args.out else RESULTS / (

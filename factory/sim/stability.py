@@ -15,6 +15,7 @@ overflowed a contact buffer.
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from collections.abc import Mapping, Sequence
@@ -40,6 +41,7 @@ class StabilityProtocol:
         max_rotation_deg: an object that turned more is unstable (deg).
         penetration_tol: a candidate whose bodies start interpenetrating deeper is invalid (m).
         resettle: accept an unstable candidate whose settled pose is stable on a second run.
+        timestep: simulation step for the check (s); ``None`` keeps the model's (2 ms).
     """
 
     duration: float = 2.0
@@ -47,9 +49,20 @@ class StabilityProtocol:
     max_rotation_deg: float = 8.0
     penetration_tol: float = 0.01
     resettle: bool = True
+    timestep: float | None = None
 
     def nstep(self, model: mujoco.MjModel) -> int:
         return max(1, round(self.duration / model.opt.timestep))
+
+    def apply(self, model: mujoco.MjModel) -> mujoco.MjModel:
+        """``model``, or a copy of it with this protocol's timestep."""
+        if self.timestep is None or self.timestep == model.opt.timestep:
+            return model
+        if not self.timestep > 0:
+            raise ConfigError(f"sim.timestep must be > 0, got {self.timestep}")
+        out = copy.copy(model)
+        out.opt.timestep = self.timestep
+        return out
 
 
 @dataclass(frozen=True)
@@ -281,8 +294,8 @@ def check_stability(
         ConfigError: an empty batch or a wrong shape.
     """
     protocol = protocol or StabilityProtocol()
-    models = None if isinstance(model, mujoco.MjModel) else list(model)
-    base = model if models is None else models[0]
+    models = None if isinstance(model, mujoco.MjModel) else [protocol.apply(m) for m in model]
+    base = protocol.apply(model) if models is None else models[0]  # type: ignore[arg-type]
     assert isinstance(base, mujoco.MjModel)
     q0 = np.atleast_2d(base.qpos0.copy() if qpos0 is None else np.asarray(qpos0, float))
     if q0.shape[0] == 0:

@@ -44,6 +44,7 @@ def protocol_of(sim: Any) -> StabilityProtocol:
         max_rotation_deg=sim.max_rotation_deg,
         penetration_tol=math.inf,
         resettle=sim.resettle,
+        timestep=sim.timestep,
     )
 
 
