@@ -61,7 +61,10 @@ def machine() -> dict[str, Any]:
         try:
             out = subprocess.run(
                 ["nvidia-smi", "--query-gpu=name,driver_version", "--format=csv,noheader"],
-                capture_output=True, text=True, timeout=20, check=False,
+                capture_output=True,
+                text=True,
+                timeout=20,
+                check=False,
             )
             info["gpu"] = out.stdout.strip()
         except OSError:
@@ -83,9 +86,13 @@ def _cylinder_asset(assets: Path) -> str:
         mesh.apply_translation([0, 0, 0.06])
         mesh.export(folder / "visual.obj")
         meta = AssetMeta(
-            asset_id=aid, backend="procedural", visual="visual.obj",
-            extents=[float(e) for e in mesh.extents], collision=["visual.obj"],
-            license="CC0-1.0", provenance={"generator": "bench_stability"},
+            asset_id=aid,
+            backend="procedural",
+            visual="visual.obj",
+            extents=[float(e) for e in mesh.extents],
+            collision=["visual.obj"],
+            license="CC0-1.0",
+            provenance={"generator": "bench_stability"},
         )
         (folder / "meta.json").write_text(asset_meta_to_json(meta))
     return aid
@@ -96,24 +103,39 @@ def bench_scene(n_objects: int, assets: Path) -> Scene:
     n_base = (n_objects + 1) // 2
     side = int(np.ceil(np.sqrt(n_base)))
     size = 1.0 * side + 1.0
-    room = Room(id="room", room_type="bench", position=Vec3(0, 0, 0),
-                dimensions=Size3(size, size, 2.5))
+    room = Room(
+        id="room", room_type="bench", position=Vec3(0, 0, 0), dimensions=Size3(size, size, 2.5)
+    )
     aid = _cylinder_asset(assets)
     objs = []
     for i in range(n_objects):
         b = i % n_base
         x, y = 1.0 + (b % side), 1.0 + (b // side)
         if i < n_base:
-            objs.append(SceneObject(
-                id=f"box_{i}", room_id="room", category="box", position=Vec3(x, y, 0.0),
-                dimensions=Size3(0.4, 0.4, 0.4), physics=Physics(mass=5.0)))
+            objs.append(
+                SceneObject(
+                    id=f"box_{i}",
+                    room_id="room",
+                    category="box",
+                    position=Vec3(x, y, 0.0),
+                    dimensions=Size3(0.4, 0.4, 0.4),
+                    physics=Physics(mass=5.0),
+                )
+            )
         else:
             k = i - n_base
-            objs.append(SceneObject(
-                id=f"cyl_{k}", room_id="room", category="can", position=Vec3(x, y, 0.4),
-                dimensions=Size3(0.1, 0.1, 0.12), physics=Physics(mass=0.3),
-                placement=Placement(kind="on_top", support_id=f"box_{b}"),
-                asset=AssetRef(backend="procedural", asset_id=aid)))
+            objs.append(
+                SceneObject(
+                    id=f"cyl_{k}",
+                    room_id="room",
+                    category="can",
+                    position=Vec3(x, y, 0.4),
+                    dimensions=Size3(0.1, 0.1, 0.12),
+                    physics=Physics(mass=0.3),
+                    placement=Placement(kind="on_top", support_id=f"box_{b}"),
+                    asset=AssetRef(backend="procedural", asset_id=aid),
+                )
+            )
     return Scene(id=f"bench_{n_objects}", rooms=[room], objects=objs, source="example")
 
 
@@ -133,8 +155,9 @@ def candidates(model: Any, n: int, seed: int = 0, spread: float = 0.05) -> np.nd
     return q
 
 
-def run_case(backend_name: str, model: Any, batch: int, protocol: StabilityProtocol,
-             nthread: int) -> dict[str, Any]:
+def run_case(
+    backend_name: str, model: Any, batch: int, protocol: StabilityProtocol, nthread: int
+) -> dict[str, Any]:
     opts: dict[str, Any] = {"nthread": nthread} if backend_name == "cpu" else {}
     if backend_name == "mjx":
         opts = {"max_free_bodies": 64}
@@ -162,9 +185,7 @@ def run_case(backend_name: str, model: Any, batch: int, protocol: StabilityProto
     }
 
 
-def agreement(
-    model: Any, n: int, protocol: StabilityProtocol, spread: float
-) -> dict[str, Any]:
+def agreement(model: Any, n: int, protocol: StabilityProtocol, spread: float) -> dict[str, Any]:
     """cpu vs warp verdicts on the same n candidates (wide jitter: a mix of outcomes)."""
     q = candidates(model, n, seed=7, spread=spread)
     cpu = check_stability(model, q, backend="cpu", protocol=protocol)
@@ -178,9 +199,14 @@ def agreement(
         "disagreeing": int((~same).sum()),
         "invalid_cpu": int(cpu.invalid.sum()),
         "invalid_warp": int(warp.invalid.sum()),
-        "max_translation_diff_m": float(np.max(np.abs(
-            np.nan_to_num(cpu.translation, posinf=9) - np.nan_to_num(warp.translation, posinf=9)
-        ))),
+        "max_translation_diff_m": float(
+            np.max(
+                np.abs(
+                    np.nan_to_num(cpu.translation, posinf=9)
+                    - np.nan_to_num(warp.translation, posinf=9)
+                )
+            )
+        ),
     }
 
 
@@ -189,8 +215,13 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--backends", nargs="+", default=default_backends)
     p.add_argument("--objects", nargs="+", type=int, default=[5, 20, 50])
-    p.add_argument("--batches", nargs="+", type=int, default=None,
-                   help="batch sizes (default: cpu 8 32; warp 1024 4096 8192; mjx 64)")
+    p.add_argument(
+        "--batches",
+        nargs="+",
+        type=int,
+        default=None,
+        help="batch sizes (default: cpu 8 32; warp 1024 4096 8192; mjx 64)",
+    )
     p.add_argument("--nthread", type=int, default=0)
     p.add_argument("--agree", type=int, default=0, help="cpu vs warp agreement on N candidates")
     p.add_argument("--agree-objects", type=int, default=20)
@@ -218,19 +249,27 @@ def main() -> None:
                 if name == "mjx" and n_obj > 5:
                     continue  # MJX compiles for minutes at scene sizes: see backend_mjx
                 for batch in args.batches or defaults[name]:
-                    case = {"objects": n_obj, **run_case(name, model, batch, protocol, args.nthread)}
+                    case = {
+                        "objects": n_obj,
+                        **run_case(name, model, batch, protocol, args.nthread),
+                    }
                     log.info("%s", case)
                     results["cases"].append(case)
         if args.agree:
             scene = bench_scene(args.agree_objects, assets)
             model = compile_scene(scene, assets).model
-            results["agreement"] = {"objects": args.agree_objects,
-                                    "spread_m": args.spread,
-                                    **agreement(model, args.agree, protocol, args.spread)}
+            results["agreement"] = {
+                "objects": args.agree_objects,
+                "spread_m": args.spread,
+                **agreement(model, args.agree, protocol, args.spread),
+            }
             log.info("agreement: %s", results["agreement"])
     print(json.dumps(results, indent=2))
-    out = Path(args.out) if args.out else RESULTS / (
-        f"stability-{platform.node()}-{time.strftime('%Y%m%d-%H%M%S')}.json")
+    out = (
+        Path(args.out)
+        if args.out
+        else RESULTS / (f"stability-{platform.node()}-{time.strftime('%Y%m%d-%H%M%S')}.json")
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2) + "\n")
     log.info("wrote %s", out)

@@ -295,7 +295,7 @@ def check_stability(
     """
     protocol = protocol or StabilityProtocol()
     models = None if isinstance(model, mujoco.MjModel) else [protocol.apply(m) for m in model]
-    base = protocol.apply(model) if models is None else models[0]  # type: ignore[arg-type]
+    base = protocol.apply(model) if models is None else models[0]
     assert isinstance(base, mujoco.MjModel)
     q0 = np.atleast_2d(base.qpos0.copy() if qpos0 is None else np.asarray(qpos0, float))
     if q0.shape[0] == 0:
