@@ -223,3 +223,38 @@ def test_validate_and_repair(cli, tmp_path: Path, example_scene_path: Path) -> N
     assert report["metrics"]["stability"]["ratio"] == 1.0
     after = json.loads((run / "scenes" / "broken" / "scene.json").read_text())
     assert after != json.loads(before) and "plate" not in {o["id"] for o in after["objects"]}
+
+
+def test_validate_scene_that_does_not_compile(cli, tmp_path: Path, example_scene_path) -> None:
+    run = tmp_path / "run"
+    d = json.loads(example_scene_path.read_text())
+    d["id"] = "bad_mesh"
+    mug = next(o for o in d["objects"] if o["id"] == "mug")
+    mug["asset"] = {
+        "backend": "mesh_library",
+        "asset_id": "broken",
+        "source": "",
+        "source_id": "",
+        "scale": {"x": 1.0, "y": 1.0, "z": 1.0},
+    }
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "scene.json").write_text(json.dumps(d))
+    assets = run / "assets" / "broken"
+    assets.mkdir(parents=True)
+    (assets / "visual.obj").write_text("this is not a mesh\n")
+    (assets / "meta.json").write_text(
+        json.dumps(
+            {
+                "schema_version": 1,
+                "asset_id": "broken",
+                "backend": "mesh_library",
+                "visual": "visual.obj",
+                "extents": [0.1, 0.1, 0.1],
+            }
+        )
+    )
+    assert cli("stage=ingest", f"run_dir={run}", f"ingest.source={src}").returncode == 0
+    line = _one_line_error(cli("stage=validate", f"run_dir={run}"))
+    assert "bad_mesh" in line and "does not compile" in line
+    assert not (run / "scenes" / "bad_mesh" / "report.json").exists()

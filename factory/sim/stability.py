@@ -187,8 +187,9 @@ def body_penetration(
         partners: count only contacts with these bodies (default: any body, world included).
 
     Returns:
-        ``(n, k)`` depths (m, >= 0) and, per state, the names of the deepest pair
-        (``"a|b"``) for each of the ``k`` bodies (empty if none).
+        ``(n, k)`` depths (m, >= 0; NaN where MuJoCo failed) and, per state, the names of the
+        deepest pair (``"a|b"``) for each of the ``k`` bodies (empty if none; the error where
+        MuJoCo failed).
     """
     data = mujoco.MjData(model)
     slot = {int(b): j for j, b in enumerate(bodies)}
@@ -201,7 +202,13 @@ def body_penetration(
             continue
         data.qpos[:] = q
         data.qvel[:] = 0
-        mujoco.mj_forward(model, data)
+        try:
+            mujoco.mj_forward(model, data)
+        except mujoco.FatalError as e:
+            depth[i] = np.nan
+            names[:] = [f"MuJoCo error: {' '.join(str(e).split())}"] * len(bodies)
+            pairs.append(names)
+            continue
         for c in data.contact[: data.ncon]:
             if c.dist >= 0:
                 continue
@@ -309,6 +316,11 @@ def check_stability(
     penetration, pairs = body_penetration(base, q0, free.body_ids)
     invalid = ~np.isfinite(q0).all(axis=1)
     reasons = ["non-finite initial pose" if bad else "" for bad in invalid]
+    failed = np.isnan(penetration).any(axis=1) & ~invalid
+    for i in np.flatnonzero(failed):
+        invalid[i] = True
+        reasons[i] = pairs[i][0] if pairs[i] else "MuJoCo error"
+    penetration = np.nan_to_num(penetration, nan=0.0)
     deep = penetration > protocol.penetration_tol
     for i in np.flatnonzero(deep.any(axis=1) & ~invalid):
         j = int(np.argmax(penetration[i]))

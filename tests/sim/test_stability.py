@@ -233,3 +233,49 @@ def test_rotation_angle() -> None:
     q1 = np.array([math.cos(math.radians(10)), 0, 0, math.sin(math.radians(10))])
     assert rotation_angle_deg(q0, q1) == pytest.approx(20.0)
     assert rotation_angle_deg(q1, -q1) == pytest.approx(0.0, abs=1e-5)
+
+
+def _arena_model(memory_kb: int) -> mujoco.MjModel:
+    """One box resting, seven dropping: contacts appear during the run."""
+    bodies = "".join(
+        f'<body pos="{i * 0.3} 0 {0.05 if i == 0 else 0.5}"><freejoint/>'
+        '<geom type="box" size=".1 .1 .05"/></body>'
+        for i in range(8)
+    )
+    xml = (
+        f'<mujoco><size memory="{memory_kb}K"/><worldbody>'
+        f'<geom type="plane" size="0 0 1"/>{bodies}</worldbody></mujoco>'
+    )
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+@pytest.mark.parametrize("memory_kb", [8, 12])
+def test_full_buffers_make_candidates_invalid(memory_kb: int) -> None:
+    """A MuJoCo error at the start (8 KB) or a full contact buffer mid-run (12 KB) flags the
+    candidates invalid, never stable, and does not crash the batch."""
+    model = _arena_model(memory_kb)
+    result = check_stability(model, np.stack([model.qpos0] * 3))
+    assert result.invalid.all() and not result.stable.any() and not result.accepted.any()
+    assert all(("MuJoCo error" in r) or ("buffer full" in r) for r in result.reasons)
+
+
+@pytest.mark.slow
+def test_warp_overflow_is_rerun_then_invalid(monkeypatch: pytest.MonkeyPatch) -> None:
+    from factory.sim.backend_warp import WarpBackend
+
+    model = compile_scene(_table_and_mug()).model
+    q = np.stack([model.qpos0] * 2)
+    monkeypatch.setattr(WarpBackend, "initial_sizes", staticmethod(lambda m, qpos: (1, 4)))
+    never = check_stability(model, q, backend=WarpBackend(max_grow=0))
+    assert never.invalid.all() and "overflowed" in never.reasons[0]
+    grown = check_stability(model, q, backend=WarpBackend(max_grow=6))  # 1 -> 64 contacts
+    assert not grown.invalid.any() and grown.stable.all()
+
+
+def test_auto_backend_without_cuda(monkeypatch: pytest.MonkeyPatch) -> None:
+    from factory.sim import backend
+
+    monkeypatch.setattr(backend, "cuda_available", lambda: False)
+    assert backend.resolve_backend_name("auto") == "cpu"
+    with pytest.raises(ConfigError, match="sim.backend"):
+        backend.resolve_backend_name("physx")
