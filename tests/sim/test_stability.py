@@ -277,5 +277,5 @@ def test_auto_backend_without_cuda(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(backend, "cuda_available", lambda: False)
     assert backend.resolve_backend_name("auto") == "cpu"
-    with pytest.raises(ConfigError, match="sim.backend"):
+    with pytest.raises(ConfigError, match=r"sim\.backend"):
         backend.resolve_backend_name("physx")
