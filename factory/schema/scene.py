@@ -39,6 +39,10 @@ PlacementKind = Literal["floor", "wall", "on_top"]
 PLACEMENT_KINDS: tuple[str, ...] = ("floor", "wall", "on_top")
 SOURCES_PREFIXES: tuple[str, ...] = ("text", "image", "task", "sage10k", "augment:", "example")
 
+ROOM_TOLERANCE = 0.05
+"""How far (m) an object's centre may lie outside its room's footprint and still count as
+inside: half a standard wall (wall-mounted objects sit on the wall's centre line)."""
+
 _ID_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
 
 
@@ -427,7 +431,8 @@ def validate(scene: Scene) -> Scene:
     """Checks a scene's internal consistency.
 
     Checks: ``schema_version``, safe ids, unique ids, positive dimensions, walls/doors/windows
-    refer to existing walls, every object lies inside some room, every ``room_id`` and
+    refer to existing walls, every object's centre lies inside some room (within
+    :data:`ROOM_TOLERANCE`), every ``room_id`` and
     ``support_id`` exists, and ``on_top`` supports form no cycle.
 
     Returns:
@@ -516,7 +521,7 @@ def validate(scene: Scene) -> Scene:
                 f"{where}: room_id {obj.room_id!r} does not exist (rooms: {sorted(room_ids)})"
             )
         x, y = obj.position.x, obj.position.y
-        if not any(r.contains_xy(x, y) for r in scene.rooms):
+        if not any(r.contains_xy(x, y, ROOM_TOLERANCE) for r in scene.rooms):
             r = scene.room(obj.room_id)
             raise SchemaError(
                 f"{where}: position ({x:.3f}, {y:.3f}) lies outside every room (its room "
