@@ -31,6 +31,15 @@ class AssetMeta:
         extents: ``(width, length, height)`` of the visual mesh's bounding box (m).
         license: the asset's license (SPDX id or free text).
         provenance: where it came from (source files and their sha256, generator, seed).
+        category: what the asset is (``mug``, ``bed`` ...), if known.
+        visual_parts: coloured visual pieces ``{file, rgba, metallic, roughness}``; when given,
+            they replace ``visual`` in the compiled scene (``visual`` stays the whole mesh).
+        supports: upward support surfaces ``{name, z, rect: [x0, y0, x1, y1]}`` (object frame).
+        containers: interior volumes ``{name, lo: [x, y, z], hi: [x, y, z]}`` (object frame).
+        mass: mass (kg) from volume x density, if known.
+        friction: sliding friction of the main material, if known.
+        materials: the materials used.
+        request: the normalised request the asset was made from.
     """
 
     asset_id: str
@@ -41,6 +50,14 @@ class AssetMeta:
     collision: list[str] = field(default_factory=list)
     license: str = "unknown"
     provenance: dict[str, Any] = field(default_factory=dict)
+    category: str = ""
+    visual_parts: list[dict[str, Any]] = field(default_factory=list)
+    supports: list[dict[str, Any]] = field(default_factory=list)
+    containers: list[dict[str, Any]] = field(default_factory=list)
+    mass: float | None = None
+    friction: float | None = None
+    materials: list[str] = field(default_factory=list)
+    request: dict[str, Any] = field(default_factory=dict)
     schema_version: int = ASSET_SCHEMA_VERSION
 
 

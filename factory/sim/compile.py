@@ -291,7 +291,7 @@ class _Builder:
             scale = list(obj.asset.scale.as_tuple())
             aid = meta.asset_id
             visual_mesh = f"{aid}/visual"
-            if visual_mesh not in self.mesh_assets:
+            if visual_mesh not in self.mesh_assets and not (meta.collision and meta.visual_parts):
                 spec.add_mesh(name=visual_mesh, file=f"{aid}/{meta.visual}", scale=scale)
                 self.mesh_assets[visual_mesh] = meta
             if meta.texture:
@@ -313,7 +313,24 @@ class _Builder:
                 material = mat_name
             else:
                 material = self.material(f"obj/{obj.id}", "", rgba)
-            if meta.collision:
+            if meta.collision and meta.visual_parts:
+                for k, vp in enumerate(meta.visual_parts):
+                    part_mesh = f"{aid}/visual_{k}"
+                    if part_mesh not in self.mesh_assets:
+                        spec.add_mesh(name=part_mesh, file=f"{aid}/{vp['file']}", scale=scale)
+                        self.mesh_assets[part_mesh] = meta
+                    rgba_k = tuple(obj.appearance.rgba or vp.get("rgba") or rgba)
+                    body.add_geom(
+                        name=f"{obj.id}/visual_{k}",
+                        type=mujoco.mjtGeom.mjGEOM_MESH,
+                        meshname=part_mesh,
+                        material=self.material(f"obj/{obj.id}/{k}", "", rgba_k),
+                        contype=0,
+                        conaffinity=0,
+                        density=0,
+                        group=GROUP_VISUAL,
+                    )
+            elif meta.collision:
                 body.add_geom(
                     name=f"{obj.id}/visual",
                     type=mujoco.mjtGeom.mjGEOM_MESH,
@@ -324,21 +341,6 @@ class _Builder:
                     density=0,
                     group=GROUP_VISUAL,
                 )
-                for k, part in enumerate(meta.collision):
-                    mesh_name = f"{aid}/collision_{k}"
-                    if mesh_name not in self.mesh_assets:
-                        spec.add_mesh(name=mesh_name, file=f"{aid}/{part}", scale=scale)
-                        self.mesh_assets[mesh_name] = meta
-                    geoms.append(
-                        body.add_geom(
-                            name=f"{obj.id}/collision_{k}",
-                            type=mujoco.mjtGeom.mjGEOM_MESH,
-                            meshname=mesh_name,
-                            friction=friction,
-                            rgba=[0.5, 0.5, 0.5, 0.4],
-                            group=GROUP_COLLISION,
-                        )
-                    )
             else:
                 geoms.append(
                     body.add_geom(
@@ -348,6 +350,21 @@ class _Builder:
                         material=material,
                         friction=friction,
                         group=GROUP_VISUAL,
+                    )
+                )
+            for k, part in enumerate(meta.collision):
+                mesh_name = f"{aid}/collision_{k}"
+                if mesh_name not in self.mesh_assets:
+                    spec.add_mesh(name=mesh_name, file=f"{aid}/{part}", scale=scale)
+                    self.mesh_assets[mesh_name] = meta
+                geoms.append(
+                    body.add_geom(
+                        name=f"{obj.id}/collision_{k}",
+                        type=mujoco.mjtGeom.mjGEOM_MESH,
+                        meshname=mesh_name,
+                        friction=friction,
+                        rgba=[0.5, 0.5, 0.5, 0.4],
+                        group=GROUP_COLLISION,
                     )
                 )
         if not obj.is_static:

@@ -259,8 +259,9 @@ def vessel(r_ratio: float, wall: float, handle: bool = False, lid: bool = False)
         r_bot = r_top * r_ratio
         wall_t = max(0.002, wall * r_top)
         cx = -hw / 2
-        part = shell(r_bot, r_top, h, wall_t, max(0.003, 0.06 * h), mats[0], cols[0],
-                     xy=(cx, 0.0), name="vessel")
+        bottom = min(max(0.008, 0.08 * h), 0.3 * h)
+        part = shell(r_bot, r_top, h, wall_t, bottom, mats[0], cols[0], xy=(cx, 0.0),
+                     name="vessel")
         s.add(part)
         if handle:
             hx = cx + r_top + hw / 2
@@ -270,7 +271,6 @@ def vessel(r_ratio: float, wall: float, handle: bool = False, lid: bool = False)
             s.add(box((t, t, 0.5 * h + t), (cx + r_top + hw - t / 2, 0, 0.5 * h), mats[0],
                       cols[0], "handle_grip"))
         inner = r_top - wall_t
-        bottom = max(0.003, 0.06 * h)
         s.containers.append(Container("interior", (cx - inner * 0.7, -inner * 0.7, bottom),
                                       (cx + inner * 0.7, inner * 0.7, h)))
         s.supports.append(Support("inside", bottom, (cx - r_bot * 0.6, -r_bot * 0.6,
