@@ -350,8 +350,8 @@ def banana(d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA],
         x = -w / 2 + seg_w * (k + 0.5)
         u = (x / (w / 2)) ** 2
         z = sag * u
-        s.add(ellipsoid((seg_w * 0.62, ln / 2, ln * 0.4), (x, 0, z + ln * 0.4), mats[0], cols[0],
-                        f"segment_{k}"))
+        s.add(ellipsoid((seg_w * 0.95, ln / 2, ln * 0.42), (x, 0, z + ln * 0.42), mats[0],
+                        cols[0], f"segment_{k}"))
     return s
 
 
