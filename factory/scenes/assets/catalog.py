@@ -196,7 +196,7 @@ CATEGORIES: dict[str, Category] = {
                     rooms=_ANY, synonyms=("trash bin", "bin", "garbage can", "wastebasket",
                                           "dustbin"), colors=((0.5, 0.5, 0.52, 1),) * 2),
     # ---- kitchenware and tabletop
-    "mug": _c(T.vessel(1.0, 0.1, handle=True), (0.11, 0.085, 0.1), ("ceramic", "ceramic"),
+    "mug": _c(T.vessel(1.0, 0.08, handle=True), (0.11, 0.085, 0.1), ("ceramic", "ceramic"),
               (0.25, 0.45), placement="on_top", rooms=_KIT + _OFF, synonyms=("coffee mug",
               "tea mug"), group="manipulable"),
     "cup": _c(T.vessel(0.75, 0.08), (0.08, 0.08, 0.1), ("ceramic", "ceramic"), (0.08, 0.3),
@@ -205,7 +205,7 @@ CATEGORIES: dict[str, Category] = {
     "glass": _c(T.vessel(0.8, 0.06), (0.075, 0.075, 0.12), ("glass", "glass"), (0.12, 0.4),
                 placement="on_top", rooms=_KIT, synonyms=("drinking glass", "wine glass"),
                 group="manipulable"),
-    "bowl": _c(T.vessel(0.55, 0.07), (0.18, 0.18, 0.08), ("ceramic", "ceramic"), (0.2, 0.8),
+    "bowl": _c(T.vessel(0.55, 0.05), (0.18, 0.18, 0.08), ("ceramic", "ceramic"), (0.2, 0.8),
                placement="on_top", rooms=_KIT, synonyms=("salad bowl", "soup bowl",
                "fruit bowl"), group="manipulable"),
     "plate": _c(T.plate, (0.26, 0.26, 0.025), ("ceramic", "ceramic"), (0.25, 0.9),
