@@ -35,6 +35,27 @@ class IngestConfig:
 
 
 @dataclass
+class AssetsConfig:
+    """The asset library (``factory.scenes.assets``).
+
+    Attributes:
+        backend: ``procedural`` (offline generators), ``mesh_library`` or ``trellis``.
+        library_dir: mesh library folder with ``metadata.json`` (``mesh_library``).
+        trellis_url: text-to-3D endpoint (``trellis``).
+        trellis_timeout: seconds per request.
+        trellis_retries: retries after a failed request.
+        fallback: fall back to ``procedural`` when the backend fails (logged, recorded).
+    """
+
+    backend: str = "procedural"
+    library_dir: str | None = None
+    trellis_url: str = "http://127.0.0.1:8000/generate"
+    trellis_timeout: float = 120.0
+    trellis_retries: int = 2
+    fallback: bool = True
+
+
+@dataclass
 class CompileConfig:
     """``stage=compile``: scene -> MjSpec -> ``model.xml``.
 
@@ -153,6 +174,7 @@ class FactoryConfig:
     log_level: str = "INFO"
     shard: ShardConfig = field(default_factory=ShardConfig)
     ingest: IngestConfig = field(default_factory=IngestConfig)
+    assets: AssetsConfig = field(default_factory=AssetsConfig)
     compile: CompileConfig = field(default_factory=CompileConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     validate: ValidateConfig = field(default_factory=ValidateConfig)

@@ -1,6 +1,6 @@
 """Renders one asset of every procedural category into a labelled contact sheet.
 
-    python scripts/render_gallery.py [--out docs/images/asset_gallery.png] [--size 160]
+python scripts/render_gallery.py [--out docs/images/asset_gallery.png] [--size 160]
 """
 
 from __future__ import annotations

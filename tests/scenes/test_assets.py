@@ -54,12 +54,40 @@ def test_every_category_every_seed(category: str) -> None:
 
 def test_enough_categories_for_rooms_and_manipulation() -> None:
     assert len(CATEGORIES) >= 80
-    for needed in ("mug", "cup", "bowl", "plate", "bottle", "can", "jar", "apple", "orange",
-                   "banana", "book", "cardboard_box", "vase", "pen", "remote", "laptop"):
+    for needed in (
+        "mug",
+        "cup",
+        "bowl",
+        "plate",
+        "bottle",
+        "can",
+        "jar",
+        "apple",
+        "orange",
+        "banana",
+        "book",
+        "cardboard_box",
+        "vase",
+        "pen",
+        "remote",
+        "laptop",
+    ):
         assert needed in CATEGORIES
     rooms = {r for c in CATEGORIES.values() for r in c.rooms}
-    for room in ("bedroom", "kitchen", "living room", "dining room", "bathroom", "office",
-                 "children's room", "gym", "meeting room", "classroom", "restroom", "game den"):
+    for room in (
+        "bedroom",
+        "kitchen",
+        "living room",
+        "dining room",
+        "bathroom",
+        "office",
+        "children's room",
+        "gym",
+        "meeting room",
+        "classroom",
+        "restroom",
+        "game den",
+    ):
         assert room in rooms, room
 
 
@@ -121,7 +149,11 @@ def test_bad_dimensions_write_nothing(tmp_path: Path, dims: tuple) -> None:
     lib = AssetLibrary(tmp_path)
     with pytest.raises(AssetError, match="dimensions"):
         lib.from_text("a mug", dims=dims)
-    assert not any(p.name.startswith("proc-") for p in tmp_path.iterdir()) if tmp_path.exists() else True
+    assert (
+        not any(p.name.startswith("proc-") for p in tmp_path.iterdir())
+        if tmp_path.exists()
+        else True
+    )
 
 
 def test_cache_same_request_same_asset(tmp_path: Path) -> None:
@@ -159,14 +191,19 @@ def _scene_with(lib: AssetLibrary, items: list[tuple]) -> Scene:
     objs = []
     for oid, text, dims, pos, support, yaw in items:
         meta, res = lib.from_text(text, dims=dims)
-        objs.append(SceneObject(
-            id=oid, room_id="r", category=res.spec.category, position=Vec3(*pos),
-            dimensions=Size3(*meta.extents),
-            rotation=__import__("factory.schema", fromlist=["Euler"]).Euler(0, 0, yaw),
-            placement=Placement("on_top", support) if support else Placement(),
-            asset=AssetRef("procedural", meta.asset_id),
-            physics=Physics(mass=meta.mass or 1.0, friction=meta.friction or 0.6),
-        ))
+        objs.append(
+            SceneObject(
+                id=oid,
+                room_id="r",
+                category=res.spec.category,
+                position=Vec3(*pos),
+                dimensions=Size3(*meta.extents),
+                rotation=__import__("factory.schema", fromlist=["Euler"]).Euler(0, 0, yaw),
+                placement=Placement("on_top", support) if support else Placement(),
+                asset=AssetRef("procedural", meta.asset_id),
+                physics=Physics(mass=meta.mass or 1.0, friction=meta.friction or 0.6),
+            )
+        )
     return Scene(id="sanity", rooms=[room], objects=objs, source="example")
 
 
@@ -185,15 +222,21 @@ def test_mug_dropped_into_bowl_stays_inside(tmp_path: Path) -> None:
     lib = AssetLibrary(tmp_path)
     bowl_meta, _ = lib.from_text("ceramic bowl", dims=(0.22, 0.22, 0.09))
     inner_floor = bowl_meta.containers[0]["lo"][2]
-    scene = _scene_with(lib, [
-        ("table", "oak dining table", None, (1.5, 1.5, 0.0), None, 0.0),
-    ])
+    scene = _scene_with(
+        lib,
+        [
+            ("table", "oak dining table", None, (1.5, 1.5, 0.0), None, 0.0),
+        ],
+    )
     table_h = scene.objects[0].dimensions.height
-    scene = _scene_with(lib, [
-        ("table", "oak dining table", None, (1.5, 1.5, 0.0), None, 0.0),
-        ("bowl", "ceramic bowl", (0.22, 0.22, 0.09), (1.5, 1.5, table_h), "table", 0.0),
-        ("mug", "red mug", None, (1.49, 1.5, table_h + inner_floor + 0.05), "bowl", 30.0),
-    ])
+    scene = _scene_with(
+        lib,
+        [
+            ("table", "oak dining table", None, (1.5, 1.5, 0.0), None, 0.0),
+            ("bowl", "ceramic bowl", (0.22, 0.22, 0.09), (1.5, 1.5, table_h), "table", 0.0),
+            ("mug", "red mug", None, (1.49, 1.5, table_h + inner_floor + 0.05), "bowl", 30.0),
+        ],
+    )
     free, q, _ = _settle(scene, tmp_path)
     mug, bowl = _pos(free, q, "mug"), _pos(free, q, "bowl")
     assert np.linalg.norm(mug[:2] - bowl[:2]) < 0.11 - 0.04  # inside the rim
@@ -204,11 +247,14 @@ def test_mug_dropped_into_bowl_stays_inside(tmp_path: Path) -> None:
 def test_stack_of_three_books_stays_up(tmp_path: Path) -> None:
     lib = AssetLibrary(tmp_path)
     h = 0.035
-    scene = _scene_with(lib, [
-        ("book_0", "red book", (0.16, 0.24, h), (1.5, 1.5, 0.0), None, 0.0),
-        ("book_1", "blue book", (0.15, 0.23, h), (1.51, 1.5, h), "book_0", 10.0),
-        ("book_2", "green book", (0.17, 0.22, h), (1.5, 1.49, 2 * h), "book_1", -8.0),
-    ])
+    scene = _scene_with(
+        lib,
+        [
+            ("book_0", "red book", (0.16, 0.24, h), (1.5, 1.5, 0.0), None, 0.0),
+            ("book_1", "blue book", (0.15, 0.23, h), (1.51, 1.5, h), "book_0", 10.0),
+            ("book_2", "green book", (0.17, 0.22, h), (1.5, 1.49, 2 * h), "book_1", -8.0),
+        ],
+    )
     _, _, result = _settle(scene, tmp_path)
     assert result.stable[0], result.candidate(0)
 
@@ -218,11 +264,20 @@ def test_plate_on_a_shelf_board_stays_on_it(tmp_path: Path) -> None:
     shelf, _ = lib.from_text("oak bookshelf", dims=(0.9, 0.32, 1.8))
     board = next(s for s in shelf.supports if "board" in s["name"])
     x0, y0, x1, y1 = board["rect"]
-    scene = _scene_with(lib, [
-        ("shelf", "oak bookshelf", (0.9, 0.32, 1.8), (1.5, 1.5, 0.0), None, 0.0),
-        ("plate", "white plate", (0.24, 0.24, 0.025),
-         (1.5 + (x0 + x1) / 2, 1.5 + (y0 + y1) / 2, board["z"]), "shelf", 0.0),
-    ])
+    scene = _scene_with(
+        lib,
+        [
+            ("shelf", "oak bookshelf", (0.9, 0.32, 1.8), (1.5, 1.5, 0.0), None, 0.0),
+            (
+                "plate",
+                "white plate",
+                (0.24, 0.24, 0.025),
+                (1.5 + (x0 + x1) / 2, 1.5 + (y0 + y1) / 2, board["z"]),
+                "shelf",
+                0.0,
+            ),
+        ],
+    )
     free, q, result = _settle(scene, tmp_path)
     assert result.stable[0], result.candidate(0)
     assert _pos(free, q, "plate")[2] == pytest.approx(board["z"], abs=0.01)
@@ -234,11 +289,21 @@ def test_plate_on_a_shelf_board_stays_on_it(tmp_path: Path) -> None:
 def _u_shape() -> trimesh.Trimesh:
     """A concave U-shaped trough: three boxes unioned into one watertight mesh."""
     parts = [
-        trimesh.creation.box((0.3, 0.1, 0.02), trimesh.transformations.translation_matrix((0, 0, 0.01))),
-        trimesh.creation.box((0.02, 0.1, 0.2), trimesh.transformations.translation_matrix((-0.14, 0, 0.1))),
-        trimesh.creation.box((0.02, 0.1, 0.2), trimesh.transformations.translation_matrix((0.14, 0, 0.1))),
+        trimesh.creation.box(
+            (0.3, 0.1, 0.02), trimesh.transformations.translation_matrix((0, 0, 0.01))
+        ),
+        trimesh.creation.box(
+            (0.02, 0.1, 0.2), trimesh.transformations.translation_matrix((-0.14, 0, 0.1))
+        ),
+        trimesh.creation.box(
+            (0.02, 0.1, 0.2), trimesh.transformations.translation_matrix((0.14, 0, 0.1))
+        ),
     ]
-    return trimesh.boolean.union(parts, engine="manifold") if _has_manifold() else trimesh.util.concatenate(parts)
+    return (
+        trimesh.boolean.union(parts, engine="manifold")
+        if _has_manifold()
+        else trimesh.util.concatenate(parts)
+    )
 
 
 def _has_manifold() -> bool:
@@ -257,15 +322,31 @@ def _library(tmp_path: Path) -> Path:
     _u_shape().export(lib / "trough.ply")
     trimesh.creation.icosphere(radius=0.1).export(lib / "ball.stl")
     (lib / "notamesh.obj").write_text("hello world\n")
-    (lib / "empty.ply").write_text("ply\nformat ascii 1.0\nelement vertex 0\nelement face 0\n"
-                                   "property list uchar int vertex_indices\nend_header\n")
-    (lib / "metadata.json").write_text(json.dumps([
-        {"file": "crate.obj", "category": "crate", "tags": ["crate", "box"], "license": "CC0-1.0"},
-        {"file": "trough.ply", "category": "basket", "tags": ["trough", "u"], "license": "CC-BY-4.0"},
-        {"file": "ball.stl", "category": "ball", "tags": ["ball"], "license": "CC0-1.0"},
-        {"file": "notamesh.obj", "category": "vase", "tags": ["broken"], "license": "x"},
-        {"file": "empty.ply", "category": "jar", "tags": ["empty"], "license": "x"},
-    ]))
+    (lib / "empty.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 0\nelement face 0\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    )
+    (lib / "metadata.json").write_text(
+        json.dumps(
+            [
+                {
+                    "file": "crate.obj",
+                    "category": "crate",
+                    "tags": ["crate", "box"],
+                    "license": "CC0-1.0",
+                },
+                {
+                    "file": "trough.ply",
+                    "category": "basket",
+                    "tags": ["trough", "u"],
+                    "license": "CC-BY-4.0",
+                },
+                {"file": "ball.stl", "category": "ball", "tags": ["ball"], "license": "CC0-1.0"},
+                {"file": "notamesh.obj", "category": "vase", "tags": ["broken"], "license": "x"},
+                {"file": "empty.ply", "category": "jar", "tags": ["empty"], "license": "x"},
+            ]
+        )
+    )
     return lib
 
 
@@ -280,9 +361,9 @@ def test_mesh_library_backend(tmp_path: Path) -> None:
     for name in trough.collision:
         hull = trimesh.load(folder / name, force="mesh")
         assert hull.is_convex and len(hull.vertices) <= MAX_HULL_VERTICES
-    with pytest.raises(AssetError, match="not a readable mesh|no faces"):
+    with pytest.raises(AssetError, match=r"not a readable mesh|no faces"):
         lib.from_text("a broken vase")
-    with pytest.raises(AssetError, match="no faces|not a readable mesh"):
+    with pytest.raises(AssetError, match=r"no faces|not a readable mesh"):
         lib.from_text("an empty jar")
     assert not any(p.name.startswith(".") for p in (tmp_path / "assets").iterdir())
 
@@ -294,7 +375,7 @@ class _Server(http.server.BaseHTTPRequestHandler):
     mode = "ok"
     calls = 0
 
-    def do_POST(self) -> None:  # noqa: N802
+    def do_POST(self) -> None:
         type(self).calls += 1
         body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
         if self.mode == "slow":
@@ -340,8 +421,9 @@ def test_trellis_backend(tmp_path: Path, trellis_server) -> None:
     meta, _ = fallback.from_text("a glass bottle")
     assert meta.backend == "procedural" and meta.provenance["fallback_from"] == "trellis"
     _Server.mode = "slow"
-    slow = AssetLibrary(tmp_path, "trellis",
-                        trellis=TrellisConfig(url=url, timeout=0.2, retries=0), fallback=False)
+    slow = AssetLibrary(
+        tmp_path, "trellis", trellis=TrellisConfig(url=url, timeout=0.2, retries=0), fallback=False
+    )
     with pytest.raises(AssetError, match="failed after 1 attempt"):
         slow.from_text("a jar")
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
@@ -350,15 +432,46 @@ def test_trellis_backend(tmp_path: Path, trellis_server) -> None:
 def test_assets_cli(tmp_path: Path) -> None:
     out = tmp_path / "bowl.png"
     run = subprocess.run(
-        [sys.executable, "-m", "factory.scenes.assets", "small blue ceramic bowl", "--out",
-         str(out), "--size", "128", "--assets", str(tmp_path / "a")],
-        capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "factory.scenes.assets",
+            "small blue ceramic bowl",
+            "--out",
+            str(out),
+            "--size",
+            "128",
+            "--assets",
+            str(tmp_path / "a"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["category"] == "bowl" and out.stat().st_size > 1000
-    listing = subprocess.run([sys.executable, "-m", "factory.scenes.assets", "--list"],
-                             capture_output=True, text=True, timeout=120)
+    listing = subprocess.run(
+        [sys.executable, "-m", "factory.scenes.assets", "--list"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert listing.returncode == 0 and f"{len(CATEGORIES)} categories" in listing.stdout
-    bad = subprocess.run([sys.executable, "-m", "factory.scenes.assets", "mug", "--dims", "0",
-                          "1", "1"], capture_output=True, text=True, timeout=120)
+    bad = subprocess.run(
+        [sys.executable, "-m", "factory.scenes.assets", "mug", "--dims", "0", "1", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bad.returncode == 2 and "dimensions" in bad.stderr
+
+
+def test_library_from_config(tmp_path: Path) -> None:
+    from factory.config import AssetsConfig
+
+    lib = AssetLibrary.from_config(AssetsConfig(), tmp_path)
+    assert lib.backend == "procedural"
+    with pytest.raises(AssetError, match="library_dir"):
+        AssetLibrary.from_config(AssetsConfig(backend="mesh_library"), tmp_path)
+    with pytest.raises(AssetError, match="not one of"):
+        AssetLibrary.from_config(AssetsConfig(backend="dreamfusion"), tmp_path)

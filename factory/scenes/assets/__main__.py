@@ -28,8 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--dims", type=float, nargs=3, metavar=("W", "L", "H"), default=None)
     p.add_argument("--assets", default=None, help="asset cache folder (default: a temp folder)")
-    p.add_argument("--backend", default="procedural", choices=["procedural", "mesh_library",
-                                                               "trellis"])
+    p.add_argument(
+        "--backend", default="procedural", choices=["procedural", "mesh_library", "trellis"]
+    )
     p.add_argument("--library-dir", default=None)
     p.add_argument("--trellis-url", default=None)
     p.add_argument("--out", default=None, help="render the asset to this PNG")
@@ -43,8 +44,10 @@ def main(argv: list[str] | None = None) -> int:
         width = max(map(len, CATEGORIES))
         for name, cat in CATEGORIES.items():
             lo, hi = cat.mass
-            print(f"{name:<{width}}  {cat.group:<12} {cat.placement:<7} {lo:g}-{hi:g} kg  "
-                  f"{', '.join(cat.synonyms[:3])}")
+            print(
+                f"{name:<{width}}  {cat.group:<12} {cat.placement:<7} {lo:g}-{hi:g} kg  "
+                f"{', '.join(cat.synonyms[:3])}"
+            )
         print(f"{len(CATEGORIES)} categories")
         return 0
     if not args.text:
@@ -57,21 +60,26 @@ def main(argv: list[str] | None = None) -> int:
     except AssetError as e:
         print(f"assets: error: {e}", file=sys.stderr)
         return 2
-    print(json.dumps({
-        "text": args.text,
-        "category": res.spec.category,
-        "confidence": res.confidence,
-        "approximated": res.approximated,
-        "notes": res.notes,
-        "asset_id": meta.asset_id,
-        "folder": str(assets / meta.asset_id),
-        "extents_m": [round(v, 4) for v in meta.extents],
-        "mass_kg": None if meta.mass is None else round(meta.mass, 4),
-        "collision_parts": len(meta.collision),
-        "supports": len(meta.supports),
-        "containers": len(meta.containers),
-        "license": meta.license,
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "text": args.text,
+                "category": res.spec.category,
+                "confidence": res.confidence,
+                "approximated": res.approximated,
+                "notes": res.notes,
+                "asset_id": meta.asset_id,
+                "folder": str(assets / meta.asset_id),
+                "extents_m": [round(v, 4) for v in meta.extents],
+                "mass_kg": None if meta.mass is None else round(meta.mass, 4),
+                "collision_parts": len(meta.collision),
+                "supports": len(meta.supports),
+                "containers": len(meta.containers),
+                "license": meta.license,
+            },
+            indent=2,
+        )
+    )
     if args.out:
         from factory.scenes.assets.preview import render_asset
         from factory.scenes.render import png_bytes

@@ -113,7 +113,8 @@ def cylinder(
 ) -> Part:
     """A solid cylinder (or frustum with ``radius_top``) from ``z0`` to ``z0 + height``."""
     r1 = radius if radius_top is None else radius_top
-    m = trimesh.creation.revolve([[0, 0], [radius, 0], [r1, height], [0, height]], sections=sections)
+    profile = np.array([[0, 0], [radius, 0], [r1, height], [0, height]], dtype=float)
+    m = trimesh.creation.revolve(profile, sections=sections)
     m.apply_translation([xy[0], xy[1], z0])
     return Part(m, [_convex(m)], material, rgba, fill, name)
 
@@ -164,13 +165,14 @@ def shell(
         [_lerp(r_bottom, r_top, bottom / height) - wall, bottom],
         [0.0, bottom],
     ]
-    visual = trimesh.creation.revolve(profile, sections=4 * segments)
+    visual = trimesh.creation.revolve(np.array(profile, dtype=float), sections=4 * segments)
     visual.apply_translation([xy[0], xy[1], z0])
     pieces = []
-    base = trimesh.creation.revolve(
+    base_profile = np.array(
         [[0, 0], [r_bottom, 0], [_lerp(r_bottom, r_top, bottom / height), bottom], [0, bottom]],
-        sections=24,
+        dtype=float,
     )
+    base = trimesh.creation.revolve(base_profile, sections=24)
     base.apply_translation([xy[0], xy[1], z0])
     pieces.append(_convex(base))
     rb = _lerp(r_bottom, r_top, bottom / height)
@@ -182,7 +184,7 @@ def shell(
             for r, z in ((rb, bottom), (r_top, height)):
                 pts.append([r * c, r * s, z])
                 pts.append([(r - wall) * c, (r - wall) * s, z])
-        seg = trimesh.Trimesh(np.array(pts) + [xy[0], xy[1], z0]).convex_hull
+        seg = trimesh.Trimesh(np.array(pts) + np.array([xy[0], xy[1], z0])).convex_hull
         pieces.append(seg)
     return Part(visual, pieces, material, rgba, 1.0, name)
 
@@ -219,31 +221,47 @@ def frame_box(
     inner_w, inner_l = w - 2 * t, ln - t
     y_front = -ln / 2 if open_front else -ln / 2 + t
     if not open_front:
-        parts.append(box((w - 2 * t, t, h - t), (0, -ln / 2 + t / 2, z0 + (h - t) / 2 + t),
-                         material, rgba, f"{name}_front"))
+        parts.append(
+            box(
+                (w - 2 * t, t, h - t),
+                (0, -ln / 2 + t / 2, z0 + (h - t) / 2 + t),
+                material,
+                rgba,
+                f"{name}_front",
+            )
+        )
         inner_l -= t
     top_z = h if open_top else h - t
     if not open_top:
-        parts.append(box((w - 2 * t, ln - t, t), (0, -t / 2, z0 + h - t / 2), material, rgba,
-                         f"{name}_top"))
-    rect = (-inner_w / 2, y_front + (0 if open_front else 0), inner_w / 2, ln / 2 - t)
+        parts.append(
+            box((w - 2 * t, ln - t, t), (0, -t / 2, z0 + h - t / 2), material, rgba, f"{name}_top")
+        )
+    rect = (-inner_w / 2, y_front, inner_w / 2, ln / 2 - t)
     supports = [Support(f"{name}_floor", z0 + t, rect)]
     containers = []
     levels = [z0 + t]
     for b in range(boards):
         zb = z0 + t + (top_z - t) * (b + 1) / (boards + 1)
-        parts.append(box((inner_w, inner_l, t), (0, -t / 2 + (0 if open_front else t / 2),
-                                                  zb - t / 2 + t / 2), material, rgba,
-                         f"{name}_board_{b}"))
+        parts.append(
+            box(
+                (inner_w, inner_l, t),
+                (0, -t / 2 + (0 if open_front else t / 2), zb - t / 2 + t / 2),
+                material,
+                rgba,
+                f"{name}_board_{b}",
+            )
+        )
         supports.append(Support(f"{name}_board_{b}", zb + t / 2, rect))
         levels.append(zb + t / 2)
     levels.append(z0 + top_z)
     for i in range(len(levels) - 1):
-        containers.append(Container(
-            f"{name}_interior_{i}",
-            (rect[0], rect[1], levels[i]),
-            (rect[2], rect[3], levels[i + 1] - (t if i < len(levels) - 2 else 0)),
-        ))
+        containers.append(
+            Container(
+                f"{name}_interior_{i}",
+                (rect[0], rect[1], levels[i]),
+                (rect[2], rect[3], levels[i + 1] - (t if i < len(levels) - 2 else 0)),
+            )
+        )
     if not open_top:
         supports.append(Support(f"{name}_top", z0 + h, (-w / 2, -ln / 2, w / 2, ln / 2)))
     return parts, supports, containers
@@ -251,4 +269,6 @@ def frame_box(
 
 def assemble(shape: Shape) -> trimesh.Trimesh:
     """The visual mesh of all parts (watertight: each part is)."""
-    return trimesh.util.concatenate([p.visual for p in shape.parts])
+    mesh = trimesh.util.concatenate([p.visual for p in shape.parts])
+    assert isinstance(mesh, trimesh.Trimesh)
+    return mesh

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-
 from factory.scenes.assets.cache import asset_id_for, build, cached, write_obj
 from factory.scenes.assets.catalog import CATEGORIES
 from factory.scenes.assets.geometry import Support
@@ -80,6 +79,19 @@ class AssetLibrary:
         self.trellis = trellis or TrellisConfig()
         self.fallback = fallback
 
+    @classmethod
+    def from_config(cls, cfg: Any, assets_dir: str | Path) -> AssetLibrary:
+        """The library described by the ``assets`` config section."""
+        return cls(
+            assets_dir,
+            backend=cfg.backend,
+            library_dir=cfg.library_dir,
+            trellis=TrellisConfig(
+                url=cfg.trellis_url, timeout=cfg.trellis_timeout, retries=cfg.trellis_retries
+            ),
+            fallback=cfg.fallback,
+        )
+
     # ---- front
     def from_text(self, text: str, seed: int = 0, dims: Any = None) -> tuple[AssetMeta, Resolution]:
         """The asset for a free-text request (``dims`` in m overrides the text's size)."""
@@ -103,13 +115,19 @@ class AssetLibrary:
             return hit
         try:
             if self.backend == "mesh_library":
-                return build(self.assets_dir, asset_id, lambda d: self._from_library(spec, d, asset_id))
+                return build(
+                    self.assets_dir, asset_id, lambda d: self._from_library(spec, d, asset_id)
+                )
             return build(self.assets_dir, asset_id, lambda d: self._from_trellis(spec, d, asset_id))
         except AssetError as e:
             if not self.fallback:
                 raise
-            log.warning("%s backend failed for %r (%s); falling back to procedural",
-                        self.backend, spec.text or spec.category, e)
+            log.warning(
+                "%s backend failed for %r (%s); falling back to procedural",
+                self.backend,
+                spec.text or spec.category,
+                e,
+            )
             meta = self._procedural(spec)
             meta.provenance.setdefault("fallback_from", self.backend)
             return meta
@@ -121,13 +139,21 @@ class AssetLibrary:
         def fill(folder: Path) -> AssetMeta:
             gen = generate(spec)
             write_obj(gen.visual, folder / "visual.obj")
-            parts, collision = [], []
+            parts: list[dict[str, Any]] = []
+            collision: list[str] = []
             for k, p in enumerate(gen.shape.parts):
                 write_obj(p.visual, folder / f"visual_{k}.obj")
                 mat = material(p.material)
-                parts.append({"file": f"visual_{k}.obj", "name": p.name, "material": p.material,
-                              "rgba": list(p.rgba), "metallic": mat.metallic,
-                              "roughness": mat.roughness})
+                parts.append(
+                    {
+                        "file": f"visual_{k}.obj",
+                        "name": p.name,
+                        "material": p.material,
+                        "rgba": list(p.rgba),
+                        "metallic": mat.metallic,
+                        "roughness": mat.roughness,
+                    }
+                )
                 for c in p.collision:
                     name = f"collision_{len(collision)}.obj"
                     write_obj(c, folder / name)
@@ -139,14 +165,18 @@ class AssetLibrary:
                 extents=[float(v) for v in gen.visual.extents],
                 collision=collision,
                 license="CC0-1.0",
-                provenance={"generator": f"factory.scenes.assets.templates/{spec.category}",
-                            "seed": spec.seed, "text": spec.text},
+                provenance={
+                    "generator": f"factory.scenes.assets.templates/{spec.category}",
+                    "seed": spec.seed,
+                    "text": spec.text,
+                },
                 category=spec.category,
                 visual_parts=parts,
                 supports=[_support(s) for s in gen.shape.supports],
-                containers=[{"name": c.name, "lo": [float(v) for v in c.lo],
-                             "hi": [float(v) for v in c.hi]}
-                            for c in gen.shape.containers],
+                containers=[
+                    {"name": c.name, "lo": [float(v) for v in c.lo], "hi": [float(v) for v in c.hi]}
+                    for c in gen.shape.containers
+                ],
                 mass=gen.mass,
                 friction=gen.friction,
                 materials=list(gen.materials),
@@ -165,8 +195,9 @@ class AssetLibrary:
             raise AssetError(f"mesh library {self.library_dir} has no metadata.json") from None
         except json.JSONDecodeError as e:
             raise AssetError(f"{meta_path} is not valid JSON ({e.msg})") from None
-        if not isinstance(entries, list) or not all(isinstance(e, dict) and "file" in e
-                                                     for e in entries):
+        if not isinstance(entries, list) or not all(
+            isinstance(e, dict) and "file" in e for e in entries
+        ):
             raise AssetError(f"{meta_path} must be a list of {{file, category, tags, license}}")
         return entries
 
@@ -180,47 +211,78 @@ class AssetLibrary:
 
         best = max(entries, key=score)
         if score(best) == (0, 0):
-            raise AssetError(f"no mesh in {self.library_dir} matches {spec.text or spec.category!r}")
-        path = self.library_dir / best["file"]  # type: ignore[operator]
+            raise AssetError(
+                f"no mesh in {self.library_dir} matches {spec.text or spec.category!r}"
+            )
+        assert self.library_dir is not None
+        path = self.library_dir / str(best["file"])
         mesh = load_mesh(path)
-        return self._finish(mesh, spec, folder, asset_id, "mesh_library",
-                            best.get("license", "unknown"),
-                            {"source_file": best["file"], "tags": best.get("tags", [])},
-                            y_up=bool(best.get("y_up", False)))
+        return self._finish(
+            mesh,
+            spec,
+            folder,
+            asset_id,
+            "mesh_library",
+            best.get("license", "unknown"),
+            {"source_file": best["file"], "tags": best.get("tags", [])},
+            y_up=bool(best.get("y_up", False)),
+        )
 
     # ---- trellis
     def _from_trellis(self, spec: AssetSpec, folder: Path, asset_id: str) -> AssetMeta:
         cfg = self.trellis
-        body = json.dumps({"prompt": spec.text or spec.category.replace("_", " "),
-                           "seed": spec.seed}).encode()
+        body = json.dumps(
+            {"prompt": spec.text or spec.category.replace("_", " "), "seed": spec.seed}
+        ).encode()
         last: Exception | None = None
         for attempt in range(cfg.retries + 1):
             try:
-                req = urllib.request.Request(cfg.url, data=body, method="POST",
-                                             headers={"Content-Type": "application/json"})
+                req = urllib.request.Request(
+                    cfg.url, data=body, method="POST", headers={"Content-Type": "application/json"}
+                )
                 with urllib.request.urlopen(req, timeout=cfg.timeout) as r:
                     data = r.read()
                     ctype = r.headers.get("Content-Type", "")
                 fmt = _format(ctype, data)
                 mesh = load_mesh(data, file_type=fmt)
-                return self._finish(mesh, spec, folder, asset_id, "trellis", "see server",
-                                    {"server": cfg.url, "attempts": attempt + 1, "format": fmt},
-                                    y_up=fmt == "glb")
+                return self._finish(
+                    mesh,
+                    spec,
+                    folder,
+                    asset_id,
+                    "trellis",
+                    "see server",
+                    {"server": cfg.url, "attempts": attempt + 1, "format": fmt},
+                    y_up=fmt == "glb",
+                )
             except (urllib.error.URLError, TimeoutError, OSError, AssetError) as e:
                 last = e
                 log.warning("trellis request %d/%d failed: %s", attempt + 1, cfg.retries + 1, e)
                 if attempt < cfg.retries:
                     time.sleep(cfg.backoff * (2**attempt))
-        raise AssetError(f"the text-to-3D server at {cfg.url} failed after "
-                         f"{cfg.retries + 1} attempt(s): {last}")
+        raise AssetError(
+            f"the text-to-3D server at {cfg.url} failed after {cfg.retries + 1} attempt(s): {last}"
+        )
 
     # ---- shared post-processing
-    def _finish(self, mesh: Any, spec: AssetSpec, folder: Path, asset_id: str, backend: str,
-                license: str, provenance: dict[str, Any], y_up: bool) -> AssetMeta:
+    def _finish(
+        self,
+        mesh: Any,
+        spec: AssetSpec,
+        folder: Path,
+        asset_id: str,
+        backend: str,
+        license: str,
+        provenance: dict[str, Any],
+        y_up: bool,
+    ) -> AssetMeta:
         m = repair(mesh)
         cat = CATEGORIES.get(spec.category)
-        m = to_object_frame(m, dims=spec.dims, y_up=y_up) if spec.dims else to_object_frame(
-            m, height=cat.dims[2] if cat else 0.3, y_up=y_up)
+        m = (
+            to_object_frame(m, dims=spec.dims, y_up=y_up)
+            if spec.dims
+            else to_object_frame(m, height=cat.dims[2] if cat else 0.3, y_up=y_up)
+        )
         hulls = decompose(m, seed=spec.seed)
         write_obj(m, folder / "visual.obj")
         names = []
@@ -232,15 +294,30 @@ class AssetLibrary:
         volume = float(m.volume) if m.is_watertight else float(sum(h.volume for h in hulls))
         ext = m.extents
         return AssetMeta(
-            asset_id=asset_id, backend=backend, visual="visual.obj",
-            extents=[float(v) for v in ext], collision=names, license=license,
+            asset_id=asset_id,
+            backend=backend,
+            visual="visual.obj",
+            extents=[float(v) for v in ext],
+            collision=names,
+            license=license,
             provenance=provenance | {"text": spec.text, "seed": spec.seed},
             category=spec.category,
-            supports=[{"name": "top", "z": float(ext[2]),
-                       "rect": [float(-ext[0] / 2), float(-ext[1] / 2), float(ext[0] / 2),
-                                float(ext[1] / 2)]}],
+            supports=[
+                {
+                    "name": "top",
+                    "z": float(ext[2]),
+                    "rect": [
+                        float(-ext[0] / 2),
+                        float(-ext[1] / 2),
+                        float(ext[0] / 2),
+                        float(ext[1] / 2),
+                    ],
+                }
+            ],
             mass=volume * mat.density * (cat.fill if cat else 1.0),
-            friction=mat.friction, materials=list(mats), request=spec.key(),
+            friction=mat.friction,
+            materials=list(mats),
+            request=spec.key(),
         )
 
 

@@ -31,8 +31,9 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None) -> trime
     """
     try:
         if isinstance(source, bytes):
-            loaded = trimesh.load(io.BytesIO(source), file_type=file_type, force="mesh",
-                                  process=False)
+            loaded = trimesh.load(
+                io.BytesIO(source), file_type=file_type, force="mesh", process=False
+            )
         else:
             loaded = trimesh.load(str(source), force="mesh", process=False)
     except Exception as e:  # trimesh raises many types on garbage
@@ -83,8 +84,9 @@ def to_object_frame(
     return m
 
 
-def decompose(mesh: trimesh.Trimesh, threshold: float = 0.08, max_parts: int = 24,
-              seed: int = 0) -> list[trimesh.Trimesh]:
+def decompose(
+    mesh: trimesh.Trimesh, threshold: float = 0.08, max_parts: int = 24, seed: int = 0
+) -> list[trimesh.Trimesh]:
     """Approximate convex decomposition with CoACD; every part has <= 64 vertices."""
     import coacd
 

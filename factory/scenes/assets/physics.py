@@ -52,12 +52,31 @@ MATERIALS: dict[str, Material] = {
 """Material name -> properties; text like "rusty metal" or "oak" selects them."""
 
 ALIASES: dict[str, str] = {
-    "wooden": "wood", "timber": "wood", "bamboo": "pine", "iron": "metal", "metallic": "metal",
-    "chrome": "steel", "stainless": "steel", "copper": "brass", "gold": "brass",
-    "golden": "brass", "silver": "aluminium", "clay": "ceramic", "terracotta": "ceramic",
-    "stoneware": "ceramic", "crystal": "glass", "acrylic": "plastic", "vinyl": "plastic",
-    "cloth": "fabric", "velvet": "fabric", "wool": "fabric", "linen": "fabric",
-    "cotton": "fabric", "granite": "stone", "rusty": "rusty metal", "rust": "rusty metal",
+    "wooden": "wood",
+    "timber": "wood",
+    "bamboo": "pine",
+    "iron": "metal",
+    "metallic": "metal",
+    "chrome": "steel",
+    "stainless": "steel",
+    "copper": "brass",
+    "gold": "brass",
+    "golden": "brass",
+    "silver": "aluminium",
+    "clay": "ceramic",
+    "terracotta": "ceramic",
+    "stoneware": "ceramic",
+    "crystal": "glass",
+    "acrylic": "plastic",
+    "vinyl": "plastic",
+    "cloth": "fabric",
+    "velvet": "fabric",
+    "wool": "fabric",
+    "linen": "fabric",
+    "cotton": "fabric",
+    "granite": "stone",
+    "rusty": "rusty metal",
+    "rust": "rusty metal",
 }
 
 

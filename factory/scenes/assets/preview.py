@@ -16,18 +16,33 @@ def asset_scene(meta: AssetMeta) -> Scene:
     """A scene holding just the asset, centred in a room sized to it."""
     w, ln, h = meta.extents
     side = max(w, ln, h) * 3 + 1.0
-    room = Room(id="studio", room_type="studio", position=Vec3(-side / 2, -side / 2, 0),
-                dimensions=Size3(side, side, max(2.5, h * 1.5)), floor_material="concrete")
+    room = Room(
+        id="studio",
+        room_type="studio",
+        position=Vec3(-side / 2, -side / 2, 0),
+        dimensions=Size3(side, side, max(2.5, h * 1.5)),
+        floor_material="concrete",
+    )
     obj = SceneObject(
-        id="asset", room_id="studio", category=meta.category or "object", position=Vec3(0, 0, 0),
-        dimensions=Size3(w, ln, h), asset=AssetRef(backend=meta.backend, asset_id=meta.asset_id),
+        id="asset",
+        room_id="studio",
+        category=meta.category or "object",
+        position=Vec3(0, 0, 0),
+        dimensions=Size3(w, ln, h),
+        asset=AssetRef(backend=meta.backend, asset_id=meta.asset_id),
         physics=Physics(mass=meta.mass or 1.0, static=True),
     )
     return Scene(id="preview", rooms=[room], objects=[obj], source="example")
 
 
-def render_asset(assets_dir: Path, meta: AssetMeta, width: int = 512, height: int = 512,
-                 azimuth: float = 120.0, elevation: float = -25.0) -> np.ndarray:
+def render_asset(
+    assets_dir: Path,
+    meta: AssetMeta,
+    width: int = 512,
+    height: int = 512,
+    azimuth: float = 120.0,
+    elevation: float = -25.0,
+) -> np.ndarray:
     """An RGB image ``(height, width, 3)`` of the asset."""
     model = compile_scene(asset_scene(meta), assets_dir).model
     data = mujoco.MjData(model)

@@ -95,13 +95,13 @@ def check_dims(dims: Any) -> tuple[float, float, float]:
         raise AssetError(
             f"dimensions {d} m are out of range: each must be within {MIN_DIM}..{MAX_DIM} m"
         )
-    return d  # type: ignore[return-value]
+    return (d[0], d[1], d[2])
 
 
 def _shade(rgba: tuple[float, ...], rng: np.random.Generator, amount: float = 0.06) -> tuple:
-    h, l, s = colorsys.rgb_to_hls(*rgba[:3])
-    l2 = float(np.clip(l + rng.uniform(-amount, amount), 0.03, 0.97))
-    r, g, b = colorsys.hls_to_rgb(h, l2, s)
+    hue, light, sat = colorsys.rgb_to_hls(*rgba[:3])
+    light2 = float(np.clip(light + rng.uniform(-amount, amount), 0.03, 0.97))
+    r, g, b = colorsys.hls_to_rgb(hue, light2, sat)
     return (r, g, b, rgba[3] if len(rgba) > 3 else 1.0)
 
 

@@ -20,20 +20,44 @@ from factory.scenes.assets.procedural import AssetError, AssetSpec
 RGBA = tuple[float, float, float, float]
 
 COLORS: dict[str, RGBA] = {
-    "red": (0.78, 0.12, 0.12, 1), "dark red": (0.45, 0.06, 0.06, 1),
-    "burgundy": (0.45, 0.08, 0.15, 1), "maroon": (0.4, 0.05, 0.1, 1),
-    "pink": (0.95, 0.6, 0.72, 1), "rose": (0.9, 0.45, 0.55, 1), "orange": (0.95, 0.5, 0.1, 1),
-    "yellow": (0.95, 0.85, 0.2, 1), "mustard": (0.8, 0.65, 0.15, 1), "gold": (0.83, 0.69, 0.22, 1),
-    "green": (0.2, 0.6, 0.25, 1), "olive": (0.45, 0.48, 0.2, 1), "mint": (0.6, 0.88, 0.75, 1),
-    "dark green": (0.08, 0.3, 0.12, 1), "teal": (0.1, 0.5, 0.5, 1), "cyan": (0.1, 0.85, 0.9, 1),
-    "turquoise": (0.2, 0.8, 0.75, 1), "blue": (0.15, 0.3, 0.8, 1), "navy": (0.08, 0.12, 0.35, 1),
-    "light blue": (0.6, 0.78, 0.95, 1), "sky blue": (0.5, 0.75, 0.95, 1),
-    "purple": (0.5, 0.2, 0.65, 1), "violet": (0.55, 0.3, 0.85, 1), "lavender": (0.75, 0.65, 0.9, 1),
-    "magenta": (0.9, 0.1, 0.7, 1), "brown": (0.45, 0.28, 0.15, 1), "beige": (0.87, 0.8, 0.65, 1),
-    "tan": (0.8, 0.68, 0.5, 1), "cream": (0.96, 0.93, 0.82, 1), "ivory": (0.97, 0.96, 0.88, 1),
-    "white": (0.95, 0.95, 0.95, 1), "black": (0.07, 0.07, 0.08, 1), "grey": (0.5, 0.5, 0.52, 1),
-    "gray": (0.5, 0.5, 0.52, 1), "dark grey": (0.25, 0.25, 0.27, 1),
-    "light grey": (0.78, 0.78, 0.8, 1), "silver": (0.77, 0.78, 0.8, 1), "charcoal": (0.2, 0.2, 0.22, 1),
+    "red": (0.78, 0.12, 0.12, 1),
+    "dark red": (0.45, 0.06, 0.06, 1),
+    "burgundy": (0.45, 0.08, 0.15, 1),
+    "maroon": (0.4, 0.05, 0.1, 1),
+    "pink": (0.95, 0.6, 0.72, 1),
+    "rose": (0.9, 0.45, 0.55, 1),
+    "orange": (0.95, 0.5, 0.1, 1),
+    "yellow": (0.95, 0.85, 0.2, 1),
+    "mustard": (0.8, 0.65, 0.15, 1),
+    "gold": (0.83, 0.69, 0.22, 1),
+    "green": (0.2, 0.6, 0.25, 1),
+    "olive": (0.45, 0.48, 0.2, 1),
+    "mint": (0.6, 0.88, 0.75, 1),
+    "dark green": (0.08, 0.3, 0.12, 1),
+    "teal": (0.1, 0.5, 0.5, 1),
+    "cyan": (0.1, 0.85, 0.9, 1),
+    "turquoise": (0.2, 0.8, 0.75, 1),
+    "blue": (0.15, 0.3, 0.8, 1),
+    "navy": (0.08, 0.12, 0.35, 1),
+    "light blue": (0.6, 0.78, 0.95, 1),
+    "sky blue": (0.5, 0.75, 0.95, 1),
+    "purple": (0.5, 0.2, 0.65, 1),
+    "violet": (0.55, 0.3, 0.85, 1),
+    "lavender": (0.75, 0.65, 0.9, 1),
+    "magenta": (0.9, 0.1, 0.7, 1),
+    "brown": (0.45, 0.28, 0.15, 1),
+    "beige": (0.87, 0.8, 0.65, 1),
+    "tan": (0.8, 0.68, 0.5, 1),
+    "cream": (0.96, 0.93, 0.82, 1),
+    "ivory": (0.97, 0.96, 0.88, 1),
+    "white": (0.95, 0.95, 0.95, 1),
+    "black": (0.07, 0.07, 0.08, 1),
+    "grey": (0.5, 0.5, 0.52, 1),
+    "gray": (0.5, 0.5, 0.52, 1),
+    "dark grey": (0.25, 0.25, 0.27, 1),
+    "light grey": (0.78, 0.78, 0.8, 1),
+    "silver": (0.77, 0.78, 0.8, 1),
+    "charcoal": (0.2, 0.2, 0.22, 1),
 }
 
 STYLES: dict[str, tuple[tuple[str, str] | None, tuple[RGBA, RGBA] | None]] = {
@@ -58,17 +82,33 @@ STYLES: dict[str, tuple[tuple[str, str] | None, tuple[RGBA, RGBA] | None]] = {
 }
 
 SIZE_WORDS: dict[str, tuple[float, float, float]] = {
-    "tiny": (0.6, 0.6, 0.6), "mini": (0.65, 0.65, 0.65), "small": (0.78, 0.78, 0.78),
-    "little": (0.78, 0.78, 0.78), "compact": (0.8, 0.8, 0.85), "large": (1.25, 1.25, 1.2),
-    "big": (1.25, 1.25, 1.2), "huge": (1.6, 1.6, 1.4), "giant": (1.8, 1.8, 1.6),
-    "oversized": (1.4, 1.4, 1.2), "tall": (1.0, 1.0, 1.35), "short": (1.0, 1.0, 0.75),
-    "low": (1.0, 1.0, 0.75), "wide": (1.3, 1.0, 1.0), "narrow": (0.75, 1.0, 1.0),
-    "long": (1.0, 1.3, 1.0), "slim": (0.8, 0.8, 1.0),
+    "tiny": (0.6, 0.6, 0.6),
+    "mini": (0.65, 0.65, 0.65),
+    "small": (0.78, 0.78, 0.78),
+    "little": (0.78, 0.78, 0.78),
+    "compact": (0.8, 0.8, 0.85),
+    "large": (1.25, 1.25, 1.2),
+    "big": (1.25, 1.25, 1.2),
+    "huge": (1.6, 1.6, 1.4),
+    "giant": (1.8, 1.8, 1.6),
+    "oversized": (1.4, 1.4, 1.2),
+    "tall": (1.0, 1.0, 1.35),
+    "short": (1.0, 1.0, 0.75),
+    "low": (1.0, 1.0, 0.75),
+    "wide": (1.3, 1.0, 1.0),
+    "narrow": (0.75, 1.0, 1.0),
+    "long": (1.0, 1.3, 1.0),
+    "slim": (0.8, 0.8, 1.0),
 }
 
 BED_SIZES: dict[str, tuple[float, float]] = {
-    "king": (1.93, 2.03), "california king": (1.83, 2.13), "queen": (1.52, 2.03),
-    "double": (1.37, 1.91), "full": (1.37, 1.91), "twin": (0.99, 1.91), "single": (0.99, 1.91),
+    "king": (1.93, 2.03),
+    "california king": (1.83, 2.13),
+    "queen": (1.52, 2.03),
+    "double": (1.37, 1.91),
+    "full": (1.37, 1.91),
+    "twin": (0.99, 1.91),
+    "single": (0.99, 1.91),
 }
 
 FUZZY_CUTOFF = 0.72
@@ -166,7 +206,9 @@ def resolve(text: str, seed: int = 0, allow_fallback: bool = True) -> Resolution
         if score >= FUZZY_CUTOFF:
             matched, category = best, _VOCAB[best]
             approximated, confidence = True, round(score, 2)
-            notes.append(f"approximated: read {matched!r} for an unknown word (similarity {score:.2f})")
+            notes.append(
+                f"approximated: read {matched!r} for an unknown word (similarity {score:.2f})"
+            )
         elif allow_fallback:
             matched, category = best or "cardboard_box", _VOCAB.get(best, "cardboard_box")
             if score < GUESS_CUTOFF:
