@@ -475,3 +475,9 @@ def test_library_from_config(tmp_path: Path) -> None:
         AssetLibrary.from_config(AssetsConfig(backend="mesh_library"), tmp_path)
     with pytest.raises(AssetError, match="not one of"):
         AssetLibrary.from_config(AssetsConfig(backend="dreamfusion"), tmp_path)
+
+
+def test_docs_list_every_category() -> None:
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "ASSETS.md").read_text()
+    missing = [c for c in CATEGORIES if f"| {c} |" not in doc]
+    assert not missing, f"regenerate docs/ASSETS.md: missing {missing}"

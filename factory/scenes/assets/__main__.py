@@ -25,6 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m factory.scenes.assets", description=__doc__)
     p.add_argument("text", nargs="?", help="what to make, e.g. 'a tall oak bookshelf'")
     p.add_argument("--list", action="store_true", help="list the categories")
+    p.add_argument("--markdown", action="store_true", help="with --list: a Markdown table")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--dims", type=float, nargs=3, metavar=("W", "L", "H"), default=None)
     p.add_argument("--assets", default=None, help="asset cache folder (default: a temp folder)")
@@ -40,6 +41,16 @@ def main(argv: list[str] | None = None) -> int:
     configure_gl("auto")
     from factory.scenes.assets import CATEGORIES, AssetError, AssetLibrary, TrellisConfig
 
+    if args.list and args.markdown:
+        print("| category | group | placement | typical size (m) | materials | mass (kg) | "
+              "synonyms |")
+        print("|---|---|---|---|---|---|---|")
+        for name, cat in CATEGORIES.items():
+            dims = " x ".join(f"{v:g}" for v in cat.dims)
+            print(f"| {name} | {cat.group} | {cat.placement} | {dims} | "
+                  f"{', '.join(dict.fromkeys(cat.materials))} | {cat.mass[0]:g}-{cat.mass[1]:g} | "
+                  f"{', '.join(cat.synonyms)} |")
+        return 0
     if args.list:
         width = max(map(len, CATEGORIES))
         for name, cat in CATEGORIES.items():
