@@ -287,32 +287,28 @@ def test_plate_on_a_shelf_board_stays_on_it(tmp_path: Path) -> None:
 
 
 def _u_shape() -> trimesh.Trimesh:
-    """A concave U-shaped trough: three boxes unioned into one watertight mesh."""
-    parts = [
-        trimesh.creation.box(
-            (0.3, 0.1, 0.02), trimesh.transformations.translation_matrix((0, 0, 0.01))
-        ),
-        trimesh.creation.box(
-            (0.02, 0.1, 0.2), trimesh.transformations.translation_matrix((-0.14, 0, 0.1))
-        ),
-        trimesh.creation.box(
-            (0.02, 0.1, 0.2), trimesh.transformations.translation_matrix((0.14, 0, 0.1))
-        ),
+    """A concave, watertight U-shaped trough (a U polygon in x-z extruded 0.1 m along y)."""
+    outline = [
+        (-0.15, 0),
+        (0.15, 0),
+        (0.15, 0.2),
+        (0.13, 0.2),
+        (0.13, 0.02),
+        (-0.13, 0.02),
+        (-0.13, 0.2),
+        (-0.15, 0.2),
     ]
-    return (
-        trimesh.boolean.union(parts, engine="manifold")
-        if _has_manifold()
-        else trimesh.util.concatenate(parts)
-    )
-
-
-def _has_manifold() -> bool:
-    try:
-        import manifold3d  # noqa: F401
-
-        return True
-    except ImportError:
-        return False
+    tris = [(0, 1, 4), (1, 2, 4), (2, 3, 4), (0, 4, 5), (0, 5, 6), (0, 6, 7)]
+    n = len(outline)
+    verts = [(x, y, z) for y in (0.0, 0.1) for x, z in outline]
+    faces = [(a, b, c) for a, b, c in tris] + [(c + n, b + n, a + n) for a, b, c in tris]
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [(i, j + n, j), (i, i + n, j + n)]
+    mesh = trimesh.Trimesh(verts, faces, process=True)
+    trimesh.repair.fix_normals(mesh)
+    assert mesh.is_watertight and not mesh.is_convex
+    return mesh
 
 
 def _library(tmp_path: Path) -> Path:
