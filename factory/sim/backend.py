@@ -106,6 +106,19 @@ def check_qpos(model: mujoco.MjModel, qpos0: np.ndarray) -> np.ndarray:
     return q
 
 
+def one_model(model: mujoco.MjModel | Sequence[mujoco.MjModel], backend: str) -> mujoco.MjModel:
+    """The single model of a batch, for backends that run one model per batch."""
+    if isinstance(model, mujoco.MjModel):
+        return model
+    models = list(model)
+    if any(m is not models[0] for m in models):
+        raise ConfigError(
+            f"the {backend} backend runs one model per batch: use the cpu backend for "
+            "per-candidate models, or batch candidates of one scene"
+        )
+    return models[0]
+
+
 def nonfinite_rows(qpos: np.ndarray) -> np.ndarray:
     """``(n,)`` bool: rows with NaN or infinite entries."""
     return ~np.isfinite(qpos).all(axis=1)

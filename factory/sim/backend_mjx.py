@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from factory.errors import ConfigError
-from factory.sim.backend import Rollout, check_qpos, nonfinite_rows
+from factory.sim.backend import Rollout, check_qpos, nonfinite_rows, one_model
 
 
 class MjxBackend:
@@ -60,11 +60,7 @@ class MjxBackend:
         qpos0: np.ndarray,
         nstep: int,
     ) -> Rollout:
-        if not isinstance(model, mujoco.MjModel):
-            models = list(model)
-            if any(m is not models[0] for m in models):
-                raise ConfigError("the mjx backend runs one model per batch: use cpu or warp")
-            model = models[0]
+        model = one_model(model, "mjx")
         k = self._free_bodies(model)
         if k > self.max_free_bodies:
             raise ConfigError(

@@ -23,8 +23,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.errors import ConfigError
-from factory.sim.backend import Rollout, check_qpos, cuda_available, nonfinite_rows
+from factory.sim.backend import Rollout, check_qpos, cuda_available, nonfinite_rows, one_model
 
 log = logging.getLogger(__name__)
 
@@ -129,13 +128,7 @@ class WarpBackend:
         qpos0: np.ndarray,
         nstep: int,
     ) -> Rollout:
-        if not isinstance(model, mujoco.MjModel):
-            models = list(model)
-            if any(mm is not models[0] for mm in models):
-                raise ConfigError(
-                    "the warp backend runs one model per batch; batch candidates of one scene"
-                )
-            model = models[0]
+        model = one_model(model, "warp")
         q = check_qpos(model, qpos0)
         invalid = nonfinite_rows(q)
         reasons = ["non-finite initial pose" if b else "" for b in invalid]

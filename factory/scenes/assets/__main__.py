@@ -42,14 +42,17 @@ def main(argv: list[str] | None = None) -> int:
     from factory.scenes.assets import CATEGORIES, AssetError, AssetLibrary, TrellisConfig
 
     if args.list and args.markdown:
-        print("| category | group | placement | typical size (m) | materials | mass (kg) | "
-              "synonyms |")
+        print(
+            "| category | group | placement | typical size (m) | materials | mass (kg) | synonyms |"
+        )
         print("|---|---|---|---|---|---|---|")
         for name, cat in CATEGORIES.items():
             dims = " x ".join(f"{v:g}" for v in cat.dims)
-            print(f"| {name} | {cat.group} | {cat.placement} | {dims} | "
-                  f"{', '.join(dict.fromkeys(cat.materials))} | {cat.mass[0]:g}-{cat.mass[1]:g} | "
-                  f"{', '.join(cat.synonyms)} |")
+            print(
+                f"| {name} | {cat.group} | {cat.placement} | {dims} | "
+                f"{', '.join(dict.fromkeys(cat.materials))} | {cat.mass[0]:g}-{cat.mass[1]:g} | "
+                f"{', '.join(cat.synonyms)} |"
+            )
         return 0
     if args.list:
         width = max(map(len, CATEGORIES))
