@@ -279,7 +279,7 @@ CATEGORIES: dict[str, Category] = {
         (0.3, 5),
         placement="floor",
         rooms=_ANY,
-        synonyms=("laundry basket", "hamper"),
+        synonyms=("laundry basket", "hamper", "bucket"),
         colors=((0.76, 0.6, 0.4, 1), (0.7, 0.55, 0.35, 1)),
     ),
     "cardboard_box": _c(

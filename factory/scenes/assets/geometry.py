@@ -46,11 +46,13 @@ class Part:
 
 @dataclass(frozen=True)
 class Support:
-    """An upward support surface: rectangle ``[x0, x1] x [y0, y1]`` at height ``z`` (m)."""
+    """An upward support surface: rectangle ``[x0, x1] x [y0, y1]`` at height ``z`` (m), with
+    ``clearance`` (m) of free height above it (the next board; large for open tops)."""
 
     name: str
     z: float
     rect: tuple[float, float, float, float]
+    clearance: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -237,7 +239,8 @@ def frame_box(
             box((w - 2 * t, ln - t, t), (0, -t / 2, z0 + h - t / 2), material, rgba, f"{name}_top")
         )
     rect = (-inner_w / 2, y_front, inner_w / 2, ln / 2 - t)
-    supports = [Support(f"{name}_floor", z0 + t, rect)]
+    # inside a closed case nothing can be put from outside: only its top is a support
+    supports = [Support(f"{name}_floor", z0 + t, rect)] if open_front else []
     containers = []
     levels = [z0 + t]
     for b in range(boards):
@@ -251,9 +254,17 @@ def frame_box(
                 f"{name}_board_{b}",
             )
         )
-        supports.append(Support(f"{name}_board_{b}", zb + t / 2, rect))
+        if open_front:
+            supports.append(Support(f"{name}_board_{b}", zb + t / 2, rect))
         levels.append(zb + t / 2)
     levels.append(z0 + top_z)
+    # free height above each inner level: up to the next board (or the top panel)
+    inner = [sp for sp in supports if not sp.name.endswith("_top")]
+    supports = [
+        Support(sp.name, sp.z, sp.rect, (levels[i + 1] - t if i < len(levels) - 2 else
+                                         levels[i + 1] - (0 if open_top else 0)) - sp.z)
+        for i, sp in enumerate(inner)
+    ] + [sp for sp in supports if sp.name.endswith("_top")]
     for i in range(len(levels) - 1):
         containers.append(
             Container(

@@ -17,7 +17,7 @@ import trimesh
 
 from factory.errors import FactoryError
 from factory.scenes.assets.catalog import CATEGORIES, Category
-from factory.scenes.assets.geometry import Shape, assemble
+from factory.scenes.assets.geometry import Container, Shape, Support, assemble
 from factory.scenes.assets.physics import material
 
 MIN_DIM = 0.003
@@ -144,6 +144,26 @@ def generate(spec: AssetSpec) -> Generated:
         p.visual.apply_transform(tf)
         for c in p.collision:
             c.apply_transform(tf)
+
+    def _x(v: float) -> float:
+        return float((v - centre[0]) * scale[0])
+
+    def _y(v: float) -> float:
+        return float((v - centre[1]) * scale[1])
+
+    def _z(v: float) -> float:
+        return float((v - centre[2]) * scale[2])
+
+    shape.supports = [
+        Support(s.name, _z(s.z), (_x(s.rect[0]), _y(s.rect[1]), _x(s.rect[2]), _y(s.rect[3])),
+                s.clearance * float(scale[2]))
+        for s in shape.supports
+    ]
+    shape.containers = [
+        Container(c.name, (_x(c.lo[0]), _y(c.lo[1]), _z(c.lo[2])),
+                  (_x(c.hi[0]), _y(c.hi[1]), _z(c.hi[2])))
+        for c in shape.containers
+    ]
     mass = cat.fill * sum(p.volume * material(p.material).density * p.fill for p in shape.parts)
     return Generated(
         shape=shape,

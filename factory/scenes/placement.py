@@ -1,0 +1,382 @@
+"""Object placement: floor (grid sampling + depth-first search with collision checks), wall
+mounts, and on-top placement on any support surface (multi-level), with the physics critic.
+
+Conventions: an object's front faces its local -y, its back +y; "against a wall" turns the back
+to the wall. Candidate positions are sampled on a grid, scored by the rule, and searched in
+score order (depth-first: the first collision-free candidate wins; on-top candidates go to the
+physics critic in small batches, first stable one accepted).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from factory.scenes.assets import AssetLibrary, Resolution
+from factory.scenes.footprint import Footprint, inside, overlaps
+from factory.schema import (
+    AssetMeta,
+    AssetRef,
+    Euler,
+    Physics,
+    Placement,
+    Room,
+    Scene,
+    SceneObject,
+    Size3,
+    Vec3,
+)
+
+log = logging.getLogger(__name__)
+
+WALL_GAP = 0.01
+CLEARANCE = 0.02
+DOOR_DEPTH = 0.9
+
+
+@dataclass
+class PlaceResult:
+    """What a placement did (JSON-ready through :meth:`as_dict`)."""
+
+    ok: bool
+    object_id: str | None = None
+    reason: str = ""
+    candidates: int = 0
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"ok": self.ok, "object_id": self.object_id, "reason": self.reason,
+                "candidates": self.candidates, **self.detail}
+
+
+class SceneState:
+    """A scene under construction, with the assets of its objects.
+
+    Args:
+        scene: the scene (rooms set up; objects may already exist).
+        library: where assets come from.
+        seed: random seed of sampling.
+    """
+
+    def __init__(self, scene: Scene, library: AssetLibrary, seed: int = 0) -> None:
+        self.scene = scene
+        self.library = library
+        self.rng = np.random.default_rng(seed)
+        self.metas: dict[str, AssetMeta] = {}
+        self.counts: dict[str, int] = {}
+
+    # ---- geometry helpers
+    def room(self, room_id: str | None = None) -> Room:
+        return self.scene.room(room_id) if room_id else self.scene.rooms[0]
+
+    def interior(self, room: Room) -> tuple[float, float, float, float]:
+        t = max((w.thickness for w in room.walls), default=0.1) / 2
+        x0, y0 = room.position.x, room.position.y
+        return (x0 + t, y0 + t, x0 + room.dimensions.width - t, y0 + room.dimensions.length - t)
+
+    def footprint(self, obj: SceneObject) -> Footprint:
+        d = obj.dimensions
+        return Footprint(obj.position.x, obj.position.y, d.width / 2, d.length / 2,
+                         math.radians(obj.rotation.z), obj.position.z, obj.position.z + d.height)
+
+    def new_id(self, category: str) -> str:
+        n = self.counts.get(category, 0)
+        existing = {o.id for o in self.scene.objects}
+        while f"{category}_{n}" in existing:
+            n += 1
+        self.counts[category] = n + 1
+        return f"{category}_{n}"
+
+    def door_zones(self, room: Room) -> list[Footprint]:
+        """Rectangles in front of (both sides of) each door that must stay free."""
+        zones = []
+        walls = {w.id: w for w in room.walls}
+        for door in room.doors:
+            w = walls[door.wall_id]
+            t = door.position_on_wall
+            cx = w.start.x + (w.end.x - w.start.x) * t
+            cy = w.start.y + (w.end.y - w.start.y) * t
+            yaw = math.atan2(w.end.y - w.start.y, w.end.x - w.start.x)
+            zones.append(Footprint(cx, cy, door.width / 2 + 0.1, DOOR_DEPTH, yaw, 0.0, 2.5))
+        return zones
+
+    def window_zones(self, room: Room) -> list[Footprint]:
+        zones = []
+        walls = {w.id: w for w in room.walls}
+        for win in room.windows:
+            w = walls[win.wall_id]
+            t = win.position_on_wall
+            cx = w.start.x + (w.end.x - w.start.x) * t
+            cy = w.start.y + (w.end.y - w.start.y) * t
+            yaw = math.atan2(w.end.y - w.start.y, w.end.x - w.start.x)
+            zones.append(Footprint(cx, cy, win.width / 2, 0.25, yaw, win.sill_height,
+                                   win.sill_height + win.height))
+        return zones
+
+    def free(self, fp: Footprint, room: Room, ignore: set[str] | None = None,
+             on: str | None = None) -> bool:
+        """Whether ``fp`` collides with nothing (objects, door and window zones)."""
+        for obj in self.scene.objects:
+            if ignore and obj.id in ignore:
+                continue
+            if on is not None and obj.placement.support_id != on:
+                continue
+            if on is None and obj.placement.kind == "on_top":
+                continue
+            if overlaps(fp, self.footprint(obj), CLEARANCE if on is None else 0.005):
+                return False
+        if on is None:
+            for zone in self.door_zones(room):
+                if overlaps(fp, zone):
+                    return False
+            for zone in self.window_zones(room):
+                if fp.z1 > zone.z0 + 0.05 and overlaps(fp, zone):
+                    return False
+        return True
+
+    # ---- assets
+    def asset(self, text: str, dims: Any = None) -> tuple[AssetMeta, Resolution]:
+        seed = int(self.rng.integers(0, 2**31))
+        return self.library.from_text(text, seed=seed, dims=dims)
+
+    def add(self, meta: AssetMeta, res: Resolution, room: Room, pos: tuple[float, float, float],
+            yaw: float, placement: Placement, static: bool = False,
+            task_role: str | None = None) -> SceneObject:
+        obj = SceneObject(
+            id=self.new_id(res.spec.category),
+            room_id=room.id,
+            category=res.spec.category,
+            description=res.spec.text,
+            position=Vec3(*(float(v) for v in pos)),
+            rotation=Euler(0.0, 0.0, float(math.degrees(yaw))),
+            dimensions=Size3(*(float(v) for v in meta.extents)),
+            placement=placement,
+            asset=AssetRef(backend=meta.backend, asset_id=meta.asset_id),
+            physics=Physics(mass=float(meta.mass or 1.0), friction=float(meta.friction or 0.6),
+                            static=static),
+            license=meta.license,
+            task_role=task_role,
+        )
+        self.scene.objects.append(obj)
+        self.metas[obj.id] = meta
+        return obj
+
+
+# ---- floor
+
+
+_WALL_YAWS = {"south": math.pi, "north": 0.0, "east": -math.pi / 2, "west": math.pi / 2}
+
+
+def _wall_candidates(state: SceneState, room: Room, w: float, ln: float, step: float
+                     ) -> list[tuple[float, float, float, str, float]]:
+    """``(x, y, yaw, side, along)`` with the back against each wall of the room."""
+    x0, y0, x1, y1 = state.interior(room)
+    out = []
+    for side, yaw in _WALL_YAWS.items():
+        horizontal = side in ("south", "north")
+        lo, hi = (x0 + w / 2, x1 - w / 2) if horizontal else (y0 + w / 2, y1 - w / 2)
+        if hi < lo:
+            continue
+        n = max(1, int((hi - lo) / step) + 1)
+        for along in np.linspace(lo, hi, n):
+            if side == "south":
+                out.append((along, y0 + ln / 2 + WALL_GAP, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+            elif side == "north":
+                out.append((along, y1 - ln / 2 - WALL_GAP, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+            elif side == "east":
+                out.append((x1 - ln / 2 - WALL_GAP, along, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+            else:
+                out.append((x0 + ln / 2 + WALL_GAP, along, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+    return out
+
+
+def place_floor(state: SceneState, text: str, rule: str = "wall", room_id: str | None = None,
+                target: str | None = None, task_role: str | None = None,
+                dims: Any = None) -> PlaceResult:
+    """Places a floor object by ``rule`` (``wall``, ``corner``, ``free``, ``center``,
+    ``near``, ``around``; ``target`` names the object for the last two)."""
+    room = state.room(room_id)
+    meta, res = state.asset(text, dims)
+    w, ln, h = meta.extents
+    rng = state.rng
+    cands: list[tuple[float, float, float, float]] = []  # score, x, y, yaw
+    x0, y0, x1, y1 = state.interior(room)
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    tgt = state.scene.object(target) if target else None
+    if rule in ("wall", "corner"):
+        for x, y, yaw, _side, along in _wall_candidates(state, room, w, ln, 0.1):
+            if rule == "corner":
+                score = -min(along, 1 - along)
+            else:
+                score = -abs(along - 0.5) * (2.0 if w > 1.2 else 0.3) + rng.uniform(0, 0.4)
+            cands.append((score, x, y, yaw))
+    elif rule == "near" and tgt is not None:
+        tfp = state.footprint(tgt)
+        c, s = math.cos(tfp.yaw), math.sin(tfp.yaw)
+        for side in (-1, 1):
+            off = tfp.hx + w / 2 + 0.05
+            back = tfp.hy - ln / 2  # keep the back flush with the target's back
+            bx = tgt.position.x + side * off * c - back * s
+            by = tgt.position.y + side * off * s + back * c
+            cands.append((1.0 + rng.uniform(0, 0.1), bx, by, tfp.yaw))
+    elif rule == "around" and tgt is not None:
+        tfp = state.footprint(tgt)
+        c, s = math.cos(tfp.yaw), math.sin(tfp.yaw)
+        for k in range(4):
+            ang = tfp.yaw + k * math.pi / 2
+            half_t = tfp.hy if k % 2 == 0 else tfp.hx
+            half_side = tfp.hx if k % 2 == 0 else tfp.hy
+            dist = half_t + ln / 2 + 0.06 + 2 * CLEARANCE
+            nx, ny = -math.sin(ang), math.cos(ang)  # outward normal of that side
+            n_slots = max(1, int((2 * half_side) // (w + 0.1)))
+            for j in range(n_slots):
+                t = (j + 0.5) / n_slots * 2 - 1
+                px = tgt.position.x + nx * dist + math.cos(ang) * t * (half_side - w / 2)
+                py = tgt.position.y + ny * dist + math.sin(ang) * t * (half_side - w / 2)
+                yaw = ang  # the chair's back (+y) points away from the table
+                cands.append((1.0 - 0.1 * k + rng.uniform(0, 0.05), px, py, yaw))
+        del c, s
+    else:  # free / center
+        step = 0.2
+        for x in np.arange(x0 + 0.3, x1 - 0.3 + 1e-9, step):
+            for y in np.arange(y0 + 0.3, y1 - 0.3 + 1e-9, step):
+                d = math.hypot(x - cx, y - cy)
+                score = -d if rule == "center" else rng.uniform(0, 1)
+                yaw = float(rng.choice([0, math.pi / 2, math.pi, -math.pi / 2]))
+                if rule == "center":
+                    yaw = 0.0 if (x1 - x0) >= (y1 - y0) or w < ln else math.pi / 2
+                cands.append((score, x, y, yaw))
+    cands.sort(key=lambda c: -c[0])
+    for _score, x, y, yaw in cands:
+        fp = Footprint(x, y, w / 2, ln / 2, yaw, 0.0, h)
+        if not inside(fp, (x0, y0, x1, y1), -1e-6) or not state.free(fp, room):
+            continue
+        obj = state.add(meta, res, room, (x, y, 0.0), yaw, Placement("floor"),
+                        task_role=task_role)
+        return PlaceResult(True, obj.id, candidates=len(cands))
+    return PlaceResult(False, None, f"no free floor space for {text!r} ({rule})",
+                       candidates=len(cands))
+
+
+def place_wall(state: SceneState, text: str, height: float = 1.3,
+               room_id: str | None = None) -> PlaceResult:
+    """Mounts an object on a wall with its bottom at ``height`` (m); static in simulation."""
+    room = state.room(room_id)
+    meta, res = state.asset(text)
+    w, ln, h = meta.extents
+    top = min(height + h, room.ceiling_height - 0.05)
+    z0 = top - h
+    cands = _wall_candidates(state, room, w, ln, 0.1)
+    order = state.rng.permutation(len(cands))
+    walls = {"south": "south", "north": "north", "east": "east", "west": "west"}
+    for i in order:
+        x, y, yaw, side, _ = cands[int(i)]
+        fp = Footprint(x, y, w / 2, ln / 2, yaw, z0, z0 + h)
+        if not state.free(fp, room):
+            continue
+        wall_id = next((wl.id for wl in room.walls if wl.id.endswith(walls[side])), None)
+        obj = state.add(meta, res, room, (x, y, z0), yaw, Placement("wall", support_id=wall_id),
+                        static=True)
+        return PlaceResult(True, obj.id, candidates=len(cands))
+    return PlaceResult(False, None, f"no free wall space for {text!r}", candidates=len(cands))
+
+
+# ---- on top
+
+
+def support_rects(
+    state: SceneState, obj: SceneObject
+) -> list[tuple[str, float, np.ndarray, float]]:
+    """``(name, z_world, corners (4, 2) world, clearance)`` of the object's support surfaces."""
+    meta = state.metas.get(obj.id)
+    if meta is None:
+        return []
+    yaw = math.radians(obj.rotation.z)
+    c, s = math.cos(yaw), math.sin(yaw)
+    rot = np.array([[c, -s], [s, c]])
+    out = []
+    for sup in meta.supports:
+        x0, y0, x1, y1 = sup["rect"]
+        local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
+        world = local @ rot.T + [obj.position.x, obj.position.y]
+        out.append((sup["name"], obj.position.z + float(sup["z"]), world,
+                    float(sup.get("clearance", 10.0))))
+    return out
+
+
+def on_top_candidates(state: SceneState, support: SceneObject, w: float, ln: float, h: float,
+                      n: int = 24) -> list[tuple[float, float, float, float, str]]:
+    """``(x, y, z, yaw, surface)`` candidates fully on a surface, free of other objects there."""
+    room = state.room(support.room_id)
+    out = []
+    rng = state.rng
+    yaw0 = math.radians(support.rotation.z)
+    for name, z, corners, clearance in support_rects(state, support):
+        if h > clearance - 0.01:
+            continue  # does not fit under the next board
+        ux, uy = corners[1] - corners[0], corners[3] - corners[0]
+        for _ in range(n):
+            a, b = rng.uniform(0.0, 1.0, size=2)
+            x, y = corners[0] + a * ux + b * uy
+            yaw = yaw0 + float(rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2]))
+            if rng.uniform() < 0.5:  # half the candidates turned a little, half aligned
+                yaw += float(rng.uniform(-0.3, 0.3))
+            fp = Footprint(float(x), float(y), w / 2, ln / 2, yaw, z, z + h)
+            # the footprint must lie on the surface (shrunk 1 cm)
+            poly = Footprint(float(corners.mean(0)[0]), float(corners.mean(0)[1]),
+                             float(np.linalg.norm(ux)) / 2 - 0.01,
+                             float(np.linalg.norm(uy)) / 2 - 0.01, yaw0, z, z + 0.001)
+            if not _contains(poly, fp):
+                continue
+            if not state.free(fp, room, on=support.id):
+                continue
+            out.append((float(x), float(y), z, yaw, name))
+    return out
+
+
+def _contains(outer: Footprint, fp: Footprint) -> bool:
+    c = fp.corners() - [outer.x, outer.y]
+    ax = outer.axes()
+    px, py = c @ ax[0], c @ ax[1]
+    return bool(np.all(np.abs(px) <= outer.hx) and np.all(np.abs(py) <= outer.hy))
+
+
+def place_on(state: SceneState, text: str, support_id: str, critic: Any = None,
+             task_role: str | None = None, batch: int = 4, max_batches: int = 3,
+             dims: Any = None) -> PlaceResult:
+    """Places an object on a support surface of ``support_id`` (any level: tops, boards,
+    seats, or inside a vessel), checking candidates with the physics critic in batches."""
+    support = state.scene.object(support_id)
+    meta, res = state.asset(text, dims)
+    w, ln, h = meta.extents
+    cands = on_top_candidates(state, support, w, ln, h)
+    if not cands:
+        return PlaceResult(False, None, f"no free surface on {support_id} for {text!r}")
+    room = state.room(support.room_id)
+    obj = state.add(meta, res, room, cands[0][:3], cands[0][3],
+                    Placement("on_top", support_id=support_id), task_role=task_role)
+    if critic is None:
+        return PlaceResult(True, obj.id, candidates=len(cands))
+    failures: list[Any] = []
+    for k in range(min(max_batches, math.ceil(len(cands) / batch))):
+        chunk = cands[k * batch : (k + 1) * batch]
+        poses = [[x, y, z, math.degrees(yaw)] for x, y, z, yaw, _ in chunk]
+        verdict = critic(state.scene, obj.id, poses)
+        if verdict["ok"]:
+            x, y, z, yaw, _ = chunk[verdict["candidate"]]
+            obj.position = Vec3(x, y, z)
+            obj.rotation = Euler(0.0, 0.0, math.degrees(yaw))
+            return PlaceResult(True, obj.id, candidates=(k + 1) * batch,
+                               detail={"critic": "stable"})
+        failures.append(verdict)
+    state.scene.objects.remove(obj)
+    state.metas.pop(obj.id, None)
+    last = failures[-1] if failures else {}
+    return PlaceResult(False, None, f"no stable placement of {text!r} on {support_id}",
+                       candidates=len(cands), detail={"critic": {
+                           "summary": last.get("summary"), "suggestion": last.get("suggestion")}})
