@@ -56,6 +56,31 @@ class AssetsConfig:
 
 
 @dataclass
+class GenerateConfig:
+    """``stage=generate``: scenes from text requests with the scene agent.
+
+    Attributes:
+        prompts: requests, e.g. ``["a cozy bedroom", "a cyberpunk game den"]``.
+        prompts_file: a text file with one request per line (``#`` starts a comment).
+        task: a robot task ("pick up the mug and put it in the bowl"); alone it is the prompt.
+        scenes_per_prompt: scenes per request (seeds ``seed + 1000 * i + k``).
+        agent: ``heuristic`` (offline, deterministic per seed) or ``llm``.
+        physics_critic: judge every on-top placement in simulation (the paper's critic).
+        max_objects: stop adding objects past this count.
+        render: write the five renders of each scene.
+    """
+
+    prompts: list[str] = field(default_factory=list)
+    prompts_file: str | None = None
+    task: str | None = None
+    scenes_per_prompt: int = 1
+    agent: str = "heuristic"
+    physics_critic: bool = True
+    max_objects: int = 120
+    render: bool = True
+
+
+@dataclass
 class CompileConfig:
     """``stage=compile``: scene -> MjSpec -> ``model.xml``.
 
@@ -175,6 +200,7 @@ class FactoryConfig:
     shard: ShardConfig = field(default_factory=ShardConfig)
     ingest: IngestConfig = field(default_factory=IngestConfig)
     assets: AssetsConfig = field(default_factory=AssetsConfig)
+    generate: GenerateConfig = field(default_factory=GenerateConfig)
     compile: CompileConfig = field(default_factory=CompileConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     validate: ValidateConfig = field(default_factory=ValidateConfig)

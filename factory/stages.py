@@ -17,6 +17,7 @@ from factory.store import RunStore, Shard
 
 STAGES: dict[str, str] = {
     "list": "factory.stages:list_stages",
+    "generate": "factory.scenes.generate:run",
     "ingest": "factory.scenes.ingest:run",
     "compile": "factory.scenes.build:run_compile",
     "validate": "factory.sim.validate:run",
@@ -26,11 +27,12 @@ STAGES: dict[str, str] = {
 }
 """Every stage, in pipeline order."""
 
-CREATES_RUN: frozenset[str] = frozenset({"ingest", "all"})
+CREATES_RUN: frozenset[str] = frozenset({"generate", "ingest", "all"})
 """Stages that may start a new run directory; the others need an existing one."""
 
 DESCRIPTIONS: dict[str, str] = {
     "list": "print the stages and profiles",
+    "generate": "scenes from text requests (generate.prompts=[...], generate.task=...)",
     "ingest": "bring scenes into run_dir (scene.json, SAGE layout/folder/zip; default: examples)",
     "compile": "compile each scene to MuJoCo: scenes/<id>/model.xml (+ meshes under assets/)",
     "validate": "physics metrics per scene (collision %, stability %); validate.repair=true",

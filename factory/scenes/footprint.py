@@ -37,12 +37,18 @@ class Footprint:
         return np.array([[c, s], [-s, c]])
 
     def grown(self, margin: float) -> Footprint:
-        return Footprint(self.x, self.y, self.hx + margin, self.hy + margin, self.yaw, self.z0,
-                         self.z1)
+        return Footprint(
+            self.x, self.y, self.hx + margin, self.hy + margin, self.yaw, self.z0, self.z1
+        )
 
     def aabb(self) -> tuple[float, float, float, float]:
         c = self.corners()
-        return float(c[:, 0].min()), float(c[:, 1].min()), float(c[:, 0].max()), float(c[:, 1].max())
+        return (
+            float(c[:, 0].min()),
+            float(c[:, 1].min()),
+            float(c[:, 0].max()),
+            float(c[:, 1].max()),
+        )
 
 
 def overlaps(a: Footprint, b: Footprint, margin: float = 0.0) -> bool:
@@ -61,5 +67,9 @@ def inside(fp: Footprint, rect: tuple[float, float, float, float], margin: float
     """Whether the footprint lies in the axis-aligned ``rect`` (x0, y0, x1, y1) shrunk by
     ``margin``."""
     x0, y0, x1, y1 = fp.aabb()
-    return (x0 >= rect[0] + margin and y0 >= rect[1] + margin and x1 <= rect[2] - margin
-            and y1 <= rect[3] - margin)
+    return (
+        x0 >= rect[0] + margin
+        and y0 >= rect[1] + margin
+        and x1 <= rect[2] - margin
+        and y1 <= rect[3] - margin
+    )

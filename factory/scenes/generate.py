@@ -29,9 +29,24 @@ from factory.sim.stability import FreeBodies, StabilityProtocol, check_stability
 log = logging.getLogger(__name__)
 
 STYLE_WORDS = (
-    "mid-century", "cyberpunk", "fairy-tale", "princess", "scandinavian", "industrial", "rustic",
-    "farmhouse", "modern", "minimalist", "victorian", "japanese", "boho", "art deco", "coastal",
-    "gothic", "retro", "futuristic",
+    "mid-century",
+    "cyberpunk",
+    "fairy-tale",
+    "princess",
+    "scandinavian",
+    "industrial",
+    "rustic",
+    "farmhouse",
+    "modern",
+    "minimalist",
+    "victorian",
+    "japanese",
+    "boho",
+    "art deco",
+    "coastal",
+    "gothic",
+    "retro",
+    "futuristic",
 )
 
 
@@ -55,8 +70,12 @@ def parse_task(text: str) -> TaskSpec | None:
     )
     if not m:
         return None
-    return TaskSpec(pick=m.group(1).strip(), target=m.group(3).strip().rstrip("."),
-                    relation=m.group(2), instruction=text)
+    return TaskSpec(
+        pick=m.group(1).strip(),
+        target=m.group(3).strip().rstrip("."),
+        relation=m.group(2),
+        instruction=text,
+    )
 
 
 def _style(text: str) -> str:
@@ -64,8 +83,9 @@ def _style(text: str) -> str:
     return next((s for s in STYLE_WORDS if s in low), "")
 
 
-def init_scene(request: str, seed: int = 0, scene_id: str | None = None,
-               room_type: str | None = None) -> tuple[Scene, dict[str, Any]]:
+def init_scene(
+    request: str, seed: int = 0, scene_id: str | None = None, room_type: str | None = None
+) -> tuple[Scene, dict[str, Any]]:
     """Builds an empty room for the request: type, size, materials, walls, a door, windows.
 
     Raises:
@@ -80,32 +100,66 @@ def init_scene(request: str, seed: int = 0, scene_id: str | None = None,
     if m:
         width = float(m.group(1))
         if width < 1.5:
-            raise ValueError(
-                f"a room {width} m wide cannot hold furniture: ask for at least 1.5 m"
-            )
+            raise ValueError(f"a room {width} m wide cannot hold furniture: ask for at least 1.5 m")
     height = 2.7
     rid = check_id(re.sub(r"[^a-z0-9]+", "_", rt_name).strip("_") or "room", "room id")
     pts = [(0, 0), (width, 0), (width, length), (0, length)]
     names = ["south", "east", "north", "west"]
-    walls = [Wall(id=f"{rid}_{n}", start=Vec3(*pts[i], 0.0), end=Vec3(*pts[(i + 1) % 4], 0.0),
-                  height=height, material=str(rng.choice(rt.walls))) for i, n in enumerate(names)]
+    walls = [
+        Wall(
+            id=f"{rid}_{n}",
+            start=Vec3(*pts[i], 0.0),
+            end=Vec3(*pts[(i + 1) % 4], 0.0),
+            height=height,
+            material=str(rng.choice(rt.walls)),
+        )
+        for i, n in enumerate(names)
+    ]
     door_wall = walls[int(rng.integers(4))]
     window_wall = next(w for w in walls if w is not door_wall and w.id.endswith(("north", "east")))
     room = Room(
-        id=rid, room_type=rt_name, position=Vec3(0, 0, 0),
-        dimensions=Size3(width, length, height), walls=walls,
-        doors=[Door(id=f"{rid}_door", wall_id=door_wall.id,
-                    position_on_wall=float(rng.uniform(0.25, 0.75)), width=0.9, height=2.1)],
-        windows=[Window(id=f"{rid}_window", wall_id=window_wall.id, position_on_wall=0.5,
-                        width=min(1.4, 0.4 * window_wall.length), height=1.2, sill_height=0.9)],
-        floor_material=str(rng.choice(rt.floors)), ceiling_height=height,
+        id=rid,
+        room_type=rt_name,
+        position=Vec3(0, 0, 0),
+        dimensions=Size3(width, length, height),
+        walls=walls,
+        doors=[
+            Door(
+                id=f"{rid}_door",
+                wall_id=door_wall.id,
+                position_on_wall=float(rng.uniform(0.25, 0.75)),
+                width=0.9,
+                height=2.1,
+            )
+        ],
+        windows=[
+            Window(
+                id=f"{rid}_window",
+                wall_id=window_wall.id,
+                position_on_wall=0.5,
+                width=min(1.4, 0.4 * window_wall.length),
+                height=1.2,
+                sill_height=0.9,
+            )
+        ],
+        floor_material=str(rng.choice(rt.floors)),
+        ceiling_height=height,
     )
     digest = hashlib.sha1(f"{request}|{seed}".encode()).hexdigest()[:8]
     sid = scene_id or f"{rid}_{digest}"
-    scene = Scene(id=sid, rooms=[room], description=request, source="text", seed=seed,
-                  building_style=_style(request))
-    return scene, {"room_type": rt_name, "size_m": [round(width, 2), round(length, 2)],
-                   "floor": room.floor_material}
+    scene = Scene(
+        id=sid,
+        rooms=[room],
+        description=request,
+        source="text",
+        seed=seed,
+        building_style=_style(request),
+    )
+    return scene, {
+        "room_type": rt_name,
+        "size_m": [round(width, 2), round(length, 2)],
+        "floor": room.floor_material,
+    }
 
 
 @dataclass
@@ -142,19 +196,28 @@ def _remove_unstable(state: SceneState, trace: Trace) -> None:
     if not state.scene.objects:
         return
     model = compile_scene(state.scene, state.library.assets_dir).model
-    result = check_stability(model, protocol=StabilityProtocol(penetration_tol=math.inf,
-                                                               resettle=False))
+    result = check_stability(
+        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
+    )
     free = FreeBodies.of(model)
     bad = [free.names[j] for j in np.flatnonzero(~result.stable_object[0])]
     for oid in bad:
         state.scene.objects = [o for o in state.scene.objects if o.id != oid]
-    trace.log("physics_critic", {"scope": "floor and wall objects"},
-              {"unstable_removed": bad, "objects": len(state.scene.objects)})
+    trace.log(
+        "physics_critic",
+        {"scope": "floor and wall objects"},
+        {"unstable_removed": bad, "objects": len(state.scene.objects)},
+    )
 
 
-def generate_scene(request: str, library: AssetLibrary, seed: int = 0,
-                   config: AgentConfig | None = None, task: str | None = None,
-                   scene_id: str | None = None) -> tuple[Scene, dict[str, Any]]:
+def generate_scene(
+    request: str,
+    library: AssetLibrary,
+    seed: int = 0,
+    config: AgentConfig | None = None,
+    task: str | None = None,
+    scene_id: str | None = None,
+) -> tuple[Scene, dict[str, Any]]:
     """Generates one furnished, physically checked scene for a text request.
 
     Returns:
@@ -176,9 +239,15 @@ def generate_scene(request: str, library: AssetLibrary, seed: int = 0,
 
     critic = None
     if cfg.physics_critic:
+
         def critic(sc: Scene, oid: str, poses: list[list[float]]) -> dict[str, Any]:
-            return physics_critic(sc, oid, poses, assets_root=library.assets_dir,
-                                  protocol=StabilityProtocol(resettle=True))
+            return physics_critic(
+                sc,
+                oid,
+                poses,
+                assets_root=library.assets_dir,
+                protocol=StabilityProtocol(resettle=True),
+            )
 
     # 1. floor and wall furniture
     small: list[tuple[Item, int]] = []
@@ -192,12 +261,17 @@ def generate_scene(request: str, library: AssetLibrary, seed: int = 0,
             tgt_ids = keyed.get(target, [])
             if rule in ("near", "around") and not tgt_ids:
                 continue
-            args = {"text": styled(item.text), "rule": rule, "target": tgt_ids[0] if tgt_ids else None}
+            args = {
+                "text": styled(item.text),
+                "rule": rule,
+                "target": tgt_ids[0] if tgt_ids else None,
+            }
             if rule == "mount":
                 res = place_wall(state, styled(item.text), item.height)
             else:
-                res = place_floor(state, styled(item.text), rule,
-                                  target=tgt_ids[0] if tgt_ids else None)
+                res = place_floor(
+                    state, styled(item.text), rule, target=tgt_ids[0] if tgt_ids else None
+                )
             trace.log("place_objects", args, res.as_dict())
             if res.ok and item.key:
                 keyed.setdefault(item.key, []).append(res.object_id)  # type: ignore[arg-type]
@@ -241,26 +315,41 @@ def generate_scene(request: str, library: AssetLibrary, seed: int = 0,
     return scene, report
 
 
-def _place_task(state: SceneState, spec: TaskSpec, critic: Any, trace: Trace,
-                cfg: AgentConfig) -> None:
+def _place_task(
+    state: SceneState, spec: TaskSpec, critic: Any, trace: Trace, cfg: AgentConfig
+) -> None:
     """Puts the task's pick object and target on a free table near its edge."""
     scene = state.scene
-    tables = [o for o in scene.objects if o.category in (
-        "dining_table", "coffee_table", "desk", "kitchen_island", "side_table",
-        "conference_table", "console_table", "kitchen_cabinet", "workbench")]
+    tables = [
+        o
+        for o in scene.objects
+        if o.category
+        in (
+            "dining_table",
+            "coffee_table",
+            "desk",
+            "kitchen_island",
+            "side_table",
+            "conference_table",
+            "console_table",
+            "kitchen_cabinet",
+            "workbench",
+        )
+    ]
     if not tables:
         res = place_floor(state, "dining table", "center")
-        trace.log("place_objects", {"text": "dining table", "why": "task needs a surface"},
-                  res.as_dict())
+        trace.log(
+            "place_objects", {"text": "dining table", "why": "task needs a surface"}, res.as_dict()
+        )
         if not res.ok:
             return
         tables = [scene.object(res.object_id)]  # type: ignore[arg-type]
     table = max(tables, key=lambda o: o.dimensions.width * o.dimensions.length)
     for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
-        res = place_on(state, text, table.id, critic, task_role=role, batch=cfg.critic_batch,
-                       max_batches=5)
-        trace.log("place_objects", {"text": text, "on": table.id, "task_role": role},
-                  res.as_dict())
+        res = place_on(
+            state, text, table.id, critic, task_role=role, batch=cfg.critic_batch, max_batches=5
+        )
+        trace.log("place_objects", {"text": text, "on": table.id, "task_role": role}, res.as_dict())
 
 
 def _read_prompts(cfg: Any) -> list[str]:
@@ -273,8 +362,11 @@ def _read_prompts(cfg: Any) -> list[str]:
             from factory.errors import ConfigError
 
             raise ConfigError(f"generate.prompts_file {path} does not exist")
-        prompts += [ln.strip() for ln in path.read_text().splitlines() if ln.strip()
-                    and not ln.startswith("#")]
+        prompts += [
+            ln.strip()
+            for ln in path.read_text().splitlines()
+            if ln.strip() and not ln.startswith("#")
+        ]
     if cfg.task and not prompts:
         prompts = [cfg.task]
     return prompts
@@ -291,8 +383,9 @@ def run(ctx: Any) -> dict[str, Any]:
     gcfg = ctx.cfg.generate
     prompts = _read_prompts(gcfg)
     if not prompts:
-        raise ConfigError("stage=generate needs generate.prompts=[...], generate.prompts_file "
-                          "or generate.task")
+        raise ConfigError(
+            "stage=generate needs generate.prompts=[...], generate.prompts_file or generate.task"
+        )
     for p in prompts:
         if not p.strip() or len(p) > 2000:
             raise ConfigError(f"prompt {p[:40]!r}... is empty or too long (2000 characters max)")
@@ -305,6 +398,8 @@ def run(ctx: Any) -> dict[str, Any]:
             jobs.append((f"{rt}_{digest}_{k}", prompt, seed))
     mine = ctx.shard.select(jobs)
     by_id = {j[0]: j for j in mine}
+    if gcfg.agent != "heuristic":
+        raise ConfigError(f"generate.agent={gcfg.agent!r} is not available: use heuristic")
     library = AssetLibrary.from_config(ctx.cfg.assets, store.assets_dir)
     agent_cfg = AgentConfig(physics_critic=gcfg.physics_critic, max_objects=gcfg.max_objects)
 
@@ -313,8 +408,9 @@ def run(ctx: Any) -> dict[str, Any]:
         if store.scene_json(scene_id).is_file() and not ctx.cfg.force:
             return "skipped"
         try:
-            scene, report = generate_scene(prompt, library, seed, agent_cfg,
-                                           task=gcfg.task or None, scene_id=scene_id)
+            scene, report = generate_scene(
+                prompt, library, seed, agent_cfg, task=gcfg.task or None, scene_id=scene_id
+            )
         except ValueError as e:
             raise ConfigError(f"prompt {prompt!r}: {e}") from None
         validate(scene)
@@ -323,6 +419,10 @@ def run(ctx: Any) -> dict[str, Any]:
         atomic_write_json(store.report_json(scene_id), {"schema_version": 1, "generate": report})
         atomic_write_text(store.scene_json(scene_id), scene_to_json(scene))
         compile_one(store, scene_id, ctx.cfg.compile, force=True)
+        if gcfg.render:
+            from factory.scenes.build import render_one
+
+            render_one(store, scene_id, ctx.cfg.render, force=True)
         return "done"
 
     result = run_items("generate", list(by_id), one)

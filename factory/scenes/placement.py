@@ -49,8 +49,13 @@ class PlaceResult:
     detail: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"ok": self.ok, "object_id": self.object_id, "reason": self.reason,
-                "candidates": self.candidates, **self.detail}
+        return {
+            "ok": self.ok,
+            "object_id": self.object_id,
+            "reason": self.reason,
+            "candidates": self.candidates,
+            **self.detail,
+        }
 
 
 class SceneState:
@@ -80,8 +85,15 @@ class SceneState:
 
     def footprint(self, obj: SceneObject) -> Footprint:
         d = obj.dimensions
-        return Footprint(obj.position.x, obj.position.y, d.width / 2, d.length / 2,
-                         math.radians(obj.rotation.z), obj.position.z, obj.position.z + d.height)
+        return Footprint(
+            obj.position.x,
+            obj.position.y,
+            d.width / 2,
+            d.length / 2,
+            math.radians(obj.rotation.z),
+            obj.position.z,
+            obj.position.z + d.height,
+        )
 
     def new_id(self, category: str) -> str:
         n = self.counts.get(category, 0)
@@ -113,12 +125,16 @@ class SceneState:
             cx = w.start.x + (w.end.x - w.start.x) * t
             cy = w.start.y + (w.end.y - w.start.y) * t
             yaw = math.atan2(w.end.y - w.start.y, w.end.x - w.start.x)
-            zones.append(Footprint(cx, cy, win.width / 2, 0.25, yaw, win.sill_height,
-                                   win.sill_height + win.height))
+            zones.append(
+                Footprint(
+                    cx, cy, win.width / 2, 0.25, yaw, win.sill_height, win.sill_height + win.height
+                )
+            )
         return zones
 
-    def free(self, fp: Footprint, room: Room, ignore: set[str] | None = None,
-             on: str | None = None) -> bool:
+    def free(
+        self, fp: Footprint, room: Room, ignore: set[str] | None = None, on: str | None = None
+    ) -> bool:
         """Whether ``fp`` collides with nothing (objects, door and window zones)."""
         for obj in self.scene.objects:
             if ignore and obj.id in ignore:
@@ -143,9 +159,17 @@ class SceneState:
         seed = int(self.rng.integers(0, 2**31))
         return self.library.from_text(text, seed=seed, dims=dims)
 
-    def add(self, meta: AssetMeta, res: Resolution, room: Room, pos: tuple[float, float, float],
-            yaw: float, placement: Placement, static: bool = False,
-            task_role: str | None = None) -> SceneObject:
+    def add(
+        self,
+        meta: AssetMeta,
+        res: Resolution,
+        room: Room,
+        pos: tuple[float, float, float],
+        yaw: float,
+        placement: Placement,
+        static: bool = False,
+        task_role: str | None = None,
+    ) -> SceneObject:
         obj = SceneObject(
             id=self.new_id(res.spec.category),
             room_id=room.id,
@@ -156,8 +180,9 @@ class SceneState:
             dimensions=Size3(*(float(v) for v in meta.extents)),
             placement=placement,
             asset=AssetRef(backend=meta.backend, asset_id=meta.asset_id),
-            physics=Physics(mass=float(meta.mass or 1.0), friction=float(meta.friction or 0.6),
-                            static=static),
+            physics=Physics(
+                mass=float(meta.mass or 1.0), friction=float(meta.friction or 0.6), static=static
+            ),
             license=meta.license,
             task_role=task_role,
         )
@@ -172,8 +197,9 @@ class SceneState:
 _WALL_YAWS = {"south": math.pi, "north": 0.0, "east": -math.pi / 2, "west": math.pi / 2}
 
 
-def _wall_candidates(state: SceneState, room: Room, w: float, ln: float, step: float
-                     ) -> list[tuple[float, float, float, str, float]]:
+def _wall_candidates(
+    state: SceneState, room: Room, w: float, ln: float, step: float
+) -> list[tuple[float, float, float, str, float]]:
     """``(x, y, yaw, side, along)`` with the back against each wall of the room."""
     x0, y0, x1, y1 = state.interior(room)
     out = []
@@ -185,19 +211,33 @@ def _wall_candidates(state: SceneState, room: Room, w: float, ln: float, step: f
         n = max(1, int((hi - lo) / step) + 1)
         for along in np.linspace(lo, hi, n):
             if side == "south":
-                out.append((along, y0 + ln / 2 + WALL_GAP, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+                out.append(
+                    (along, y0 + ln / 2 + WALL_GAP, yaw, side, (along - lo) / max(hi - lo, 1e-9))
+                )
             elif side == "north":
-                out.append((along, y1 - ln / 2 - WALL_GAP, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+                out.append(
+                    (along, y1 - ln / 2 - WALL_GAP, yaw, side, (along - lo) / max(hi - lo, 1e-9))
+                )
             elif side == "east":
-                out.append((x1 - ln / 2 - WALL_GAP, along, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+                out.append(
+                    (x1 - ln / 2 - WALL_GAP, along, yaw, side, (along - lo) / max(hi - lo, 1e-9))
+                )
             else:
-                out.append((x0 + ln / 2 + WALL_GAP, along, yaw, side, (along - lo) / max(hi - lo, 1e-9)))
+                out.append(
+                    (x0 + ln / 2 + WALL_GAP, along, yaw, side, (along - lo) / max(hi - lo, 1e-9))
+                )
     return out
 
 
-def place_floor(state: SceneState, text: str, rule: str = "wall", room_id: str | None = None,
-                target: str | None = None, task_role: str | None = None,
-                dims: Any = None) -> PlaceResult:
+def place_floor(
+    state: SceneState,
+    text: str,
+    rule: str = "wall",
+    room_id: str | None = None,
+    target: str | None = None,
+    task_role: str | None = None,
+    dims: Any = None,
+) -> PlaceResult:
     """Places a floor object by ``rule`` (``wall``, ``corner``, ``free``, ``center``,
     ``near``, ``around``; ``target`` names the object for the last two)."""
     room = state.room(room_id)
@@ -243,8 +283,9 @@ def place_floor(state: SceneState, text: str, rule: str = "wall", room_id: str |
         del c, s
     else:  # free / center
         step = 0.2
-        for x in np.arange(x0 + 0.3, x1 - 0.3 + 1e-9, step):
-            for y in np.arange(y0 + 0.3, y1 - 0.3 + 1e-9, step):
+        for gx in np.arange(x0 + 0.3, x1 - 0.3 + 1e-9, step):
+            for gy in np.arange(y0 + 0.3, y1 - 0.3 + 1e-9, step):
+                x, y = float(gx), float(gy)
                 d = math.hypot(x - cx, y - cy)
                 score = -d if rule == "center" else rng.uniform(0, 1)
                 yaw = float(rng.choice([0, math.pi / 2, math.pi, -math.pi / 2]))
@@ -256,15 +297,16 @@ def place_floor(state: SceneState, text: str, rule: str = "wall", room_id: str |
         fp = Footprint(x, y, w / 2, ln / 2, yaw, 0.0, h)
         if not inside(fp, (x0, y0, x1, y1), -1e-6) or not state.free(fp, room):
             continue
-        obj = state.add(meta, res, room, (x, y, 0.0), yaw, Placement("floor"),
-                        task_role=task_role)
+        obj = state.add(meta, res, room, (x, y, 0.0), yaw, Placement("floor"), task_role=task_role)
         return PlaceResult(True, obj.id, candidates=len(cands))
-    return PlaceResult(False, None, f"no free floor space for {text!r} ({rule})",
-                       candidates=len(cands))
+    return PlaceResult(
+        False, None, f"no free floor space for {text!r} ({rule})", candidates=len(cands)
+    )
 
 
-def place_wall(state: SceneState, text: str, height: float = 1.3,
-               room_id: str | None = None) -> PlaceResult:
+def place_wall(
+    state: SceneState, text: str, height: float = 1.3, room_id: str | None = None
+) -> PlaceResult:
     """Mounts an object on a wall with its bottom at ``height`` (m); static in simulation."""
     room = state.room(room_id)
     meta, res = state.asset(text)
@@ -280,8 +322,9 @@ def place_wall(state: SceneState, text: str, height: float = 1.3,
         if not state.free(fp, room):
             continue
         wall_id = next((wl.id for wl in room.walls if wl.id.endswith(walls[side])), None)
-        obj = state.add(meta, res, room, (x, y, z0), yaw, Placement("wall", support_id=wall_id),
-                        static=True)
+        obj = state.add(
+            meta, res, room, (x, y, z0), yaw, Placement("wall", support_id=wall_id), static=True
+        )
         return PlaceResult(True, obj.id, candidates=len(cands))
     return PlaceResult(False, None, f"no free wall space for {text!r}", candidates=len(cands))
 
@@ -304,14 +347,25 @@ def support_rects(
         x0, y0, x1, y1 = sup["rect"]
         local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
         world = local @ rot.T + [obj.position.x, obj.position.y]
-        out.append((sup["name"], obj.position.z + float(sup["z"]), world,
-                    float(sup.get("clearance", 10.0))))
+        out.append(
+            (
+                sup["name"],
+                obj.position.z + float(sup["z"]),
+                world,
+                float(sup.get("clearance", 10.0)),
+            )
+        )
     return out
 
 
-def on_top_candidates(state: SceneState, support: SceneObject, w: float, ln: float, h: float,
-                      n: int = 24) -> list[tuple[float, float, float, float, str]]:
-    """``(x, y, z, yaw, surface)`` candidates fully on a surface, free of other objects there."""
+def on_top_candidates(
+    state: SceneState, support: SceneObject, w: float, ln: float, h: float, n: int = 24
+) -> list[tuple[float, float, float, float, str]]:
+    """``(x, y, z, yaw, surface)`` candidates fully on a surface, free of other objects there.
+
+    The turn is drawn first (aligned with the support, a quarter turn, or a little askew); the
+    position is then drawn where that footprint fits on the surface.
+    """
     room = state.room(support.room_id)
     out = []
     rng = state.rng
@@ -320,35 +374,47 @@ def on_top_candidates(state: SceneState, support: SceneObject, w: float, ln: flo
         if h > clearance - 0.01:
             continue  # does not fit under the next board
         ux, uy = corners[1] - corners[0], corners[3] - corners[0]
+        su, sv = float(np.linalg.norm(ux)), float(np.linalg.norm(uy))
+        if su < 1e-6 or sv < 1e-6:
+            continue
+        eu, ev = ux / su, uy / sv
         for _ in range(n):
-            a, b = rng.uniform(0.0, 1.0, size=2)
-            x, y = corners[0] + a * ux + b * uy
-            yaw = yaw0 + float(rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2]))
-            if rng.uniform() < 0.5:  # half the candidates turned a little, half aligned
-                yaw += float(rng.uniform(-0.3, 0.3))
-            fp = Footprint(float(x), float(y), w / 2, ln / 2, yaw, z, z + h)
-            # the footprint must lie on the surface (shrunk 1 cm)
-            poly = Footprint(float(corners.mean(0)[0]), float(corners.mean(0)[1]),
-                             float(np.linalg.norm(ux)) / 2 - 0.01,
-                             float(np.linalg.norm(uy)) / 2 - 0.01, yaw0, z, z + 0.001)
-            if not _contains(poly, fp):
+            rel = float(rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2]))
+            if rng.uniform() < 0.4:
+                rel += float(rng.uniform(-0.3, 0.3))
+            c, s = abs(math.cos(rel)), abs(math.sin(rel))
+            half_u = (w * c + ln * s) / 2 + 0.01
+            half_v = (w * s + ln * c) / 2 + 0.01
+            if 2 * half_u > su or 2 * half_v > sv:
                 continue
+            a = rng.uniform(half_u, su - half_u)
+            b = rng.uniform(half_v, sv - half_v)
+            x, y = corners[0] + a * eu + b * ev
+            yaw = yaw0 + rel
+            fp = Footprint(float(x), float(y), w / 2, ln / 2, yaw, z, z + h)
             if not state.free(fp, room, on=support.id):
                 continue
             out.append((float(x), float(y), z, yaw, name))
     return out
 
 
-def _contains(outer: Footprint, fp: Footprint) -> bool:
-    c = fp.corners() - [outer.x, outer.y]
-    ax = outer.axes()
-    px, py = c @ ax[0], c @ ax[1]
-    return bool(np.all(np.abs(px) <= outer.hx) and np.all(np.abs(py) <= outer.hy))
+def _euler(qw: float, qx: float, qy: float, qz: float) -> Euler:
+    from scipy.spatial.transform import Rotation
+
+    ax, ay, az = Rotation.from_quat([qx, qy, qz, qw]).as_euler("xyz", degrees=True)
+    return Euler(float(ax), float(ay), float(az))
 
 
-def place_on(state: SceneState, text: str, support_id: str, critic: Any = None,
-             task_role: str | None = None, batch: int = 4, max_batches: int = 3,
-             dims: Any = None) -> PlaceResult:
+def place_on(
+    state: SceneState,
+    text: str,
+    support_id: str,
+    critic: Any = None,
+    task_role: str | None = None,
+    batch: int = 4,
+    max_batches: int = 3,
+    dims: Any = None,
+) -> PlaceResult:
     """Places an object on a support surface of ``support_id`` (any level: tops, boards,
     seats, or inside a vessel), checking candidates with the physics critic in batches."""
     support = state.scene.object(support_id)
@@ -358,8 +424,15 @@ def place_on(state: SceneState, text: str, support_id: str, critic: Any = None,
     if not cands:
         return PlaceResult(False, None, f"no free surface on {support_id} for {text!r}")
     room = state.room(support.room_id)
-    obj = state.add(meta, res, room, cands[0][:3], cands[0][3],
-                    Placement("on_top", support_id=support_id), task_role=task_role)
+    obj = state.add(
+        meta,
+        res,
+        room,
+        cands[0][:3],
+        cands[0][3],
+        Placement("on_top", support_id=support_id),
+        task_role=task_role,
+    )
     if critic is None:
         return PlaceResult(True, obj.id, candidates=len(cands))
     failures: list[Any] = []
@@ -371,12 +444,21 @@ def place_on(state: SceneState, text: str, support_id: str, critic: Any = None,
             x, y, z, yaw, _ = chunk[verdict["candidate"]]
             obj.position = Vec3(x, y, z)
             obj.rotation = Euler(0.0, 0.0, math.degrees(yaw))
-            return PlaceResult(True, obj.id, candidates=(k + 1) * batch,
-                               detail={"critic": "stable"})
+            if verdict.get("resettled"):  # accepted at its settled pose: keep that pose
+                px, py, pz, qw, qx, qy, qz = verdict["settled_pose"]
+                obj.position = Vec3(px, py, pz)
+                obj.rotation = _euler(qw, qx, qy, qz)
+            return PlaceResult(
+                True, obj.id, candidates=(k + 1) * batch, detail={"critic": "stable"}
+            )
         failures.append(verdict)
     state.scene.objects.remove(obj)
     state.metas.pop(obj.id, None)
     last = failures[-1] if failures else {}
-    return PlaceResult(False, None, f"no stable placement of {text!r} on {support_id}",
-                       candidates=len(cands), detail={"critic": {
-                           "summary": last.get("summary"), "suggestion": last.get("suggestion")}})
+    return PlaceResult(
+        False,
+        None,
+        f"no stable placement of {text!r} on {support_id}",
+        candidates=len(cands),
+        detail={"critic": {"summary": last.get("summary"), "suggestion": last.get("suggestion")}},
+    )

@@ -261,8 +261,12 @@ def frame_box(
     # free height above each inner level: up to the next board (or the top panel)
     inner = [sp for sp in supports if not sp.name.endswith("_top")]
     supports = [
-        Support(sp.name, sp.z, sp.rect, (levels[i + 1] - t if i < len(levels) - 2 else
-                                         levels[i + 1] - (0 if open_top else 0)) - sp.z)
+        Support(
+            sp.name,
+            sp.z,
+            sp.rect,
+            (levels[i + 1] - t if i < len(levels) - 2 else levels[i + 1]) - sp.z,
+        )
         for i, sp in enumerate(inner)
     ] + [sp for sp in supports if sp.name.endswith("_top")]
     for i in range(len(levels) - 1):

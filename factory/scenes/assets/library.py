@@ -322,8 +322,12 @@ class AssetLibrary:
 
 
 def _support(s: Support) -> dict[str, Any]:
-    return {"name": s.name, "z": float(s.z), "rect": [float(v) for v in s.rect],
-            "clearance": float(s.clearance)}
+    return {
+        "name": s.name,
+        "z": float(s.z),
+        "rect": [float(v) for v in s.rect],
+        "clearance": float(s.clearance),
+    }
 
 
 def _format(content_type: str, data: bytes) -> str:

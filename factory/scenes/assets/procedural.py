@@ -155,13 +155,18 @@ def generate(spec: AssetSpec) -> Generated:
         return float((v - centre[2]) * scale[2])
 
     shape.supports = [
-        Support(s.name, _z(s.z), (_x(s.rect[0]), _y(s.rect[1]), _x(s.rect[2]), _y(s.rect[3])),
-                s.clearance * float(scale[2]))
+        Support(
+            s.name,
+            _z(s.z),
+            (_x(s.rect[0]), _y(s.rect[1]), _x(s.rect[2]), _y(s.rect[3])),
+            s.clearance * float(scale[2]),
+        )
         for s in shape.supports
     ]
     shape.containers = [
-        Container(c.name, (_x(c.lo[0]), _y(c.lo[1]), _z(c.lo[2])),
-                  (_x(c.hi[0]), _y(c.hi[1]), _z(c.hi[2])))
+        Container(
+            c.name, (_x(c.lo[0]), _y(c.lo[1]), _z(c.lo[2])), (_x(c.hi[0]), _y(c.hi[1]), _z(c.hi[2]))
+        )
         for c in shape.containers
     ]
     mass = cat.fill * sum(p.volume * material(p.material).density * p.fill for p in shape.parts)

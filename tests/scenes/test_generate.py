@@ -1,0 +1,114 @@
+"""Scene generation with the heuristic agent: furnished, collision-free, stable, task-aware."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from factory.scenes.assets import AssetLibrary
+from factory.scenes.generate import AgentConfig, generate_scene, init_scene, parse_task
+from factory.scenes.rooms import ROOM_TYPES, room_type_of
+from factory.schema import scene_from_json, scene_to_json, validate
+from factory.sim.compile import compile_scene
+from factory.sim.metrics import scene_metrics
+from factory.sim.stability import StabilityProtocol, check_stability
+
+
+def _metrics(scene, assets: Path) -> dict:
+    model = compile_scene(scene, assets).model
+    result = check_stability(
+        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
+    )
+    return scene_metrics(scene, model, result)
+
+
+def test_room_knowledge_covers_twenty_room_types() -> None:
+    assert len(ROOM_TYPES) >= 20
+    assert room_type_of("a cozy bedroom with a reading nook") == "bedroom"
+    assert room_type_of("cyberpunk game den") == "game den"
+    assert room_type_of("a kitchen where the robot picks up a mug") == "kitchen"
+
+
+@pytest.mark.parametrize("request_text", ["a cozy bedroom", "a modern kitchen"])
+def test_generated_room_is_furnished_and_physical(tmp_path: Path, request_text: str) -> None:
+    lib = AssetLibrary(tmp_path / "assets")
+    scene, report = generate_scene(request_text, lib, seed=3)
+    validate(scene)
+    assert scene_from_json(scene_to_json(scene)) == scene
+    assert len(scene.objects) >= 30, len(scene.objects)
+    assert report["tool_calls"] > 20 and report["trace"][0]["tool"] == "init_scene"
+    kinds = {o.placement.kind for o in scene.objects}
+    assert kinds == {"floor", "wall", "on_top"}
+    levels = [
+        o
+        for o in scene.objects
+        if o.placement.kind == "on_top"
+        and scene.object(o.placement.support_id).placement.kind == "on_top"
+    ]
+    del levels  # multi-level stacks are allowed; not required in every room
+    m = _metrics(scene, tmp_path / "assets")
+    assert m["collision"]["ratio"] <= 0.02, m["collision"]
+    assert m["stability"]["ratio"] >= 0.97, m["stability"]
+
+
+def test_same_seed_same_scene(tmp_path: Path) -> None:
+    lib = AssetLibrary(tmp_path / "assets")
+    cfg = AgentConfig(physics_critic=False)
+    a, _ = generate_scene("a living room", lib, seed=5, config=cfg)
+    b, _ = generate_scene("a living room", lib, seed=5, config=cfg)
+    c, _ = generate_scene("a living room", lib, seed=6, config=cfg)
+    assert scene_to_json(a) == scene_to_json(b) != scene_to_json(c)
+
+
+def test_task_objects_are_placed_and_marked(tmp_path: Path) -> None:
+    lib = AssetLibrary(tmp_path / "assets")
+    scene, _ = generate_scene(
+        "a kitchen where the robot picks up a mug and puts it in the bowl", lib, seed=1
+    )
+    roles = {o.task_role: o for o in scene.objects if o.task_role}
+    assert set(roles) == {"pick", "place_target"}
+    assert roles["pick"].category == "mug" and roles["place_target"].category == "bowl"
+    assert roles["pick"].placement.kind == "on_top"
+    assert scene.task is not None and "mug" in scene.task.instruction
+
+
+def test_parse_task() -> None:
+    t = parse_task("pick up the mug and put it in the bowl")
+    assert t is not None and (t.pick, t.target, t.relation) == ("mug", "bowl", "in")
+    t = parse_task("move the can from the table to the desk")
+    assert t is not None and (t.pick, t.target) == ("can", "desk")
+    assert parse_task("a cozy bedroom") is None
+
+
+def test_absurd_room_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"0\.5 m wide"):
+        init_scene("a room 0.5 m wide with a piano")
+
+
+def test_generate_stage(cli, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    out = cli(
+        "stage=generate",
+        f"run_dir={run}",
+        "generate.prompts=[a cozy bedroom]",
+        "generate.physics_critic=false",
+        "render.width=160",
+        "render.height=120",
+    )
+    assert out.returncode == 0, out.stderr
+    (scene_dir,) = (run / "scenes").iterdir()
+    assert {p.name for p in scene_dir.iterdir()} >= {
+        "scene.json",
+        "model.xml",
+        "report.json",
+        "renders",
+    }
+    report = json.loads((scene_dir / "report.json").read_text())["generate"]
+    assert report["agent"] == "heuristic" and report["objects"] >= 20
+    again = cli("stage=generate", f"run_dir={run}", "generate.prompts=[a cozy bedroom]")
+    assert again.returncode == 0 and "'skipped': 1" in again.stderr
+    bad = cli("stage=generate", f"run_dir={run}")
+    assert bad.returncode == 2 and "generate.prompts" in bad.stderr
