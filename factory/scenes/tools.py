@@ -1,0 +1,231 @@
+"""The generator tools and critics as one session: JSON in, JSON out, never an exception.
+
+A :class:`ToolSession` holds one scene under construction. Its public methods are the tools
+the agent calls (directly, or over MCP through :mod:`.mcp_server`); each returns a
+JSON-serialisable dict, with ``{"ok": false, "error": ...}`` for a bad call.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from factory.errors import FactoryError
+from factory.scenes.assets import AssetLibrary
+from factory.scenes.critics import visual_critic
+from factory.scenes.placement import SceneState, place_floor, place_on, place_wall
+from factory.schema import Scene, to_dict, validate
+from factory.sim.critic import physics_critic
+from factory.sim.stability import StabilityProtocol
+
+log = logging.getLogger(__name__)
+
+TOOLS: tuple[str, ...] = (
+    "init_scene", "place_objects", "move_object", "remove_object", "get_scene_info",
+    "render_views", "visual_critic", "physics_critic", "get_scene_json",
+)
+
+
+def _safe(fn: Callable[..., dict[str, Any]]) -> Callable[..., dict[str, Any]]:
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> dict[str, Any]:
+        try:
+            return fn(*args, **kwargs)
+        except (FactoryError, ValueError, KeyError, TypeError) as e:
+            msg = str(e) if not isinstance(e, KeyError) else f"unknown id {e}"
+            return {"ok": False, "error": f"{fn.__name__}: {msg}"}
+
+    return wrapper
+
+
+class ToolSession:
+    """One scene and the tools that edit it.
+
+    Args:
+        library: the asset library.
+        physics: run the physics critic inside every on-top placement (the paper's loop).
+        out_dir: where ``render_views`` writes images.
+    """
+
+    def __init__(self, library: AssetLibrary, physics: bool = True,
+                 out_dir: str | Path | None = None) -> None:
+        self.library = library
+        self.physics = physics
+        self.out_dir = Path(out_dir) if out_dir else None
+        self.state: SceneState | None = None
+
+    # ---- helpers
+    def _require(self) -> SceneState:
+        if self.state is None:
+            raise ValueError("no scene yet: call init_scene first")
+        return self.state
+
+    def _critic(self) -> Callable[..., dict[str, Any]] | None:
+        if not self.physics:
+            return None
+
+        def critic(scene: Scene, oid: str, poses: list[list[float]]) -> dict[str, Any]:
+            return physics_critic(scene, oid, poses, assets_root=self.library.assets_dir,
+                                  protocol=StabilityProtocol(resettle=True))
+
+        return critic
+
+    @property
+    def scene(self) -> Scene:
+        return self._require().scene
+
+    # ---- tools
+    @_safe
+    def init_scene(self, request: str, seed: int = 0) -> dict[str, Any]:
+        """Creates an empty room for the request (type, size, materials, door, window)."""
+        from factory.scenes.generate import init_scene
+
+        if not request or not request.strip():
+            raise ValueError("the request is empty: describe the scene")
+        scene, info = init_scene(request, seed)
+        self.state = SceneState(scene, self.library, seed)
+        room = scene.rooms[0]
+        return {"ok": True, "scene_id": scene.id, "room_id": room.id, **info,
+                "walls": [w.id for w in room.walls]}
+
+    @_safe
+    def place_objects(self, text: str, placement: str = "floor", rule: str = "wall",
+                      target: str | None = None, height: float = 1.3, count: int = 1,
+                      task_role: str | None = None) -> dict[str, Any]:
+        """Places ``count`` objects described by ``text``.
+
+        ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around;
+        ``target`` for near/around), ``wall`` (mounted at ``height`` m) or ``on_top`` (on a
+        support surface of ``target``: tops, shelf boards, seats, inside vessels).
+        """
+        state = self._require()
+        if placement not in ("floor", "wall", "on_top"):
+            raise ValueError(f"placement {placement!r} must be floor, wall or on_top")
+        if not 1 <= count <= 20:
+            raise ValueError("count must be 1..20")
+        if placement == "on_top" and not target:
+            raise ValueError("on_top placement needs target=<object id>")
+        if target is not None:
+            state.scene.object(target)  # KeyError -> clear error
+        placed, failures = [], []
+        for _ in range(count):
+            if placement == "floor":
+                res = place_floor(state, text, rule, target=target, task_role=task_role)
+            elif placement == "wall":
+                res = place_wall(state, text, height)
+            else:
+                res = place_on(state, text, target, self._critic(),  # type: ignore[arg-type]
+                               task_role=task_role)
+            (placed if res.ok else failures).append(res.as_dict())
+        return {"ok": bool(placed), "placed": [p["object_id"] for p in placed],
+                "failures": failures, "objects": len(state.scene.objects)}
+
+    @_safe
+    def move_object(self, object_id: str, placement: str = "floor", rule: str = "free",
+                    target: str | None = None) -> dict[str, Any]:
+        """Moves an object elsewhere with the placement logic; restores it on failure."""
+        state = self._require()
+        obj = state.scene.object(object_id)
+        meta = state.metas.get(object_id)
+        index = state.scene.objects.index(obj)
+        state.scene.objects.remove(obj)
+        text = obj.description or obj.category.replace("_", " ")
+        if placement == "on_top" and target:
+            res = place_on(state, text, target, self._critic())
+        elif placement == "wall":
+            res = place_wall(state, text, obj.position.z)
+        else:
+            res = place_floor(state, text, rule, target=target)
+        if not res.ok:
+            state.scene.objects.insert(index, obj)
+            if meta is not None:
+                state.metas[object_id] = meta
+            return {"ok": False, "error": f"move_object: {res.reason}; {object_id} stays put"}
+        new = state.scene.object(res.object_id)  # type: ignore[arg-type]
+        new.id = object_id  # keep the id
+        state.metas[object_id] = state.metas.pop(res.object_id, meta)  # type: ignore[arg-type]
+        return {"ok": True, "object_id": object_id,
+                "position": [new.position.x, new.position.y, new.position.z]}
+
+    @_safe
+    def remove_object(self, object_id: str) -> dict[str, Any]:
+        """Removes an object and whatever stands on it."""
+        state = self._require()
+        state.scene.object(object_id)
+        gone = {object_id}
+        changed = True
+        while changed:
+            changed = False
+            for o in state.scene.objects:
+                if o.id not in gone and o.placement.support_id in gone:
+                    gone.add(o.id)
+                    changed = True
+        state.scene.objects = [o for o in state.scene.objects if o.id not in gone]
+        return {"ok": True, "removed": sorted(gone), "objects": len(state.scene.objects)}
+
+    @_safe
+    def get_scene_info(self) -> dict[str, Any]:
+        """Rooms and objects (id, category, placement, position, size) of the scene."""
+        scene = self.scene
+        return {
+            "ok": True,
+            "scene_id": scene.id,
+            "rooms": [{"id": r.id, "room_type": r.room_type,
+                       "size_m": [r.dimensions.width, r.dimensions.length]} for r in scene.rooms],
+            "objects": [{"id": o.id, "category": o.category, "placement": o.placement.kind,
+                         "support": o.placement.support_id, "task_role": o.task_role,
+                         "position": [round(o.position.x, 3), round(o.position.y, 3),
+                                      round(o.position.z, 3)],
+                         "size": [round(v, 3) for v in o.dimensions.as_tuple()]}
+                        for o in scene.objects],
+        }
+
+    @_safe
+    def render_views(self, width: int = 320, height: int = 240) -> dict[str, Any]:
+        """Renders the five views; returns the PNG paths."""
+        if self.out_dir is None:
+            raise ValueError("this session has no output folder for renders")
+        from factory.scenes.render import VIEWS, png_bytes, render_views
+        from factory.sim.compile import compile_scene
+        from factory.store import atomic_write_bytes
+
+        model = compile_scene(self.scene, self.library.assets_dir).model
+        images = render_views(model, self.scene, VIEWS, width, height)
+        paths = {}
+        for view, image in images.items():
+            path = self.out_dir / f"{self.scene.id}_{view}.png"
+            atomic_write_bytes(path, png_bytes(image))
+            paths[view] = str(path)
+        return {"ok": True, "images": paths}
+
+    @_safe
+    def visual_critic(self) -> dict[str, Any]:
+        """Rule-based suggestions: missing task objects, companions, sparse areas, blocked
+        doors, objects outside rooms."""
+        return {"ok": True, **visual_critic(self._require())}
+
+    @_safe
+    def physics_critic(self) -> dict[str, Any]:
+        """Collision and stability metrics of the whole scene as it stands."""
+        from factory.sim.compile import compile_scene
+        from factory.sim.metrics import scene_metrics
+        from factory.sim.stability import check_stability
+
+        scene = self.scene
+        model = compile_scene(scene, self.library.assets_dir).model
+        result = check_stability(model, protocol=StabilityProtocol(penetration_tol=math.inf,
+                                                                   resettle=False))
+        m = scene_metrics(scene, model, result, trimesh_test=False)
+        return {"ok": True, "objects": m["objects"], "collision_ratio": m["collision"]["ratio"],
+                "colliding": m["collision"]["colliding"], "stability_ratio":
+                m["stability"]["ratio"], "unstable": m["stability"]["unstable"]}
+
+    @_safe
+    def get_scene_json(self) -> dict[str, Any]:
+        """The validated scene as scene.json content."""
+        scene = validate(self.scene)
+        return {"ok": True, "scene": to_dict(scene)}
