@@ -24,11 +24,14 @@ def build_server(session: Any) -> Any:
     """An ``MCPServer`` exposing the tools of a :class:`~.tools.ToolSession`."""
     from mcp.server.mcpserver import MCPServer
 
-    server = MCPServer(name="factory-scene-tools", version="0.1.0",
-                       instructions="Build a furnished, physically valid room: init_scene, then "
-                       "place_objects (floor, wall, on_top), check with visual_critic and "
-                       "physics_critic, fix with move_object/remove_object, finish with "
-                       "get_scene_json.")
+    server = MCPServer(
+        name="factory-scene-tools",
+        version="0.1.0",
+        instructions="Build a furnished, physically valid room: init_scene, then "
+        "place_objects (floor, wall, on_top), check with visual_critic and "
+        "physics_critic, fix with move_object/remove_object, finish with "
+        "get_scene_json.",
+    )
 
     @server.tool()
     def init_scene(request: str, seed: int = 0) -> str:
@@ -36,19 +39,28 @@ def build_server(session: Any) -> Any:
         return json.dumps(session.init_scene(request, seed))
 
     @server.tool()
-    def place_objects(text: str, placement: Literal["floor", "wall", "on_top"] = "floor",
-                      rule: Literal["wall", "corner", "free", "center", "near", "around"] = "wall",
-                      target: str | None = None, height: float = 1.3, count: int = 1,
-                      task_role: str | None = None) -> str:
+    def place_objects(
+        text: str,
+        placement: Literal["floor", "wall", "on_top"] = "floor",
+        rule: Literal["wall", "corner", "free", "center", "near", "around"] = "wall",
+        target: str | None = None,
+        height: float = 1.3,
+        count: int = 1,
+        task_role: str | None = None,
+    ) -> str:
         """Place objects described by text: on the floor by a rule, mounted on a wall at a
         height (m), or on top of / inside the target object."""
-        return json.dumps(session.place_objects(text, placement, rule, target, height, count,
-                                                task_role))
+        return json.dumps(
+            session.place_objects(text, placement, rule, target, height, count, task_role)
+        )
 
     @server.tool()
-    def move_object(object_id: str, placement: Literal["floor", "wall", "on_top"] = "floor",
-                    rule: Literal["wall", "corner", "free", "center", "near", "around"] = "free",
-                    target: str | None = None) -> str:
+    def move_object(
+        object_id: str,
+        placement: Literal["floor", "wall", "on_top"] = "floor",
+        rule: Literal["wall", "corner", "free", "center", "near", "around"] = "free",
+        target: str | None = None,
+    ) -> str:
         """Move an object elsewhere; it stays put if no place is found."""
         return json.dumps(session.move_object(object_id, placement, rule, target))
 
@@ -99,8 +111,9 @@ def main(argv: list[str] | None = None) -> int:
     from factory.scenes.assets import AssetLibrary
     from factory.scenes.tools import ToolSession
 
-    session = ToolSession(AssetLibrary(Path(args.assets)), physics=not args.no_physics,
-                          out_dir=args.out)
+    session = ToolSession(
+        AssetLibrary(Path(args.assets)), physics=not args.no_physics, out_dir=args.out
+    )
     server = build_server(session)
     if args.transport == "stdio":
         server.run("stdio")

@@ -25,8 +25,15 @@ from factory.sim.stability import StabilityProtocol
 log = logging.getLogger(__name__)
 
 TOOLS: tuple[str, ...] = (
-    "init_scene", "place_objects", "move_object", "remove_object", "get_scene_info",
-    "render_views", "visual_critic", "physics_critic", "get_scene_json",
+    "init_scene",
+    "place_objects",
+    "move_object",
+    "remove_object",
+    "get_scene_info",
+    "render_views",
+    "visual_critic",
+    "physics_critic",
+    "get_scene_json",
 )
 
 
@@ -51,8 +58,9 @@ class ToolSession:
         out_dir: where ``render_views`` writes images.
     """
 
-    def __init__(self, library: AssetLibrary, physics: bool = True,
-                 out_dir: str | Path | None = None) -> None:
+    def __init__(
+        self, library: AssetLibrary, physics: bool = True, out_dir: str | Path | None = None
+    ) -> None:
         self.library = library
         self.physics = physics
         self.out_dir = Path(out_dir) if out_dir else None
@@ -69,8 +77,13 @@ class ToolSession:
             return None
 
         def critic(scene: Scene, oid: str, poses: list[list[float]]) -> dict[str, Any]:
-            return physics_critic(scene, oid, poses, assets_root=self.library.assets_dir,
-                                  protocol=StabilityProtocol(resettle=True))
+            return physics_critic(
+                scene,
+                oid,
+                poses,
+                assets_root=self.library.assets_dir,
+                protocol=StabilityProtocol(resettle=True),
+            )
 
         return critic
 
@@ -89,13 +102,25 @@ class ToolSession:
         scene, info = init_scene(request, seed)
         self.state = SceneState(scene, self.library, seed)
         room = scene.rooms[0]
-        return {"ok": True, "scene_id": scene.id, "room_id": room.id, **info,
-                "walls": [w.id for w in room.walls]}
+        return {
+            "ok": True,
+            "scene_id": scene.id,
+            "room_id": room.id,
+            **info,
+            "walls": [w.id for w in room.walls],
+        }
 
     @_safe
-    def place_objects(self, text: str, placement: str = "floor", rule: str = "wall",
-                      target: str | None = None, height: float = 1.3, count: int = 1,
-                      task_role: str | None = None) -> dict[str, Any]:
+    def place_objects(
+        self,
+        text: str,
+        placement: str = "floor",
+        rule: str = "wall",
+        target: str | None = None,
+        height: float = 1.3,
+        count: int = 1,
+        task_role: str | None = None,
+    ) -> dict[str, Any]:
         """Places ``count`` objects described by ``text``.
 
         ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around;
@@ -118,15 +143,29 @@ class ToolSession:
             elif placement == "wall":
                 res = place_wall(state, text, height)
             else:
-                res = place_on(state, text, target, self._critic(),  # type: ignore[arg-type]
-                               task_role=task_role)
+                res = place_on(
+                    state,
+                    text,
+                    target,
+                    self._critic(),  # type: ignore[arg-type]
+                    task_role=task_role,
+                )
             (placed if res.ok else failures).append(res.as_dict())
-        return {"ok": bool(placed), "placed": [p["object_id"] for p in placed],
-                "failures": failures, "objects": len(state.scene.objects)}
+        return {
+            "ok": bool(placed),
+            "placed": [p["object_id"] for p in placed],
+            "failures": failures,
+            "objects": len(state.scene.objects),
+        }
 
     @_safe
-    def move_object(self, object_id: str, placement: str = "floor", rule: str = "free",
-                    target: str | None = None) -> dict[str, Any]:
+    def move_object(
+        self,
+        object_id: str,
+        placement: str = "floor",
+        rule: str = "free",
+        target: str | None = None,
+    ) -> dict[str, Any]:
         """Moves an object elsewhere with the placement logic; restores it on failure."""
         state = self._require()
         obj = state.scene.object(object_id)
@@ -148,8 +187,11 @@ class ToolSession:
         new = state.scene.object(res.object_id)  # type: ignore[arg-type]
         new.id = object_id  # keep the id
         state.metas[object_id] = state.metas.pop(res.object_id, meta)  # type: ignore[arg-type]
-        return {"ok": True, "object_id": object_id,
-                "position": [new.position.x, new.position.y, new.position.z]}
+        return {
+            "ok": True,
+            "object_id": object_id,
+            "position": [new.position.x, new.position.y, new.position.z],
+        }
 
     @_safe
     def remove_object(self, object_id: str) -> dict[str, Any]:
@@ -174,14 +216,30 @@ class ToolSession:
         return {
             "ok": True,
             "scene_id": scene.id,
-            "rooms": [{"id": r.id, "room_type": r.room_type,
-                       "size_m": [r.dimensions.width, r.dimensions.length]} for r in scene.rooms],
-            "objects": [{"id": o.id, "category": o.category, "placement": o.placement.kind,
-                         "support": o.placement.support_id, "task_role": o.task_role,
-                         "position": [round(o.position.x, 3), round(o.position.y, 3),
-                                      round(o.position.z, 3)],
-                         "size": [round(v, 3) for v in o.dimensions.as_tuple()]}
-                        for o in scene.objects],
+            "rooms": [
+                {
+                    "id": r.id,
+                    "room_type": r.room_type,
+                    "size_m": [r.dimensions.width, r.dimensions.length],
+                }
+                for r in scene.rooms
+            ],
+            "objects": [
+                {
+                    "id": o.id,
+                    "category": o.category,
+                    "placement": o.placement.kind,
+                    "support": o.placement.support_id,
+                    "task_role": o.task_role,
+                    "position": [
+                        round(o.position.x, 3),
+                        round(o.position.y, 3),
+                        round(o.position.z, 3),
+                    ],
+                    "size": [round(v, 3) for v in o.dimensions.as_tuple()],
+                }
+                for o in scene.objects
+            ],
         }
 
     @_safe
@@ -217,12 +275,18 @@ class ToolSession:
 
         scene = self.scene
         model = compile_scene(scene, self.library.assets_dir).model
-        result = check_stability(model, protocol=StabilityProtocol(penetration_tol=math.inf,
-                                                                   resettle=False))
+        result = check_stability(
+            model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
+        )
         m = scene_metrics(scene, model, result, trimesh_test=False)
-        return {"ok": True, "objects": m["objects"], "collision_ratio": m["collision"]["ratio"],
-                "colliding": m["collision"]["colliding"], "stability_ratio":
-                m["stability"]["ratio"], "unstable": m["stability"]["unstable"]}
+        return {
+            "ok": True,
+            "objects": m["objects"],
+            "collision_ratio": m["collision"]["ratio"],
+            "colliding": m["collision"]["colliding"],
+            "stability_ratio": m["stability"]["ratio"],
+            "unstable": m["stability"]["unstable"],
+        }
 
     @_safe
     def get_scene_json(self) -> dict[str, Any]:
