@@ -127,7 +127,11 @@ def run_llm_agent(
     calls = 0
     while calls < config.max_tool_calls and time.perf_counter() - t0 < config.max_seconds:
         try:
-            reply = client.chat.completions.create(model=model, messages=messages, tools=tools)
+            reply = client.chat.completions.create(
+                model=model,
+                messages=messages,  # type: ignore[arg-type]
+                tools=tools,  # type: ignore[arg-type]
+            )
         except (APIConnectionError, APITimeoutError) as e:
             raise AgentError(f"the LLM endpoint {base_url} is unreachable or slow: {e}") from None
         except APIError as e:
@@ -140,7 +144,7 @@ def run_llm_agent(
         if not getattr(reply, "choices", None):
             raise AgentError(f"the LLM endpoint {base_url} answered without choices")
         msg = reply.choices[0].message
-        tool_calls = list(msg.tool_calls or [])
+        tool_calls: list[Any] = list(msg.tool_calls or [])
         messages.append(
             {
                 "role": "assistant",

@@ -136,20 +136,15 @@ class ToolSession:
             raise ValueError("on_top placement needs target=<object id>")
         if target is not None:
             state.scene.object(target)  # KeyError -> clear error
-        placed, failures = [], []
+        placed: list[dict[str, Any]] = []
+        failures: list[dict[str, Any]] = []
         for _ in range(count):
             if placement == "floor":
                 res = place_floor(state, text, rule, target=target, task_role=task_role)
             elif placement == "wall":
                 res = place_wall(state, text, height)
             else:
-                res = place_on(
-                    state,
-                    text,
-                    target,
-                    self._critic(),  # type: ignore[arg-type]
-                    task_role=task_role,
-                )
+                res = place_on(state, text, str(target), self._critic(), task_role=task_role)
             (placed if res.ok else failures).append(res.as_dict())
         return {
             "ok": bool(placed),
