@@ -68,6 +68,13 @@ class GenerateConfig:
         physics_critic: judge every on-top placement in simulation (the paper's critic).
         max_objects: stop adding objects past this count.
         render: write the five renders of each scene.
+        transport: how the agent reaches the tools: ``direct`` (in-process calls) or ``mcp``
+            (an MCP client session to an in-process MCP server).
+        llm_base_url, llm_model: the OpenAI-compatible endpoint of ``agent=llm`` (or the
+            environment's ``FACTORY_LLM_BASE_URL`` / ``FACTORY_LLM_MODEL``).
+        llm_timeout: seconds per LLM request; llm_retries: retries per request.
+        llm_fallback: when the LLM endpoint fails, build the scene with the heuristic agent
+            (logged and recorded in report.json) instead of failing.
     """
 
     prompts: list[str] = field(default_factory=list)
@@ -78,6 +85,12 @@ class GenerateConfig:
     physics_critic: bool = True
     max_objects: int = 120
     render: bool = True
+    transport: str = "direct"
+    llm_base_url: str | None = None
+    llm_model: str | None = None
+    llm_timeout: float = 60.0
+    llm_retries: int = 2
+    llm_fallback: bool = True
 
 
 @dataclass

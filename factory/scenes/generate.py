@@ -11,20 +11,17 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import math
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from factory.scenes.assets import AssetLibrary
-from factory.scenes.placement import SceneState, place_floor, place_on, place_wall
 from factory.scenes.rooms import ROOM_TYPES, Item, room_type_of
 from factory.schema import Door, Room, Scene, Size3, Task, Vec3, Wall, Window, check_id
-from factory.sim.critic import physics_critic
-from factory.sim.stability import FreeBodies, StabilityProtocol, check_stability
 
 log = logging.getLogger(__name__)
 
@@ -178,9 +175,8 @@ class Trace:
 
     calls: list[dict[str, Any]] = field(default_factory=list)
 
-    def log(self, tool: str, args: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
-        self.calls.append({"tool": tool, "args": args, "result": result})
-        return result
+
+Caller = Callable[..., dict[str, Any]]
 
 
 def _count(item: Item, rng: np.random.Generator) -> int:
@@ -189,25 +185,112 @@ def _count(item: Item, rng: np.random.Generator) -> int:
     return int(rng.integers(item.count[0], item.count[1] + 1))
 
 
-def _remove_unstable(state: SceneState, trace: Trace) -> None:
-    """The paper's shortcut: simulate once after floor and wall objects, drop the unstable."""
-    from factory.sim.compile import compile_scene
+def heuristic_agent(
+    call: Caller, request: str, seed: int, cfg: AgentConfig, task: str | None = None
+) -> dict[str, Any]:
+    """The offline brain: a deterministic sequence of tool calls driven by room knowledge
+    and the tools' results (what got placed, what the critics say).
 
-    if not state.scene.objects:
-        return
-    model = compile_scene(state.scene, state.library.assets_dir).model
-    result = check_stability(
-        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
-    )
-    free = FreeBodies.of(model)
-    bad = [free.names[j] for j in np.flatnonzero(~result.stable_object[0])]
-    for oid in bad:
-        state.scene.objects = [o for o in state.scene.objects if o.id != oid]
-    trace.log(
-        "physics_critic",
-        {"scope": "floor and wall objects"},
-        {"unstable_removed": bad, "objects": len(state.scene.objects)},
-    )
+    Args:
+        call: ``call(tool_name, **arguments) -> result dict`` (a ToolSession, or MCP).
+    """
+    rng = np.random.default_rng(seed + 7919)
+    first = call("init_scene", request=request, seed=seed)
+    if not first.get("ok"):
+        raise ValueError(first.get("error", "init_scene failed"))
+    rt = ROOM_TYPES[first["room_type"]]
+    style = _style(request)
+    keyed: dict[str, list[str]] = {}
+    n_objects = 0
+
+    def styled(text: str) -> str:
+        return f"{style} {text}" if style else text
+
+    def place(**args: Any) -> dict[str, Any]:
+        nonlocal n_objects
+        res = call("place_objects", **args)
+        n_objects = int(res.get("objects", n_objects))
+        return res
+
+    # 1. floor and wall furniture
+    small: list[tuple[Item, int]] = []
+    for item in rt.items:
+        n = _count(item, rng)
+        if item.rule.startswith("on:"):
+            small.append((item, n))
+            continue
+        rule, _, key = item.rule.partition(":")
+        for _ in range(n):
+            targets = keyed.get(key, [])
+            if rule in ("near", "around") and not targets:
+                break
+            if rule == "mount":
+                res = place(text=styled(item.text), placement="wall", height=item.height)
+            else:
+                res = place(
+                    text=styled(item.text),
+                    placement="floor",
+                    rule=rule,
+                    target=targets[0] if targets else None,
+                )
+            if res.get("ok") and item.key:
+                keyed.setdefault(item.key, []).extend(res["placed"])
+    # 2. simulate once; drop unstable floor furniture (the paper's shortcut)
+    physics = call("physics_critic")
+    for oid in physics.get("unstable", []):
+        call("remove_object", object_id=oid)
+    alive = {o["id"] for o in call("get_scene_info").get("objects", [])}
+    keyed = {k: [i for i in v if i in alive] for k, v in keyed.items()}
+    # 3. task objects first, on the largest table-like surface
+    spec = parse_task(task or request)
+    if spec is not None:
+        objects = call("get_scene_info")["objects"]
+        tables = [o for o in objects if o["category"] in TABLES]
+        if not tables:
+            res = place(text="dining table", placement="floor", rule="center")
+            tables = [{"id": res["placed"][0], "size": [1, 1, 1]}] if res.get("ok") else []
+        if tables:
+            table = max(tables, key=lambda o: o["size"][0] * o["size"][1])
+            for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
+                place(text=text, placement="on_top", target=table["id"], task_role=role)
+    # 4. small objects on surfaces, multi-level, each judged by the physics critic
+    for item, n in small:
+        supports = keyed.get(item.rule.split(":", 1)[1], [])
+        for k in range(n):
+            if not supports or n_objects >= cfg.max_objects:
+                break
+            place(text=styled(item.text), placement="on_top", target=supports[k % len(supports)])
+    # 5. the visual critic's suggestions: companions and sparse areas
+    for suggestion in call("visual_critic").get("suggestions", [])[: cfg.extra_fill]:
+        args = dict(suggestion["call"]["args"])
+        if suggestion["call"]["tool"] != "place_objects" or "text" not in args:
+            continue
+        if n_objects >= cfg.max_objects:
+            break
+        args["text"] = styled(args["text"])
+        place(**args)
+    fillers = list(rt.fillers) * 2
+    rng.shuffle(fillers)
+    for text in fillers[: cfg.extra_fill]:
+        if n_objects >= cfg.max_objects:
+            break
+        place(
+            text=styled(text), placement="floor", rule="corner" if rng.uniform() < 0.5 else "wall"
+        )
+    return {"task": None if spec is None else spec.__dict__}
+
+
+TABLES = (
+    "dining_table",
+    "coffee_table",
+    "desk",
+    "kitchen_island",
+    "side_table",
+    "conference_table",
+    "console_table",
+    "kitchen_cabinet",
+    "workbench",
+)
 
 
 def generate_scene(
@@ -217,92 +300,38 @@ def generate_scene(
     config: AgentConfig | None = None,
     task: str | None = None,
     scene_id: str | None = None,
+    caller: Caller | None = None,
+    session: Any = None,
 ) -> tuple[Scene, dict[str, Any]]:
     """Generates one furnished, physically checked scene for a text request.
+
+    The heuristic brain drives the generator tools of a :class:`~.tools.ToolSession`, either
+    directly or through ``caller`` (e.g. an MCP client, see :class:`SyncMCPCaller`; then pass
+    the server's ``session`` to read the result).
 
     Returns:
         the scene and a report (``trace`` of tool calls, counts, timings).
     """
+    from factory.scenes.tools import ToolSession
+
     cfg = config or AgentConfig()
     t0 = time.perf_counter()
     trace = Trace()
-    scene, info = init_scene(request, seed, scene_id)
-    trace.log("init_scene", {"request": request, "seed": seed}, info)
-    state = SceneState(scene, library, seed)
-    rng = state.rng
-    rt = ROOM_TYPES[info["room_type"]]
-    style = _style(request)
-    keyed: dict[str, list[str]] = {}
+    if session is None:
+        session = ToolSession(library, physics=cfg.physics_critic)
+    direct = caller or (lambda name, **kw: getattr(session, name)(**kw))
 
-    def styled(text: str) -> str:
-        return f"{style} {text}" if style else text
+    def call(name: str, **args: Any) -> dict[str, Any]:
+        result = direct(name, **args)
+        trace.calls.append({"tool": name, "args": args, "result": _brief(result)})
+        return result
 
-    critic = None
-    if cfg.physics_critic:
-
-        def critic(sc: Scene, oid: str, poses: list[list[float]]) -> dict[str, Any]:
-            return physics_critic(
-                sc,
-                oid,
-                poses,
-                assets_root=library.assets_dir,
-                protocol=StabilityProtocol(resettle=True),
-            )
-
-    # 1. floor and wall furniture
-    small: list[tuple[Item, int]] = []
-    for item in rt.items:
-        n = _count(item, rng)
-        if item.rule.startswith("on:"):
-            small.append((item, n))
-            continue
-        for _ in range(n):
-            rule, _, target = item.rule.partition(":")
-            tgt_ids = keyed.get(target, [])
-            if rule in ("near", "around") and not tgt_ids:
-                continue
-            args = {
-                "text": styled(item.text),
-                "rule": rule,
-                "target": tgt_ids[0] if tgt_ids else None,
-            }
-            if rule == "mount":
-                res = place_wall(state, styled(item.text), item.height)
-            else:
-                res = place_floor(
-                    state, styled(item.text), rule, target=tgt_ids[0] if tgt_ids else None
-                )
-            trace.log("place_objects", args, res.as_dict())
-            if res.ok and item.key:
-                keyed.setdefault(item.key, []).append(res.object_id)  # type: ignore[arg-type]
-    _remove_unstable(state, trace)
-    alive = {o.id for o in scene.objects}
-    keyed = {k: [i for i in v if i in alive] for k, v in keyed.items()}
-
-    # 2. task objects first, so they get the best spots
-    task_spec = parse_task(task or request)
-    if task_spec is not None:
-        _place_task(state, task_spec, critic, trace, cfg)
-
-    # 3. small objects on surfaces (multi-level), judged by the physics critic
-    for item, n in small:
-        supports = keyed.get(item.rule.split(":", 1)[1], [])
-        for k in range(n):
-            if not supports or len(scene.objects) >= cfg.max_objects:
-                break
-            sup = supports[k % len(supports)]
-            res = place_on(state, styled(item.text), sup, critic, batch=cfg.critic_batch)
-            trace.log("place_objects", {"text": item.text, "on": sup}, res.as_dict())
-    # 4. fill sparse floor space with background objects
-    fillers = list(rt.fillers) * 2
-    rng.shuffle(fillers)
-    for text in fillers[: cfg.extra_fill]:
-        if len(scene.objects) >= cfg.max_objects:
-            break
-        res = place_floor(state, styled(text), "corner" if rng.uniform() < 0.5 else "wall")
-        trace.log("place_objects", {"text": text, "rule": "fill"}, res.as_dict())
-    if task_spec is not None:
-        scene.task = Task(kind="pick_place", instruction=task_spec.instruction)
+    info = heuristic_agent(call, request, seed, cfg, task)
+    scene = session.scene
+    if scene_id is not None:
+        scene.id = check_id(scene_id, "scene id")
+    if info["task"] is not None:
+        scene.task = Task(kind="pick_place", instruction=info["task"]["instruction"])
     report = {
         "agent": "heuristic",
         "request": request,
@@ -315,41 +344,77 @@ def generate_scene(
     return scene, report
 
 
-def _place_task(
-    state: SceneState, spec: TaskSpec, critic: Any, trace: Trace, cfg: AgentConfig
-) -> None:
-    """Puts the task's pick object and target on a free table near its edge."""
-    scene = state.scene
-    tables = [
-        o
-        for o in scene.objects
-        if o.category
-        in (
-            "dining_table",
-            "coffee_table",
-            "desk",
-            "kitchen_island",
-            "side_table",
-            "conference_table",
-            "console_table",
-            "kitchen_cabinet",
-            "workbench",
+def _brief(result: dict[str, Any]) -> dict[str, Any]:
+    """A result short enough for the trace (object lists are summarised)."""
+    if "objects" in result and isinstance(result["objects"], list):
+        return {**result, "objects": len(result["objects"])}
+    return result
+
+
+class SyncMCPCaller:
+    """A synchronous ``call(name, **args)`` over an MCP client session.
+
+    One ``mcp.Client`` connected to ``server`` (an ``MCPServer`` in-process,
+    ``StdioServerParameters`` or an HTTP URL) lives in a task of an event loop on a background
+    thread; calls are queued to it. Use as a context manager.
+    """
+
+    def __init__(self, server: Any) -> None:
+        self.server = server
+
+    def __enter__(self) -> SyncMCPCaller:
+        import asyncio
+        import concurrent.futures
+        import threading
+
+        self.loop = asyncio.new_event_loop()
+        self.ready: concurrent.futures.Future[None] = concurrent.futures.Future()
+        self.thread = threading.Thread(
+            target=self.loop.run_until_complete, args=(self._serve(),), daemon=True
         )
-    ]
-    if not tables:
-        res = place_floor(state, "dining table", "center")
-        trace.log(
-            "place_objects", {"text": "dining table", "why": "task needs a surface"}, res.as_dict()
-        )
-        if not res.ok:
-            return
-        tables = [scene.object(res.object_id)]  # type: ignore[arg-type]
-    table = max(tables, key=lambda o: o.dimensions.width * o.dimensions.length)
-    for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
-        res = place_on(
-            state, text, table.id, critic, task_role=role, batch=cfg.critic_batch, max_batches=5
-        )
-        trace.log("place_objects", {"text": text, "on": table.id, "task_role": role}, res.as_dict())
+        self.thread.start()
+        self.ready.result(120)
+        return self
+
+    async def _serve(self) -> None:
+        import asyncio
+
+        from mcp import Client
+
+        self.queue: asyncio.Queue[Any] = asyncio.Queue()
+        try:
+            async with Client(self.server) as client:
+                self.ready.set_result(None)
+                while True:
+                    item = await self.queue.get()
+                    if item is None:
+                        break
+                    name, args, fut = item
+                    try:
+                        fut.set_result(await client.call_tool(name, args))
+                    except Exception as e:  # delivered to the caller's thread
+                        fut.set_exception(e)
+        except Exception as e:
+            if not self.ready.done():
+                self.ready.set_exception(e)
+            raise
+
+    def __call__(self, name: str, **args: Any) -> dict[str, Any]:
+        import concurrent.futures
+        import json as _json
+
+        fut: concurrent.futures.Future[Any] = concurrent.futures.Future()
+        self.loop.call_soon_threadsafe(self.queue.put_nowait, (name, args, fut))
+        result = fut.result(600)
+        text = result.content[0].text if result.content else "{}"
+        if getattr(result, "is_error", False):
+            return {"ok": False, "error": text}
+        data: dict[str, Any] = _json.loads(text)
+        return data
+
+    def __exit__(self, *exc: object) -> None:
+        self.loop.call_soon_threadsafe(self.queue.put_nowait, None)
+        self.thread.join(30)
 
 
 def _read_prompts(cfg: Any) -> list[str]:
@@ -370,6 +435,56 @@ def _read_prompts(cfg: Any) -> list[str]:
     if cfg.task and not prompts:
         prompts = [cfg.task]
     return prompts
+
+
+def _generate_with(
+    gcfg: Any, prompt: str, library: AssetLibrary, seed: int, agent_cfg: AgentConfig, scene_id: str
+) -> tuple[Scene, dict[str, Any]]:
+    """One scene with the configured brain and transport."""
+    from factory.scenes.tools import ToolSession
+
+    session = ToolSession(library, physics=agent_cfg.physics_critic)
+    if gcfg.agent == "llm":
+        from factory.scenes.agent import AgentError, LLMConfig, run_llm_agent
+
+        llm = LLMConfig(
+            base_url=gcfg.llm_base_url,
+            model=gcfg.llm_model,
+            timeout=gcfg.llm_timeout,
+            retries=gcfg.llm_retries,
+        )
+        try:
+            report = run_llm_agent(session, prompt, llm, seed)
+            scene = session.scene
+            scene.id = check_id(scene_id, "scene id")
+            return scene, {**report, "request": prompt, "seed": seed, "objects": len(scene.objects)}
+        except AgentError as e:
+            if not gcfg.llm_fallback:
+                raise
+            log.warning(
+                "llm agent failed for %r (%s); falling back to the heuristic agent", prompt, e
+            )
+            scene, report = generate_scene(
+                prompt, library, seed, agent_cfg, task=gcfg.task or None, scene_id=scene_id
+            )
+            return scene, {**report, "fallback_from": "llm", "llm_error": str(e)}
+    if gcfg.transport == "mcp":
+        from factory.scenes.mcp_server import build_server
+
+        with SyncMCPCaller(build_server(session)) as caller:
+            return generate_scene(
+                prompt,
+                library,
+                seed,
+                agent_cfg,
+                task=gcfg.task or None,
+                scene_id=scene_id,
+                caller=caller,
+                session=session,
+            )
+    return generate_scene(
+        prompt, library, seed, agent_cfg, task=gcfg.task or None, scene_id=scene_id, session=session
+    )
 
 
 def run(ctx: Any) -> dict[str, Any]:
@@ -398,8 +513,10 @@ def run(ctx: Any) -> dict[str, Any]:
             jobs.append((f"{rt}_{digest}_{k}", prompt, seed))
     mine = ctx.shard.select(jobs)
     by_id = {j[0]: j for j in mine}
-    if gcfg.agent != "heuristic":
-        raise ConfigError(f"generate.agent={gcfg.agent!r} is not available: use heuristic")
+    if gcfg.agent not in ("heuristic", "llm"):
+        raise ConfigError(f"generate.agent={gcfg.agent!r} must be heuristic or llm")
+    if gcfg.transport not in ("direct", "mcp"):
+        raise ConfigError(f"generate.transport={gcfg.transport!r} must be direct or mcp")
     library = AssetLibrary.from_config(ctx.cfg.assets, store.assets_dir)
     agent_cfg = AgentConfig(physics_critic=gcfg.physics_critic, max_objects=gcfg.max_objects)
 
@@ -408,9 +525,7 @@ def run(ctx: Any) -> dict[str, Any]:
         if store.scene_json(scene_id).is_file() and not ctx.cfg.force:
             return "skipped"
         try:
-            scene, report = generate_scene(
-                prompt, library, seed, agent_cfg, task=gcfg.task or None, scene_id=scene_id
-            )
+            scene, report = _generate_with(gcfg, prompt, library, seed, agent_cfg, scene_id)
         except ValueError as e:
             raise ConfigError(f"prompt {prompt!r}: {e}") from None
         validate(scene)

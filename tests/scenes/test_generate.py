@@ -112,3 +112,55 @@ def test_generate_stage(cli, tmp_path: Path) -> None:
     assert again.returncode == 0 and "'skipped': 1" in again.stderr
     bad = cli("stage=generate", f"run_dir={run}")
     assert bad.returncode == 2 and "generate.prompts" in bad.stderr
+
+
+def test_heuristic_agent_over_mcp(tmp_path: Path) -> None:
+    """The same brain drives the tools through a real MCP client session."""
+    from factory.scenes.generate import SyncMCPCaller
+    from factory.scenes.mcp_server import build_server
+    from factory.scenes.tools import ToolSession
+
+    lib = AssetLibrary(tmp_path / "assets")
+    cfg = AgentConfig(physics_critic=False)
+    session = ToolSession(lib, physics=False)
+    with SyncMCPCaller(build_server(session)) as caller:
+        over_mcp, report = generate_scene(
+            "a cozy bedroom", lib, seed=2, config=cfg, caller=caller, session=session
+        )
+    direct, _ = generate_scene("a cozy bedroom", lib, seed=2, config=cfg)
+    assert scene_to_json(over_mcp) == scene_to_json(direct)
+    assert report["tool_calls"] > 20
+
+
+def test_llm_agent_falls_back_when_endpoint_is_down(cli, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    out = cli(
+        "stage=generate",
+        f"run_dir={run}",
+        "generate.prompts=[a small office]",
+        "generate.agent=llm",
+        "generate.llm_base_url=http://127.0.0.1:9/v1",
+        "generate.llm_model=m",
+        "generate.llm_retries=0",
+        "generate.llm_timeout=2",
+        "generate.physics_critic=false",
+        "generate.render=false",
+    )
+    assert out.returncode == 0, out.stderr
+    (scene_dir,) = (run / "scenes").iterdir()
+    report = json.loads((scene_dir / "report.json").read_text())["generate"]
+    assert report["fallback_from"] == "llm" and "unreachable" in report["llm_error"]
+    strict = cli(
+        "stage=generate",
+        f"run_dir={tmp_path / 'run2'}",
+        "generate.prompts=[an office]",
+        "generate.agent=llm",
+        "generate.llm_base_url=http://127.0.0.1:9/v1",
+        "generate.llm_model=m",
+        "generate.llm_retries=0",
+        "generate.llm_fallback=false",
+    )
+    assert strict.returncode == 2 and "unreachable" in strict.stderr
+    assert not (tmp_path / "run2" / "scenes").exists() or not any(
+        (tmp_path / "run2" / "scenes").iterdir()
+    )
