@@ -10,6 +10,7 @@ are reachable. Every tool call and its result go into the trace saved in ``repor
 from __future__ import annotations
 
 import hashlib
+import itertools
 import logging
 import re
 import time
@@ -80,27 +81,45 @@ def _style(text: str) -> str:
     return next((s for s in STYLE_WORDS if s in low), "")
 
 
-def init_scene(
-    request: str, seed: int = 0, scene_id: str | None = None, room_type: str | None = None
-) -> tuple[Scene, dict[str, Any]]:
-    """Builds an empty room for the request: type, size, materials, walls, a door, windows.
+MULTI_ROOM_WORDS = ("apartment", "house", "flat", "home", "suite", "condo")
 
-    Raises:
-        ValueError: a request too small to hold a room (e.g. "0.5 m wide").
-    """
-    rng = np.random.default_rng(seed)
-    rt_name = room_type or room_type_of(request)
+
+def room_types_in(request: str) -> list[str]:
+    """The room types a request asks for: several for an apartment or house, else one."""
+    from factory.scenes.rooms import ROOM_TYPES as RT
+
+    low = request.lower()
+    found: list[tuple[int, str]] = []
+    for name, rt in RT.items():
+        if name == "studio":
+            continue
+        for phrase in (name, *rt.aliases):
+            i = low.find(phrase)
+            if i >= 0 and not any(n == name for _, n in found):
+                found.append((i, name))
+    mentioned = [n for _, n in sorted(found)]
+    if any(w in low for w in MULTI_ROOM_WORDS):
+        rooms = list(mentioned)
+        for extra in ("living room", "kitchen", "bathroom"):
+            if extra not in rooms:
+                rooms.append(extra)
+        if "bedroom" not in rooms and "studio" not in low:
+            rooms.insert(0, "bedroom")
+        return rooms[:5]
+    return [room_type_of(request)]
+
+
+def _room(
+    rid: str,
+    rt_name: str,
+    x0: float,
+    width: float,
+    length: float,
+    height: float,
+    rng: np.random.Generator,
+) -> Room:
     rt = ROOM_TYPES[rt_name]
-    (w0, w1), (l0, l1) = rt.size
-    width, length = float(rng.uniform(w0, w1)), float(rng.uniform(l0, l1))
-    m = re.search(r"(\d+(?:\.\d+)?)\s*(?:m|meters?|metres?)\s*(?:wide|by)", request.lower())
-    if m:
-        width = float(m.group(1))
-        if width < 1.5:
-            raise ValueError(f"a room {width} m wide cannot hold furniture: ask for at least 1.5 m")
-    height = 2.7
-    rid = check_id(re.sub(r"[^a-z0-9]+", "_", rt_name).strip("_") or "room", "room id")
-    pts = [(0, 0), (width, 0), (width, length), (0, length)]
+    pts = [(x0, 0.0), (x0 + width, 0.0), (x0 + width, length), (x0, length)]
     names = ["south", "east", "north", "west"]
     walls = [
         Wall(
@@ -112,29 +131,19 @@ def init_scene(
         )
         for i, n in enumerate(names)
     ]
-    door_wall = walls[int(rng.integers(4))]
-    window_wall = next(w for w in walls if w is not door_wall and w.id.endswith(("north", "east")))
-    room = Room(
+    north = walls[2]
+    return Room(
         id=rid,
         room_type=rt_name,
-        position=Vec3(0, 0, 0),
+        position=Vec3(x0, 0, 0),
         dimensions=Size3(width, length, height),
         walls=walls,
-        doors=[
-            Door(
-                id=f"{rid}_door",
-                wall_id=door_wall.id,
-                position_on_wall=float(rng.uniform(0.25, 0.75)),
-                width=0.9,
-                height=2.1,
-            )
-        ],
         windows=[
             Window(
                 id=f"{rid}_window",
-                wall_id=window_wall.id,
+                wall_id=north.id,
                 position_on_wall=0.5,
-                width=min(1.4, 0.4 * window_wall.length),
+                width=min(1.4, 0.4 * north.length),
                 height=1.2,
                 sill_height=0.9,
             )
@@ -142,21 +151,98 @@ def init_scene(
         floor_material=str(rng.choice(rt.floors)),
         ceiling_height=height,
     )
+
+
+def init_scene(
+    request: str, seed: int = 0, scene_id: str | None = None, room_type: str | None = None
+) -> tuple[Scene, dict[str, Any]]:
+    """Builds the empty floor plan for the request: one room, or several in a row joined by
+    doors for an apartment or house; sizes, materials, walls, doors, windows.
+
+    Raises:
+        ValueError: a request too small to hold a room (e.g. "0.5 m wide").
+    """
+    rng = np.random.default_rng(seed)
+    types = [room_type] if room_type else room_types_in(request)
+    m = re.search(r"(\d+(?:\.\d+)?)\s*(?:m|meters?|metres?)\s*(?:wide|by)", request.lower())
+    forced_width = float(m.group(1)) if m else None
+    if forced_width is not None and forced_width < 1.5:
+        raise ValueError(
+            f"a room {forced_width} m wide cannot hold furniture: ask for at least 1.5 m"
+        )
+    height = 2.7
+    sizes = []
+    for t in types:
+        (w0, w1), (l0, l1) = ROOM_TYPES[t].size
+        sizes.append((forced_width or float(rng.uniform(w0, w1)), float(rng.uniform(l0, l1))))
+    length = max(ln for _, ln in sizes) if len(types) > 1 else sizes[0][1]
+    rooms: list[Room] = []
+    x = 0.0
+    used: dict[str, int] = {}
+    for t, (width, _) in zip(types, sizes, strict=True):
+        base = re.sub(r"[^a-z0-9]+", "_", t).strip("_") or "room"
+        used[base] = used.get(base, 0) + 1
+        rid = check_id(base if used[base] == 1 else f"{base}_{used[base]}", "room id")
+        rooms.append(_room(rid, t, x, width, length, height, rng))
+        x += width
+    # doors: an entrance on the first room's south wall, and one in each shared wall
+    first = rooms[0]
+    first.doors.append(
+        Door(
+            id=f"{first.id}_entrance",
+            wall_id=first.walls[0].id,
+            position_on_wall=float(rng.uniform(0.3, 0.7)),
+            width=0.9,
+            height=2.1,
+        )
+    )
+    for a, b in itertools.pairwise(rooms):
+        p = float(rng.uniform(0.3, 0.7))
+        a.doors.append(
+            Door(
+                id=f"{a.id}_to_{b.id}",
+                wall_id=a.walls[1].id,
+                position_on_wall=p,
+                width=0.9,
+                height=2.1,
+                opening=True,
+            )
+        )
+        b.doors.append(
+            Door(
+                id=f"{b.id}_to_{a.id}",
+                wall_id=b.walls[3].id,
+                position_on_wall=1.0 - p,
+                width=0.9,
+                height=2.1,
+                opening=True,
+            )
+        )
     digest = hashlib.sha1(f"{request}|{seed}".encode()).hexdigest()[:8]
-    sid = scene_id or f"{rid}_{digest}"
+    sid = scene_id or f"{first.id}_{digest}"
     scene = Scene(
         id=sid,
-        rooms=[room],
+        rooms=rooms,
         description=request,
         source="text",
         seed=seed,
         building_style=_style(request),
     )
-    return scene, {
-        "room_type": rt_name,
-        "size_m": [round(width, 2), round(length, 2)],
-        "floor": room.floor_material,
+    info = {
+        "room_type": first.room_type,
+        "room_id": first.id,
+        "rooms": [
+            {
+                "id": r.id,
+                "room_type": r.room_type,
+                "size_m": [round(r.dimensions.width, 2), round(r.dimensions.length, 2)],
+            }
+            for r in rooms
+        ],
+        "size_m": [round(first.dimensions.width, 2), round(first.dimensions.length, 2)],
+        "floor": first.floor_material,
     }
+    return scene, info
 
 
 @dataclass
@@ -165,6 +251,7 @@ class AgentConfig:
 
     physics_critic: bool = True
     max_objects: int = 120
+    """Per room."""
     critic_batch: int = 4
     extra_fill: int = 6
 
@@ -198,7 +285,6 @@ def heuristic_agent(
     first = call("init_scene", request=request, seed=seed)
     if not first.get("ok"):
         raise ValueError(first.get("error", "init_scene failed"))
-    rt = ROOM_TYPES[first["room_type"]]
     style = _style(request)
     keyed: dict[str, list[str]] = {}
     n_objects = 0
@@ -212,29 +298,42 @@ def heuristic_agent(
         n_objects = int(res.get("objects", n_objects))
         return res
 
-    # 1. floor and wall furniture
-    small: list[tuple[Item, int]] = []
-    for item in rt.items:
-        n = _count(item, rng)
-        if item.rule.startswith("on:"):
-            small.append((item, n))
-            continue
-        rule, _, key = item.rule.partition(":")
-        for _ in range(n):
-            targets = keyed.get(key, [])
-            if rule in ("near", "around") and not targets:
-                break
-            if rule == "mount":
-                res = place(text=styled(item.text), placement="wall", height=item.height)
-            else:
-                res = place(
-                    text=styled(item.text),
-                    placement="floor",
-                    rule=rule,
-                    target=targets[0] if targets else None,
-                )
-            if res.get("ok") and item.key:
-                keyed.setdefault(item.key, []).extend(res["placed"])
+    # 1. floor and wall furniture, room by room
+    small: list[tuple[Item, int, str]] = []
+    rooms = first.get("rooms") or [{"id": first["room_id"], "room_type": first["room_type"]}]
+    budget = cfg.max_objects * len(rooms)
+    fillers_by_room: dict[str, tuple[str, ...]] = {}
+    for room in rooms:
+        rt = ROOM_TYPES[room["room_type"]]
+        fillers_by_room[room["id"]] = rt.fillers
+        for item in rt.items:
+            n = _count(item, rng)
+            key = f"{room['id']}:{item.key}" if item.key else ""
+            if item.rule.startswith("on:"):
+                small.append((item, n, f"{room['id']}:{item.rule.split(':', 1)[1]}"))
+                continue
+            rule, _, ref = item.rule.partition(":")
+            for _ in range(n):
+                targets = keyed.get(f"{room['id']}:{ref}", [])
+                if rule in ("near", "around") and not targets:
+                    break
+                if rule == "mount":
+                    res = place(
+                        text=styled(item.text),
+                        placement="wall",
+                        height=item.height,
+                        room_id=room["id"],
+                    )
+                else:
+                    res = place(
+                        text=styled(item.text),
+                        placement="floor",
+                        rule=rule,
+                        target=targets[0] if targets else None,
+                        room_id=room["id"],
+                    )
+                if res.get("ok") and key:
+                    keyed.setdefault(key, []).extend(res["placed"])
     # 2. simulate once; drop unstable floor furniture (the paper's shortcut)
     physics = call("physics_critic")
     for oid in physics.get("unstable", []):
@@ -254,10 +353,10 @@ def heuristic_agent(
             for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
                 place(text=text, placement="on_top", target=table["id"], task_role=role)
     # 4. small objects on surfaces, multi-level, each judged by the physics critic
-    for item, n in small:
-        supports = keyed.get(item.rule.split(":", 1)[1], [])
+    for item, n, ref in small:
+        supports = keyed.get(ref, [])
         for k in range(n):
-            if not supports or n_objects >= cfg.max_objects:
+            if not supports or n_objects >= budget:
                 break
             place(text=styled(item.text), placement="on_top", target=supports[k % len(supports)])
     # 5. the visual critic's suggestions: companions and sparse areas
@@ -265,14 +364,14 @@ def heuristic_agent(
         args = dict(suggestion["call"]["args"])
         if suggestion["call"]["tool"] != "place_objects" or "text" not in args:
             continue
-        if n_objects >= cfg.max_objects:
+        if n_objects >= budget:
             break
         args["text"] = styled(args["text"])
         place(**args)
     fillers = list(rt.fillers) * 2
     rng.shuffle(fillers)
     for text in fillers[: cfg.extra_fill]:
-        if n_objects >= cfg.max_objects:
+        if n_objects >= budget:
             break
         place(
             text=styled(text), placement="floor", rule="corner" if rng.uniform() < 0.5 else "wall"

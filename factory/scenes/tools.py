@@ -120,12 +120,14 @@ class ToolSession:
         height: float = 1.3,
         count: int = 1,
         task_role: str | None = None,
+        room_id: str | None = None,
     ) -> dict[str, Any]:
         """Places ``count`` objects described by ``text``.
 
         ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around;
         ``target`` for near/around), ``wall`` (mounted at ``height`` m) or ``on_top`` (on a
-        support surface of ``target``: tops, shelf boards, seats, inside vessels).
+        support surface of ``target``: tops, shelf boards, seats, inside vessels). ``room_id``
+        picks the room (default: the first) for floor and wall placement.
         """
         state = self._require()
         if placement not in ("floor", "wall", "on_top"):
@@ -136,13 +138,17 @@ class ToolSession:
             raise ValueError("on_top placement needs target=<object id>")
         if target is not None:
             state.scene.object(target)  # KeyError -> clear error
+        if room_id is not None:
+            state.scene.room(room_id)
         placed: list[dict[str, Any]] = []
         failures: list[dict[str, Any]] = []
         for _ in range(count):
             if placement == "floor":
-                res = place_floor(state, text, rule, target=target, task_role=task_role)
+                res = place_floor(
+                    state, text, rule, room_id=room_id, target=target, task_role=task_role
+                )
             elif placement == "wall":
-                res = place_wall(state, text, height)
+                res = place_wall(state, text, height, room_id=room_id)
             else:
                 res = place_on(state, text, str(target), self._critic(), task_role=task_role)
             (placed if res.ok else failures).append(res.as_dict())
