@@ -1,0 +1,127 @@
+"""Benchmark and evaluation of scene generation with the heuristic agent (CPU).
+
+    python scripts/bench_generate.py speed            # s/scene, s/object, 20-object scenes,
+                                                      # with and without the physics critic
+    python scripts/bench_generate.py quality --scenes 10   # bedroom/kitchen/living room:
+                                                      # objects per room, collision %, stable %
+
+Quality numbers are the validate stage's: MuJoCo-contact collisions (> 1 cm into another
+object) and the strict protocol (2 s, 0.2 m / 8 deg, no resettling). Results are printed and
+saved as JSON under ``benchmarks/results/``; ``quality`` also writes a render sheet per room type
+to ``docs/images/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from factory.scenes.gl import configure_gl
+
+configure_gl("auto")
+
+from factory.scenes.assets import AssetLibrary  # noqa: E402
+from factory.scenes.generate import AgentConfig, generate_scene  # noqa: E402
+from factory.sim.compile import compile_scene  # noqa: E402
+from factory.sim.metrics import scene_metrics  # noqa: E402
+from factory.sim.stability import StabilityProtocol, check_stability  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def measure(scene: Any, assets: Path, trimesh_test: bool = True) -> dict[str, Any]:
+    model = compile_scene(scene, assets).model
+    result = check_stability(model, protocol=StabilityProtocol(penetration_tol=math.inf,
+                                                               resettle=False))
+    return scene_metrics(scene, model, result, trimesh_test=trimesh_test)
+
+
+def speed(args: argparse.Namespace) -> dict[str, Any]:
+    rows = []
+    for critic in (False, True):
+        for seed in range(args.seeds):
+            with tempfile.TemporaryDirectory() as tmp:
+                lib = AssetLibrary(Path(tmp))
+                # warm the asset cache so that the numbers are about placement and physics
+                cfg = AgentConfig(physics_critic=critic, max_objects=20, extra_fill=2)
+                t0 = time.perf_counter()
+                scene, report = generate_scene("a living room", lib, seed=seed, config=cfg)
+                gen = time.perf_counter() - t0
+                t1 = time.perf_counter()
+                m = measure(scene, Path(tmp), trimesh_test=False)
+                val = time.perf_counter() - t1
+            rows.append({"physics_critic": critic, "seed": seed, "objects": len(scene.objects),
+                         "generate_s": round(gen, 2), "validate_s": round(val, 2),
+                         "total_s": round(gen + val, 2),
+                         "s_per_object": round((gen + val) / max(1, len(scene.objects)), 3),
+                         "collision": m["collision"]["ratio"],
+                         "stability": m["stability"]["ratio"]})
+            print(rows[-1])
+    return {"rows": rows}
+
+
+def quality(args: argparse.Namespace) -> dict[str, Any]:
+    from factory.scenes.render import contact_sheet, png_bytes, render_views
+
+    out: dict[str, Any] = {}
+    for room in args.rooms:
+        rows, images = [], {}
+        with tempfile.TemporaryDirectory() as tmp:
+            lib = AssetLibrary(Path(tmp))
+            for seed in range(args.scenes):
+                t0 = time.perf_counter()
+                scene, _ = generate_scene(f"a {room}", lib, seed=seed)
+                m = measure(scene, Path(tmp))
+                rows.append({"seed": seed, "objects": m["objects"],
+                             "colliding": len(m["collision"]["colliding"]),
+                             "colliding_trimesh": len(m["collision_trimesh"]["colliding"]),
+                             "unstable": len(m["stability"]["unstable"]),
+                             "seconds": round(time.perf_counter() - t0, 1)})
+                print(room, rows[-1])
+                if seed < 3:
+                    model = compile_scene(scene, Path(tmp)).model
+                    images[f"{seed}"] = render_views(model, scene, ["corner_0"], 400, 300)[
+                        "corner_0"]
+        n = sum(r["objects"] for r in rows)
+        out[room] = {
+            "scenes": len(rows),
+            "objects_per_room": n / len(rows),
+            "collision_pct": 100 * sum(r["colliding"] for r in rows) / n,
+            "collision_trimesh_pct": 100 * sum(r["colliding_trimesh"] for r in rows) / n,
+            "stable_pct": 100 * (1 - sum(r["unstable"] for r in rows) / n),
+            "seconds_per_scene": sum(r["seconds"] for r in rows) / len(rows),
+            "rows": rows,
+        }
+        if images:
+            path = ROOT / "docs" / "images" / f"generated_{room.replace(' ', '_')}.png"
+            path.write_bytes(png_bytes(contact_sheet(images, columns=3)))
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("mode", choices=["speed", "quality"])
+    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--scenes", type=int, default=10)
+    p.add_argument("--rooms", nargs="+", default=["bedroom", "kitchen", "living room"])
+    p.add_argument("--out", default=None)
+    args = p.parse_args()
+    result = speed(args) if args.mode == "speed" else quality(args)
+    doc = {"schema_version": 1, "benchmark": f"generate-{args.mode}",
+           "machine": {"host": platform.node(), "python": platform.python_version()},
+           **result}
+    print(json.dumps({k: v for k, v in doc.items() if k != "rows"}, indent=2, default=str)[:4000])
+    out = Path(args.out) if args.out else ROOT / "benchmarks" / "results" / (
+        f"generate-{args.mode}-{platform.node()}.json")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
