@@ -37,8 +37,9 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def measure(scene: Any, assets: Path, trimesh_test: bool = True) -> dict[str, Any]:
     model = compile_scene(scene, assets).model
-    result = check_stability(model, protocol=StabilityProtocol(penetration_tol=math.inf,
-                                                               resettle=False))
+    result = check_stability(
+        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
+    )
     return scene_metrics(scene, model, result, trimesh_test=trimesh_test)
 
 
@@ -51,17 +52,24 @@ def speed(args: argparse.Namespace) -> dict[str, Any]:
                 # warm the asset cache so that the numbers are about placement and physics
                 cfg = AgentConfig(physics_critic=critic, max_objects=20, extra_fill=2)
                 t0 = time.perf_counter()
-                scene, report = generate_scene("a living room", lib, seed=seed, config=cfg)
+                scene, _ = generate_scene("a living room", lib, seed=seed, config=cfg)
                 gen = time.perf_counter() - t0
                 t1 = time.perf_counter()
                 m = measure(scene, Path(tmp), trimesh_test=False)
                 val = time.perf_counter() - t1
-            rows.append({"physics_critic": critic, "seed": seed, "objects": len(scene.objects),
-                         "generate_s": round(gen, 2), "validate_s": round(val, 2),
-                         "total_s": round(gen + val, 2),
-                         "s_per_object": round((gen + val) / max(1, len(scene.objects)), 3),
-                         "collision": m["collision"]["ratio"],
-                         "stability": m["stability"]["ratio"]})
+            rows.append(
+                {
+                    "physics_critic": critic,
+                    "seed": seed,
+                    "objects": len(scene.objects),
+                    "generate_s": round(gen, 2),
+                    "validate_s": round(val, 2),
+                    "total_s": round(gen + val, 2),
+                    "s_per_object": round((gen + val) / max(1, len(scene.objects)), 3),
+                    "collision": m["collision"]["ratio"],
+                    "stability": m["stability"]["ratio"],
+                }
+            )
             print(rows[-1])
     return {"rows": rows}
 
@@ -78,16 +86,22 @@ def quality(args: argparse.Namespace) -> dict[str, Any]:
                 t0 = time.perf_counter()
                 scene, _ = generate_scene(f"a {room}", lib, seed=seed)
                 m = measure(scene, Path(tmp))
-                rows.append({"seed": seed, "objects": m["objects"],
-                             "colliding": len(m["collision"]["colliding"]),
-                             "colliding_trimesh": len(m["collision_trimesh"]["colliding"]),
-                             "unstable": len(m["stability"]["unstable"]),
-                             "seconds": round(time.perf_counter() - t0, 1)})
+                rows.append(
+                    {
+                        "seed": seed,
+                        "objects": m["objects"],
+                        "colliding": len(m["collision"]["colliding"]),
+                        "colliding_trimesh": len(m["collision_trimesh"]["colliding"]),
+                        "unstable": len(m["stability"]["unstable"]),
+                        "seconds": round(time.perf_counter() - t0, 1),
+                    }
+                )
                 print(room, rows[-1])
                 if seed < 3:
                     model = compile_scene(scene, Path(tmp)).model
                     images[f"{seed}"] = render_views(model, scene, ["corner_0"], 400, 300)[
-                        "corner_0"]
+                        "corner_0"
+                    ]
         n = sum(r["objects"] for r in rows)
         out[room] = {
             "scenes": len(rows),
@@ -113,12 +127,18 @@ def main() -> None:
     p.add_argument("--out", default=None)
     args = p.parse_args()
     result = speed(args) if args.mode == "speed" else quality(args)
-    doc = {"schema_version": 1, "benchmark": f"generate-{args.mode}",
-           "machine": {"host": platform.node(), "python": platform.python_version()},
-           **result}
+    doc = {
+        "schema_version": 1,
+        "benchmark": f"generate-{args.mode}",
+        "machine": {"host": platform.node(), "python": platform.python_version()},
+        **result,
+    }
     print(json.dumps({k: v for k, v in doc.items() if k != "rows"}, indent=2, default=str)[:4000])
-    out = Path(args.out) if args.out else ROOT / "benchmarks" / "results" / (
-        f"generate-{args.mode}-{platform.node()}.json")
+    out = (
+        Path(args.out)
+        if args.out
+        else ROOT / "benchmarks" / "results" / (f"generate-{args.mode}-{platform.node()}.json")
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(doc, indent=2) + "\n")
 
