@@ -75,6 +75,9 @@ class GenerateConfig:
         llm_timeout: seconds per LLM request; llm_retries: retries per request.
         llm_fallback: when the LLM endpoint fails, build the scene with the heuristic agent
             (logged and recorded in report.json) instead of failing.
+        image: an image of a room; a VLM describes it and the description is the request.
+        vlm_base_url, vlm_model: the OpenAI-compatible VLM endpoint; when set, the VLM also
+            critiques each scene's renders and its suggestions are applied once.
     """
 
     prompts: list[str] = field(default_factory=list)
@@ -91,6 +94,9 @@ class GenerateConfig:
     llm_timeout: float = 60.0
     llm_retries: int = 2
     llm_fallback: bool = True
+    image: str | None = None
+    vlm_base_url: str | None = None
+    vlm_model: str | None = None
 
 
 @dataclass

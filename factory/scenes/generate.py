@@ -16,6 +16,7 @@ import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -242,7 +243,20 @@ def init_scene(
         "size_m": [round(first.dimensions.width, 2), round(first.dimensions.length, 2)],
         "floor": first.floor_material,
     }
+    if room_type is None and not _names_a_room(request):
+        info["approximated"] = True
+        info["note"] = (
+            f"no known room type in {request!r} (another language?); built a {first.room_type}"
+        )
+        log.warning("%s", info["note"])
     return scene, info
+
+
+def _names_a_room(request: str) -> bool:
+    low = request.lower()
+    return any(w in low for w in MULTI_ROOM_WORDS) or any(
+        phrase in low for name, rt in ROOM_TYPES.items() for phrase in (name, *rt.aliases)
+    )
 
 
 @dataclass
@@ -519,8 +533,6 @@ class SyncMCPCaller:
 def _read_prompts(cfg: Any) -> list[str]:
     prompts = list(cfg.prompts or [])
     if cfg.prompts_file:
-        from pathlib import Path
-
         path = Path(cfg.prompts_file)
         if not path.is_file():
             from factory.errors import ConfigError
@@ -533,6 +545,12 @@ def _read_prompts(cfg: Any) -> list[str]:
         ]
     if cfg.task and not prompts:
         prompts = [cfg.task]
+    if cfg.image:
+        from factory.scenes.vlm import describe_image
+
+        hint = " ".join(prompts)
+        prompts = [describe_image(cfg.image, hint, base_url=cfg.vlm_base_url, model=cfg.vlm_model)]
+        log.info("image %s described as: %s", cfg.image, prompts[0])
     return prompts
 
 

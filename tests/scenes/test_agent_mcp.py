@@ -253,3 +253,68 @@ def test_mcp_over_http(tmp_path: Path) -> None:
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+class _VLM(http.server.BaseHTTPRequestHandler):
+    seen: ClassVar[list[dict[str, Any]]] = []
+    answer = "A bright bedroom with a double bed, two nightstands and a reading lamp."
+
+    def do_POST(self) -> None:
+        body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
+        type(self).seen.append(body)
+        data = json.dumps(
+            {
+                "id": "v",
+                "object": "chat.completion",
+                "created": 0,
+                "model": body["model"],
+                "choices": [
+                    {
+                        "index": 0,
+                        "finish_reason": "stop",
+                        "message": {"role": "assistant", "content": self.answer},
+                    }
+                ],
+            }
+        )
+        raw = data.encode()
+        self.send_response(200)
+        self.send_header("Content-Type", "application/json")
+        self.send_header("Content-Length", str(len(raw)))
+        self.end_headers()
+        self.wfile.write(raw)
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+
+def test_vlm_describe_and_critic(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from factory.scenes.vlm import describe_image, vlm_critic
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _VLM)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    url = f"http://127.0.0.1:{server.server_address[1]}/v1"
+    try:
+        img = tmp_path / "room.png"
+        Image.new("RGB", (8, 8), (200, 180, 150)).save(img)
+        text = describe_image(img, "make it cozy", base_url=url, model="vlm")
+        assert "double bed" in text
+        sent = _VLM.seen[-1]["messages"][0]["content"]
+        assert sent[1]["image_url"]["url"].startswith("data:image/png;base64,")
+        _VLM.answer = (
+            'Here you go: {"satisfied": false, "suggestions": [{"issue": "missing '
+            'companion", "detail": "lamp", "call": {"tool": "place_objects", "args": '
+            '{"text": "table lamp", "placement": "on_top", "target": "nightstand_0"}}}]}'
+        )
+        verdict = vlm_critic(
+            {"top": str(img), "corner_0": str(img)}, "a bedroom", base_url=url, model="vlm"
+        )
+        assert not verdict["satisfied"] and verdict["suggestions"][0]["detail"] == "lamp"
+        assert len(_VLM.seen[-1]["messages"][0]["content"]) == 3  # text + two images
+        _VLM.answer = "I like it."
+        with pytest.raises(AgentError, match="did not answer JSON"):
+            vlm_critic({"top": str(img)}, "a bedroom", base_url=url, model="vlm")
+    finally:
+        server.shutdown()

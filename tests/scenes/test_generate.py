@@ -164,3 +164,30 @@ def test_llm_agent_falls_back_when_endpoint_is_down(cli, tmp_path: Path) -> None
     assert not (tmp_path / "run2" / "scenes").exists() or not any(
         (tmp_path / "run2" / "scenes").iterdir()
     )
+
+
+def test_unknown_room_type_is_flagged() -> None:
+    _, info = init_scene("une cuisine moderne avec une table")
+    assert info["approximated"] and "another language" in info["note"]
+    _, info = init_scene("a modern kitchen")
+    assert "approximated" not in info
+
+
+def test_multi_room_apartment_is_connected_and_furnished(tmp_path: Path) -> None:
+    scene, info = init_scene("a student apartment with one bedroom", seed=3)
+    types = [r.room_type for r in scene.rooms]
+    assert types[0] == "bedroom" and {"kitchen", "bathroom"} <= set(types)
+    for a, b in zip(scene.rooms[:-1], scene.rooms[1:], strict=True):
+        assert any(d.wall_id.endswith("east") and d.opening for d in a.doors)
+        assert any(d.wall_id.endswith("west") and d.opening for d in b.doors)
+        assert a.position.x + a.dimensions.width == pytest.approx(b.position.x)
+    lib = AssetLibrary(tmp_path / "assets")
+    full, _ = generate_scene(
+        "a student apartment with one bedroom",
+        lib,
+        seed=3,
+        config=AgentConfig(physics_critic=False, max_objects=25),
+    )
+    per_room = {r.id: sum(o.room_id == r.id for o in full.objects) for r in full.rooms}
+    assert all(n >= 5 for n in per_room.values()), per_room
+    validate(full)
