@@ -229,7 +229,7 @@ def init_scene(
         seed=seed,
         building_style=_style(request),
     )
-    info = {
+    info: dict[str, Any] = {
         "room_type": first.room_type,
         "room_id": first.id,
         "rooms": [

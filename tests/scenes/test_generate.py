@@ -174,7 +174,7 @@ def test_unknown_room_type_is_flagged() -> None:
 
 
 def test_multi_room_apartment_is_connected_and_furnished(tmp_path: Path) -> None:
-    scene, info = init_scene("a student apartment with one bedroom", seed=3)
+    scene, _ = init_scene("a student apartment with one bedroom", seed=3)
     types = [r.room_type for r in scene.rooms]
     assert types[0] == "bedroom" and {"kitchen", "bathroom"} <= set(types)
     for a, b in zip(scene.rooms[:-1], scene.rooms[1:], strict=True):
