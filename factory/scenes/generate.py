@@ -589,7 +589,7 @@ def _generate_with(
         from factory.scenes.mcp_server import build_server
 
         with SyncMCPCaller(build_server(session)) as caller:
-            return generate_scene(
+            scene, report = generate_scene(
                 prompt,
                 library,
                 seed,
@@ -599,9 +599,51 @@ def _generate_with(
                 caller=caller,
                 session=session,
             )
-    return generate_scene(
-        prompt, library, seed, agent_cfg, task=gcfg.task or None, scene_id=scene_id, session=session
-    )
+    else:
+        scene, report = generate_scene(
+            prompt,
+            library,
+            seed,
+            agent_cfg,
+            task=gcfg.task or None,
+            scene_id=scene_id,
+            session=session,
+        )
+    if gcfg.vlm_base_url:
+        report["vlm_critic"] = _apply_vlm_critic(session, prompt, gcfg)
+    return session.scene, report
+
+
+def _apply_vlm_critic(session: Any, prompt: str, gcfg: Any, limit: int = 8) -> dict[str, Any]:
+    """Renders the scene, asks the VLM critic, applies its tool-call suggestions once."""
+    import tempfile
+
+    from factory.scenes.agent import AgentError
+    from factory.scenes.vlm import vlm_critic
+
+    with tempfile.TemporaryDirectory() as tmp:
+        session.out_dir = Path(tmp)
+        try:
+            views = session.render_views(256, 192)
+            verdict = vlm_critic(
+                views.get("images", {}), prompt, base_url=gcfg.vlm_base_url, model=gcfg.vlm_model
+            )
+        except AgentError as e:
+            log.warning("VLM critic failed: %s", e)
+            return {"error": str(e)}
+        finally:
+            session.out_dir = None
+    applied = []
+    for suggestion in verdict.get("suggestions", [])[:limit]:
+        call = suggestion.get("call") or {}
+        tool, args = call.get("tool"), call.get("args") or {}
+        if tool in ("place_objects", "move_object", "remove_object") and isinstance(args, dict):
+            try:
+                result = getattr(session, tool)(**args)
+            except TypeError as e:
+                result = {"ok": False, "error": str(e)}
+            applied.append({"tool": tool, "args": args, "result": result})
+    return {"suggestions": verdict.get("suggestions", []), "applied": applied}
 
 
 def run(ctx: Any) -> dict[str, Any]:

@@ -318,3 +318,26 @@ def test_vlm_describe_and_critic(tmp_path: Path) -> None:
             vlm_critic({"top": str(img)}, "a bedroom", base_url=url, model="vlm")
     finally:
         server.shutdown()
+
+
+def test_generate_stage_from_an_image(cli, tmp_path: Path) -> None:
+    from PIL import Image
+
+    _VLM.answer = "A bright bedroom with a double bed, two nightstands and a reading lamp."
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _VLM)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        img = tmp_path / "room.jpg"
+        Image.new("RGB", (8, 8), (200, 180, 150)).save(img)
+        run = tmp_path / "run"
+        out = cli("stage=generate", f"run_dir={run}", f"generate.image={img}",
+                  f"generate.vlm_base_url=http://127.0.0.1:{server.server_address[1]}/v1",
+                  "generate.vlm_model=vlm", "generate.physics_critic=false",
+                  "generate.render=false")
+        assert out.returncode == 0, out.stderr
+        (scene_dir,) = (run / "scenes").iterdir()
+        report = json.loads((scene_dir / "report.json").read_text())["generate"]
+        assert "double bed" in report["request"] and scene_dir.name.startswith("bedroom")
+        assert "error" in report["vlm_critic"]  # the scripted VLM answers prose, not JSON
+    finally:
+        server.shutdown()
