@@ -41,17 +41,20 @@ def build_server(session: Any) -> Any:
     @server.tool()
     def place_objects(
         text: str,
-        placement: Literal["floor", "wall", "on_top"] = "floor",
-        rule: Literal["wall", "corner", "free", "center", "near", "around"] = "wall",
+        placement: Literal["floor", "wall", "on_top"] | None = None,
+        rule: Literal["wall", "corner", "free", "center", "near", "around", "facing"] = "wall",
         target: str | None = None,
         height: float = 1.3,
         count: int = 1,
         task_role: str | None = None,
+        room_id: str | None = None,
     ) -> str:
         """Place objects described by text: on the floor by a rule, mounted on a wall at a
-        height (m), or on top of / inside the target object."""
+        height (m), or on top of / inside the target object; room_id picks the room. Without
+        placement, the text may say where: "a lamp on the nightstand", "a tv stand facing the
+        sofa", "a plant in the corner", "a painting on the wall"."""
         return json.dumps(
-            session.place_objects(text, placement, rule, target, height, count, task_role)
+            session.place_objects(text, placement, rule, target, height, count, task_role, room_id)
         )
 
     @server.tool()

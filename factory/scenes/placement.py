@@ -255,6 +255,13 @@ def place_floor(
             else:
                 score = -abs(along - 0.5) * (2.0 if w > 1.2 else 0.3) + rng.uniform(0, 0.4)
             cands.append((score, x, y, yaw))
+    elif rule == "facing" and tgt is not None:
+        # along the walls or in free space, turned so that the front (-y) looks at the target
+        for x, y, _yaw, _side, _along in _wall_candidates(state, room, w, ln, 0.1):
+            dx, dy = tgt.position.x - x, tgt.position.y - y
+            yaw = math.atan2(dx, -dy)  # local -y -> (dx, dy)
+            dist = math.hypot(dx, dy)
+            cands.append((-abs(dist - 2.5) + rng.uniform(0, 0.2), x, y, yaw))
     elif rule == "near" and tgt is not None:
         tfp = state.footprint(tgt)
         c, s = math.cos(tfp.yaw), math.sin(tfp.yaw)
@@ -405,6 +412,14 @@ def _euler(qw: float, qx: float, qy: float, qz: float) -> Euler:
     return Euler(float(ax), float(ay), float(az))
 
 
+def _edge_distance(fp: Footprint, x: float, y: float) -> float:
+    """Distance (m) from a point to the nearest side of a footprint (inside: positive)."""
+    c, s = math.cos(fp.yaw), math.sin(fp.yaw)
+    lx = (x - fp.x) * c + (y - fp.y) * s
+    ly = -(x - fp.x) * s + (y - fp.y) * c
+    return min(fp.hx - abs(lx), fp.hy - abs(ly))
+
+
 def place_on(
     state: SceneState,
     text: str,
@@ -421,6 +436,10 @@ def place_on(
     meta, res = state.asset(text, dims)
     w, ln, h = meta.extents
     cands = on_top_candidates(state, support, w, ln, h)
+    if task_role is not None:
+        # task objects go near the edge of the surface facing the room, reachable for a robot
+        sup_fp = state.footprint(support)
+        cands.sort(key=lambda c: _edge_distance(sup_fp, c[0], c[1]))
     if not cands:
         return PlaceResult(False, None, f"no free surface on {support_id} for {text!r}")
     room = state.room(support.room_id)

@@ -114,7 +114,7 @@ class ToolSession:
     def place_objects(
         self,
         text: str,
-        placement: str = "floor",
+        placement: str | None = None,
         rule: str = "wall",
         target: str | None = None,
         height: float = 1.3,
@@ -127,9 +127,19 @@ class ToolSession:
         ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around;
         ``target`` for near/around), ``wall`` (mounted at ``height`` m) or ``on_top`` (on a
         support surface of ``target``: tops, shelf boards, seats, inside vessels). ``room_id``
-        picks the room (default: the first) for floor and wall placement.
+        picks the room (default: the first) for floor and wall placement. With no
+        ``placement``, the text may carry its constraint: "a lamp on the nightstand", "a tv
+        stand facing the sofa", "a plant in the corner", "a painting on the wall".
         """
         state = self._require()
+        if placement is None:
+            from factory.scenes.constraints import parse_constraint
+
+            c = parse_constraint(text, state.scene)
+            if c.target_text and c.target is None:
+                raise ValueError(f"no {c.target_text!r} in the scene to place {c.text!r} by")
+            text, placement = c.text, c.placement
+            rule, target = (c.rule, c.target) if c.placement != "on_top" else (rule, c.target)
         if placement not in ("floor", "wall", "on_top"):
             raise ValueError(f"placement {placement!r} must be floor, wall or on_top")
         if not 1 <= count <= 20:

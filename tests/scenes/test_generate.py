@@ -191,3 +191,28 @@ def test_multi_room_apartment_is_connected_and_furnished(tmp_path: Path) -> None
     per_room = {r.id: sum(o.room_id == r.id for o in full.objects) for r in full.rooms}
     assert all(n >= 5 for n in per_room.values()), per_room
     validate(full)
+
+
+def test_text_constraints(tmp_path: Path) -> None:
+    from factory.scenes.tools import ToolSession
+
+    s = ToolSession(AssetLibrary(tmp_path / "assets"), physics=True)
+    assert s.init_scene("a living room", 1)["ok"]
+    placed = {}
+    for text in ("a sofa against the wall", "a tv stand facing the sofa",
+                 "a coffee table in the middle", "a lamp on the tv stand",
+                 "a painting on the wall", "an armchair next to the sofa"):
+        res = s.place_objects(text)
+        assert res["ok"], (text, res)
+        placed[text] = s.scene.object(res["placed"][0])
+    tv, sofa = placed["a tv stand facing the sofa"], placed["a sofa against the wall"]
+    yaw = math.radians(tv.rotation.z)
+    front = (math.sin(yaw), -math.cos(yaw))
+    to_sofa = (sofa.position.x - tv.position.x, sofa.position.y - tv.position.y)
+    cos = (front[0] * to_sofa[0] + front[1] * to_sofa[1]) / math.hypot(*to_sofa)
+    assert cos > 0.99
+    lamp = placed["a lamp on the tv stand"]
+    assert lamp.placement.kind == "on_top" and lamp.placement.support_id == tv.id
+    assert placed["a painting on the wall"].is_static
+    bad = s.place_objects("a vase on the piano")
+    assert not bad["ok"] and "no 'piano'" in bad["error"]
