@@ -82,7 +82,8 @@ def _style(text: str) -> str:
     return next((s for s in STYLE_WORDS if s in low), "")
 
 
-MULTI_ROOM_WORDS = ("apartment", "house", "flat", "home", "suite", "condo")
+MULTI_ROOM_WORDS = ("apartment", "house", "flat", "condo", "townhouse")
+_MULTI_RE = re.compile(r"\b(" + "|".join(MULTI_ROOM_WORDS) + r")\b")
 
 
 def room_types_in(request: str) -> list[str]:
@@ -99,7 +100,7 @@ def room_types_in(request: str) -> list[str]:
             if i >= 0 and not any(n == name for _, n in found):
                 found.append((i, name))
     mentioned = [n for _, n in sorted(found)]
-    if any(w in low for w in MULTI_ROOM_WORDS):
+    if _MULTI_RE.search(low):
         rooms = list(mentioned)
         for extra in ("living room", "kitchen", "bathroom"):
             if extra not in rooms:
@@ -254,7 +255,7 @@ def init_scene(
 
 def _names_a_room(request: str) -> bool:
     low = request.lower()
-    return any(w in low for w in MULTI_ROOM_WORDS) or any(
+    return bool(_MULTI_RE.search(low)) or any(
         phrase in low for name, rt in ROOM_TYPES.items() for phrase in (name, *rt.aliases)
     )
 
