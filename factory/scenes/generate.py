@@ -586,21 +586,14 @@ def _generate_with(
                 prompt, library, seed, agent_cfg, task=gcfg.task or None, scene_id=scene_id
             )
             return scene, {**report, "fallback_from": "llm", "llm_error": str(e)}
+    import contextlib
+
+    mcp_ctx: Any = contextlib.nullcontext(None)
     if gcfg.transport == "mcp":
         from factory.scenes.mcp_server import build_server
 
-        with SyncMCPCaller(build_server(session)) as caller:
-            scene, report = generate_scene(
-                prompt,
-                library,
-                seed,
-                agent_cfg,
-                task=gcfg.task or None,
-                scene_id=scene_id,
-                caller=caller,
-                session=session,
-            )
-    else:
+        mcp_ctx = SyncMCPCaller(build_server(session))
+    with mcp_ctx as caller:
         scene, report = generate_scene(
             prompt,
             library,
@@ -608,6 +601,7 @@ def _generate_with(
             agent_cfg,
             task=gcfg.task or None,
             scene_id=scene_id,
+            caller=caller,
             session=session,
         )
     if gcfg.vlm_base_url:

@@ -103,34 +103,32 @@ class SceneState:
         self.counts[category] = n + 1
         return f"{category}_{n}"
 
-    def door_zones(self, room: Room) -> list[Footprint]:
-        """Rectangles in front of (both sides of) each door that must stay free."""
+    @staticmethod
+    def _opening_zones(
+        room: Room, openings: list[Any], depth: float, z: Any, widen: float = 0.0
+    ) -> list[Footprint]:
+        """Footprints centred on openings of the room's walls (``z(opening) -> (z0, z1)``)."""
         zones = []
         walls = {w.id: w for w in room.walls}
-        for door in room.doors:
-            w = walls[door.wall_id]
-            t = door.position_on_wall
+        for op in openings:
+            w = walls[op.wall_id]
+            t = op.position_on_wall
             cx = w.start.x + (w.end.x - w.start.x) * t
             cy = w.start.y + (w.end.y - w.start.y) * t
             yaw = math.atan2(w.end.y - w.start.y, w.end.x - w.start.x)
-            zones.append(Footprint(cx, cy, door.width / 2 + 0.1, DOOR_DEPTH, yaw, 0.0, 2.5))
+            z0, z1 = z(op)
+            zones.append(Footprint(cx, cy, op.width / 2 + widen, depth, yaw, z0, z1))
         return zones
 
+    def door_zones(self, room: Room) -> list[Footprint]:
+        """Rectangles in front of (both sides of) each door that must stay free."""
+        return self._opening_zones(room, list(room.doors), DOOR_DEPTH, lambda d: (0.0, 2.5), 0.1)
+
     def window_zones(self, room: Room) -> list[Footprint]:
-        zones = []
-        walls = {w.id: w for w in room.walls}
-        for win in room.windows:
-            w = walls[win.wall_id]
-            t = win.position_on_wall
-            cx = w.start.x + (w.end.x - w.start.x) * t
-            cy = w.start.y + (w.end.y - w.start.y) * t
-            yaw = math.atan2(w.end.y - w.start.y, w.end.x - w.start.x)
-            zones.append(
-                Footprint(
-                    cx, cy, win.width / 2, 0.25, yaw, win.sill_height, win.sill_height + win.height
-                )
-            )
-        return zones
+        """Thin boxes in front of windows, from sill to top, that tall furniture must not block."""
+        return self._opening_zones(
+            room, list(room.windows), 0.25, lambda w: (w.sill_height, w.sill_height + w.height)
+        )
 
     def free(
         self, fp: Footprint, room: Room, ignore: set[str] | None = None, on: str | None = None
