@@ -100,6 +100,25 @@ class GenerateConfig:
 
 
 @dataclass
+class AugmentConfig:
+    """``stage=augment``: task-consistent variants of every scene in the run.
+
+    Attributes:
+        levels: any of ``layout``, ``category``, ``configuration`` (composed in that order).
+        variants_per_scene: variants made per parent scene.
+        task_objects: ids of the task-relevant objects; empty: those with a task role.
+        physics_critic: judge re-placed objects in simulation while making a variant.
+        render: write each kept variant's renders.
+    """
+
+    levels: list[str] = field(default_factory=lambda: ["configuration"])
+    variants_per_scene: int = 3
+    task_objects: list[str] = field(default_factory=list)
+    physics_critic: bool = True
+    render: bool = True
+
+
+@dataclass
 class CompileConfig:
     """``stage=compile``: scene -> MjSpec -> ``model.xml``.
 
@@ -220,6 +239,7 @@ class FactoryConfig:
     ingest: IngestConfig = field(default_factory=IngestConfig)
     assets: AssetsConfig = field(default_factory=AssetsConfig)
     generate: GenerateConfig = field(default_factory=GenerateConfig)
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
     compile: CompileConfig = field(default_factory=CompileConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     validate: ValidateConfig = field(default_factory=ValidateConfig)

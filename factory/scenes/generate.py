@@ -268,6 +268,8 @@ class AgentConfig:
     max_objects: int = 120
     """Per room."""
     critic_batch: int = 4
+    task_objects: bool = True
+    """Place the task's objects read from the request (off when they already exist)."""
     extra_fill: int = 6
 
 
@@ -356,7 +358,7 @@ def heuristic_agent(
     alive = {o["id"] for o in call("get_scene_info").get("objects", [])}
     keyed = {k: [i for i in v if i in alive] for k, v in keyed.items()}
     # 3. task objects first, on the largest table-like surface
-    spec = parse_task(task or request)
+    spec = parse_task(task or request) if cfg.task_objects else None
     if spec is not None:
         objects = call("get_scene_info")["objects"]
         tables = [o for o in objects if o["category"] in TABLES]

@@ -73,6 +73,7 @@ class SceneState:
         self.rng = np.random.default_rng(seed)
         self.metas: dict[str, AssetMeta] = {}
         self.counts: dict[str, int] = {}
+        self.reuse: tuple[AssetMeta, Resolution] | None = None
 
     # ---- geometry helpers
     def room(self, room_id: str | None = None) -> Room:
@@ -154,8 +155,27 @@ class SceneState:
 
     # ---- assets
     def asset(self, text: str, dims: Any = None) -> tuple[AssetMeta, Resolution]:
+        """The asset for the next placement: ``reuse`` (set by the caller, used once) or a new
+        one from the library."""
         seed = int(self.rng.integers(0, 2**31))
+        if self.reuse is not None:
+            pinned, self.reuse = self.reuse, None
+            return pinned
         return self.library.from_text(text, seed=seed, dims=dims)
+
+    def meta_of(self, obj: SceneObject) -> tuple[AssetMeta, Resolution]:
+        """An existing object's asset (from the cache) with a resolution naming its category."""
+        from factory.scenes.assets import AssetSpec
+        from factory.schema import load_asset_meta
+
+        if obj.id in self.metas:
+            meta = self.metas[obj.id]
+        elif obj.asset is not None and obj.asset.asset_id:
+            meta = load_asset_meta(self.library.assets_dir / obj.asset.asset_id)
+        else:
+            raise ValueError(f"object {obj.id!r} has no asset in {self.library.assets_dir}")
+        spec = AssetSpec(obj.category, text=obj.description or obj.category)
+        return meta, Resolution(spec, 1.0, False, obj.category)
 
     def add(
         self,
