@@ -70,7 +70,7 @@ def make_variant(
         v = LEVELS[name](scene, library, seed + 101 * i, critic, task_ids)
         scene = v.scene
         params.append(v.params)
-    return Variant(scene, {"levels": params})
+    return Variant(scene, {"applied": params})
 
 
 def run(ctx: StageContext) -> dict[str, Any]:

@@ -330,10 +330,15 @@ def test_generate_stage_from_an_image(cli, tmp_path: Path) -> None:
         img = tmp_path / "room.jpg"
         Image.new("RGB", (8, 8), (200, 180, 150)).save(img)
         run = tmp_path / "run"
-        out = cli("stage=generate", f"run_dir={run}", f"generate.image={img}",
-                  f"generate.vlm_base_url=http://127.0.0.1:{server.server_address[1]}/v1",
-                  "generate.vlm_model=vlm", "generate.physics_critic=false",
-                  "generate.render=false")
+        out = cli(
+            "stage=generate",
+            f"run_dir={run}",
+            f"generate.image={img}",
+            f"generate.vlm_base_url=http://127.0.0.1:{server.server_address[1]}/v1",
+            "generate.vlm_model=vlm",
+            "generate.physics_critic=false",
+            "generate.render=false",
+        )
         assert out.returncode == 0, out.stderr
         (scene_dir,) = (run / "scenes").iterdir()
         report = json.loads((scene_dir / "report.json").read_text())["generate"]

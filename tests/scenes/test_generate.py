@@ -199,9 +199,14 @@ def test_text_constraints(tmp_path: Path) -> None:
     s = ToolSession(AssetLibrary(tmp_path / "assets"), physics=True)
     assert s.init_scene("a living room", 1)["ok"]
     placed = {}
-    for text in ("a sofa against the wall", "a tv stand facing the sofa",
-                 "a coffee table in the middle", "a lamp on the tv stand",
-                 "a painting on the wall", "an armchair next to the sofa"):
+    for text in (
+        "a sofa against the wall",
+        "a tv stand facing the sofa",
+        "a coffee table in the middle",
+        "a lamp on the tv stand",
+        "a painting on the wall",
+        "an armchair next to the sofa",
+    ):
         res = s.place_objects(text)
         assert res["ok"], (text, res)
         placed[text] = s.scene.object(res["placed"][0])
