@@ -1,6 +1,6 @@
 """Generates one scene per open-vocabulary request and renders a labelled sheet for the docs.
 
-    python scripts/render_requests.py [--out docs/images/open_vocab.png]
+python scripts/render_requests.py [--out docs/images/open_vocab.png]
 """
 
 from __future__ import annotations
@@ -57,9 +57,14 @@ def main() -> None:
             r, c = divmod(i, cols)
             sheet.paste(Image.fromarray(np.asarray(image)), (c * w, r * (h + label)))
             draw.text((c * w + 4, r * (h + label) + h + 3), request, fill=(0, 0, 0))
-            stats.append({"request": request, "room_type": scene.rooms[0].room_type,
-                          "objects": len(scene.objects),
-                          "seconds": round(time.perf_counter() - t0, 1)})
+            stats.append(
+                {
+                    "request": request,
+                    "room_type": scene.rooms[0].room_type,
+                    "objects": len(scene.objects),
+                    "seconds": round(time.perf_counter() - t0, 1),
+                }
+            )
             print(stats[-1])
     sheet.save(args.out, optimize=True)
     print(json.dumps(stats))

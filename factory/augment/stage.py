@@ -37,7 +37,7 @@ def variant_seed(seed: int, parent: str, index: int) -> int:
     return int(h[:8], 16)
 
 
-def check_physics(scene: Any, assets: Any, tol: float = 0.01) -> str | None:
+def check_physics(scene: Any, assets: Any, tol: float = 0.01, backend: Any = "cpu") -> str | None:
     """``None`` if the scene is collision-free and stable (strict protocol), else why not."""
     from factory.sim.compile import compile_scene
     from factory.sim.metrics import scene_metrics
@@ -45,7 +45,9 @@ def check_physics(scene: Any, assets: Any, tol: float = 0.01) -> str | None:
 
     model = compile_scene(scene, assets).model
     result = check_stability(
-        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
+        model,
+        backend=backend,
+        protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False),
     )
     m = scene_metrics(scene, model, result, tol=tol, trimesh_test=False)
     if m["collision"]["colliding"]:
@@ -101,9 +103,18 @@ def run(ctx: StageContext) -> dict[str, Any]:
     mine = ctx.shard.select(jobs)
     library = AssetLibrary.from_config(ctx.cfg.assets, store.assets_dir)
 
+    from factory.sim.validate import make_backend
+
+    backend = make_backend(ctx.cfg.sim)
+
     def critic(sc: Any, oid: str, poses: list[list[float]]) -> dict[str, Any]:
         return physics_critic(
-            sc, oid, poses, assets_root=store.assets_dir, protocol=StabilityProtocol(resettle=True)
+            sc,
+            oid,
+            poses,
+            assets_root=store.assets_dir,
+            backend=backend,
+            protocol=StabilityProtocol(resettle=True),
         )
 
     dropped: Counter[str] = Counter()
@@ -133,7 +144,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         scene.source = f"augment:{parent_id}"
         scene.seed = seed
         validate(scene)
-        why = check_physics(scene, store.assets_dir)
+        why = check_physics(scene, store.assets_dir, backend=backend)
         if why is not None:
             dropped[f"{tag}: physics"] += 1
             log.info("variant %s dropped: %s", name, why)
