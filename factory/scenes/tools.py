@@ -37,6 +37,29 @@ TOOLS: tuple[str, ...] = (
 )
 
 
+def _carry(scene: Scene, root: str, old: Any, new: Any) -> None:
+    """Moves everything standing (directly or not) on ``root`` from its old pose to its new."""
+    import math as _m
+
+    y0, y1 = _m.radians(old.rotation.z), _m.radians(new.rotation.z)
+    c0, s0, c1, s1 = _m.cos(y0), _m.sin(y0), _m.cos(y1), _m.sin(y1)
+    dz = new.position.z - old.position.z
+    carried = {root}
+    changed = True
+    while changed:
+        changed = False
+        for o in scene.objects:
+            if o.id not in carried and o.placement.support_id in carried:
+                carried.add(o.id)
+                changed = True
+                dx, dy = o.position.x - old.position.x, o.position.y - old.position.y
+                lx, ly = c0 * dx + s0 * dy, -s0 * dx + c0 * dy
+                o.position.x = new.position.x + c1 * lx - s1 * ly
+                o.position.y = new.position.y + s1 * lx + c1 * ly
+                o.position.z += dz
+                o.rotation.z += _m.degrees(y1 - y0)
+
+
 def _safe(fn: Callable[..., dict[str, Any]]) -> Callable[..., dict[str, Any]]:
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> dict[str, Any]:
@@ -177,19 +200,22 @@ class ToolSession:
         rule: str = "free",
         target: str | None = None,
     ) -> dict[str, Any]:
-        """Moves an object elsewhere with the placement logic; restores it on failure."""
+        """Moves an object (the same asset) elsewhere with the placement logic; what stands on
+        it moves along; restores everything on failure."""
         state = self._require()
         obj = state.scene.object(object_id)
         meta = state.metas.get(object_id)
         index = state.scene.objects.index(obj)
         state.scene.objects.remove(obj)
         text = obj.description or obj.category.replace("_", " ")
+        state.reuse = state.meta_of(obj) if meta is None else (meta, state.meta_of(obj)[1])
         if placement == "on_top" and target:
             res = place_on(state, text, target, self._critic())
         elif placement == "wall":
             res = place_wall(state, text, obj.position.z)
         else:
             res = place_floor(state, text, rule, target=target)
+        state.reuse = None
         if not res.ok:
             state.scene.objects.insert(index, obj)
             if meta is not None:
@@ -198,6 +224,7 @@ class ToolSession:
         new = state.scene.object(res.object_id)  # type: ignore[arg-type]
         new.id = object_id  # keep the id
         state.metas[object_id] = state.metas.pop(res.object_id, meta)  # type: ignore[arg-type]
+        _carry(state.scene, object_id, obj, new)
         return {
             "ok": True,
             "object_id": object_id,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 from pathlib import Path
@@ -221,3 +222,30 @@ def test_text_constraints(tmp_path: Path) -> None:
     assert placed["a painting on the wall"].is_static
     bad = s.place_objects("a vase on the piano")
     assert not bad["ok"] and "no 'piano'" in bad["error"]
+
+
+def test_move_and_remove_tools(tmp_path: Path) -> None:
+    from factory.scenes.tools import ToolSession
+
+    s = ToolSession(AssetLibrary(tmp_path / "assets"), physics=False)
+    assert s.init_scene("a living room", 4)["ok"]
+    table = s.place_objects("a coffee table in the middle")["placed"][0]
+    vase = s.place_objects("a vase on the coffee table")["placed"][0]
+    old_t = copy.deepcopy(s.scene.object(table))
+    old_v = copy.deepcopy(s.scene.object(vase))
+    moved = s.move_object(table, rule="corner")
+    assert moved["ok"] and moved["object_id"] == table
+    new_t, new_v = s.scene.object(table), s.scene.object(vase)
+    assert (new_t.position.x, new_t.position.y) != (old_t.position.x, old_t.position.y)
+    assert new_t.asset.asset_id == old_t.asset.asset_id  # the same object, not a new one
+    # the vase moved along and still stands on the table's top
+    assert new_v.position.z == pytest.approx(old_v.position.z)
+    d_old = math.hypot(old_v.position.x - old_t.position.x, old_v.position.y - old_t.position.y)
+    d_new = math.hypot(new_v.position.x - new_t.position.x, new_v.position.y - new_t.position.y)
+    assert d_new == pytest.approx(d_old, abs=1e-9)
+    bad = s.move_object("ghost")
+    assert not bad["ok"] and "ghost" in bad["error"]
+    gone = s.remove_object(table)
+    assert gone["ok"] and set(gone["removed"]) == {table, vase}  # what stood on it goes too
+    assert s.get_scene_info()["objects"] == []
+    assert s.get_scene_json()["ok"]
