@@ -82,6 +82,8 @@ def _style(text: str) -> str:
     return next((s for s in STYLE_WORDS if s in low), "")
 
 
+NUMBERS = {"one": 1, "two": 2, "three": 3, "four": 4, "single": 1, "double": 2}
+
 MULTI_ROOM_WORDS = ("apartment", "house", "flat", "condo", "townhouse")
 _MULTI_RE = re.compile(r"\b(" + "|".join(MULTI_ROOM_WORDS) + r")\b")
 
@@ -101,13 +103,21 @@ def room_types_in(request: str) -> list[str]:
                 found.append((i, name))
     mentioned = [n for _, n in sorted(found)]
     if _MULTI_RE.search(low):
-        rooms = list(mentioned)
+        rooms = []
+        for name in mentioned:  # "two bedrooms", "2-bedroom"
+            m = re.search(rf"\b({'|'.join(NUMBERS)}|\d)[\s-]*{re.escape(name)}", low)
+            n = (
+                1
+                if m is None
+                else NUMBERS.get(m.group(1), int(m.group(1)) if m.group(1).isdigit() else 1)
+            )
+            rooms += [name] * max(1, min(n, 3))
         for extra in ("living room", "kitchen", "bathroom"):
             if extra not in rooms:
                 rooms.append(extra)
         if "bedroom" not in rooms and "studio" not in low:
             rooms.insert(0, "bedroom")
-        return rooms[:5]
+        return rooms[:6]
     return [room_type_of(request)]
 
 

@@ -249,3 +249,14 @@ def test_move_and_remove_tools(tmp_path: Path) -> None:
     assert gone["ok"] and set(gone["removed"]) == {table, vase}  # what stood on it goes too
     assert s.get_scene_info()["objects"] == []
     assert s.get_scene_json()["ok"]
+
+
+def test_room_counts_in_requests() -> None:
+    from factory.scenes.generate import room_types_in
+
+    assert room_types_in("a flat with two bedrooms").count("bedroom") == 2
+    assert room_types_in("a 3-bedroom house").count("bedroom") == 3
+    scene, _ = init_scene("a flat with two bedrooms", seed=1)
+    ids = [r.id for r in scene.rooms]
+    assert len(ids) == len(set(ids)) and {"bedroom", "bedroom_2"} <= set(ids)
+    validate(scene)
