@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import functools
 import hashlib
 import json
 import logging
@@ -184,6 +185,7 @@ def resolve_shard(index: int | None, count: int | None, env: dict[str, str] | No
 # Run store
 
 
+@functools.cache
 def _git_sha() -> str | None:
     here = Path(__file__).resolve().parent.parent
     try:

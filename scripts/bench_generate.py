@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import platform
 import tempfile
 import time
@@ -29,18 +28,13 @@ configure_gl("auto")
 from factory.scenes.assets import AssetLibrary  # noqa: E402
 from factory.scenes.generate import AgentConfig, generate_scene  # noqa: E402
 from factory.sim.compile import compile_scene  # noqa: E402
-from factory.sim.metrics import scene_metrics  # noqa: E402
-from factory.sim.stability import StabilityProtocol, check_stability  # noqa: E402
+from factory.sim.metrics import measure_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def measure(scene: Any, assets: Path, trimesh_test: bool = True) -> dict[str, Any]:
-    model = compile_scene(scene, assets).model
-    result = check_stability(
-        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
-    )
-    return scene_metrics(scene, model, result, trimesh_test=trimesh_test)
+    return measure_scene(scene, assets, trimesh_test=trimesh_test)
 
 
 def speed(args: argparse.Namespace) -> dict[str, Any]:

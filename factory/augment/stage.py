@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import math
 from collections import Counter
 from typing import Any
 
@@ -39,17 +38,9 @@ def variant_seed(seed: int, parent: str, index: int) -> int:
 
 def check_physics(scene: Any, assets: Any, tol: float = 0.01, backend: Any = "cpu") -> str | None:
     """``None`` if the scene is collision-free and stable (strict protocol), else why not."""
-    from factory.sim.compile import compile_scene
-    from factory.sim.metrics import scene_metrics
-    from factory.sim.stability import StabilityProtocol, check_stability
+    from factory.sim.metrics import measure_scene
 
-    model = compile_scene(scene, assets).model
-    result = check_stability(
-        model,
-        backend=backend,
-        protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False),
-    )
-    m = scene_metrics(scene, model, result, tol=tol, trimesh_test=False)
+    m = measure_scene(scene, assets, backend=backend, tol=tol, trimesh_test=False)
     if m["collision"]["colliding"]:
         return f"colliding: {', '.join(m['collision']['colliding'][:4])}"
     if m["stability"]["unstable"]:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import logging
-import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -307,16 +306,9 @@ class ToolSession:
     @_safe
     def physics_critic(self) -> dict[str, Any]:
         """Collision and stability metrics of the whole scene as it stands."""
-        from factory.sim.compile import compile_scene
-        from factory.sim.metrics import scene_metrics
-        from factory.sim.stability import check_stability
+        from factory.sim.metrics import measure_scene
 
-        scene = self.scene
-        model = compile_scene(scene, self.library.assets_dir).model
-        result = check_stability(
-            model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
-        )
-        m = scene_metrics(scene, model, result, trimesh_test=False)
+        m = measure_scene(self.scene, self.library.assets_dir, trimesh_test=False)
         return {
             "ok": True,
             "objects": m["objects"],

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
-import numpy as np
 
 from factory.errors import CompileError
 from factory.schema import (
@@ -461,8 +460,3 @@ def model_xml(compiled: CompiledScene, model_dir: str | Path) -> str:
     compiler.set("texturedir", rel)
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"
-
-
-def body_masses(model: mujoco.MjModel, names: list[str]) -> np.ndarray:
-    """Masses (kg) of the bodies named ``names``: ``(len(names),)``."""
-    return np.array([model.body_mass[model.body(n).id] for n in names])

@@ -187,3 +187,27 @@ def scene_metrics(
         "per_room_type": dict(per_room),
         "per_object": per_object,
     }
+
+
+def measure_scene(
+    scene: Scene,
+    assets_root: Any = None,
+    backend: Any = "cpu",
+    tol: float = 0.01,
+    trimesh_test: bool = True,
+) -> dict[str, Any]:
+    """Compiles a scene, settles it under the strict protocol (no resettling; initial
+    interpenetration is measured as collision, not treated as invalid) and measures it.
+
+    Returns:
+        :func:`scene_metrics` of the scene.
+    """
+    import math
+
+    from factory.sim.compile import compile_scene
+    from factory.sim.stability import StabilityProtocol, check_stability
+
+    model = compile_scene(scene, assets_root).model
+    protocol = StabilityProtocol(penetration_tol=math.inf, resettle=False)
+    result = check_stability(model, backend=backend, protocol=protocol)
+    return scene_metrics(scene, model, result, tol=tol, trimesh_test=trimesh_test)

@@ -13,17 +13,11 @@ from factory.scenes.assets import AssetLibrary
 from factory.scenes.generate import AgentConfig, generate_scene, init_scene, parse_task
 from factory.scenes.rooms import ROOM_TYPES, room_type_of
 from factory.schema import scene_from_json, scene_to_json, validate
-from factory.sim.compile import compile_scene
-from factory.sim.metrics import scene_metrics
-from factory.sim.stability import StabilityProtocol, check_stability
+from factory.sim.metrics import measure_scene
 
 
 def _metrics(scene, assets: Path) -> dict:
-    model = compile_scene(scene, assets).model
-    result = check_stability(
-        model, protocol=StabilityProtocol(penetration_tol=math.inf, resettle=False)
-    )
-    return scene_metrics(scene, model, result)
+    return measure_scene(scene, assets)
 
 
 def test_room_knowledge_covers_twenty_room_types() -> None:

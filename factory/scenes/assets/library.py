@@ -341,9 +341,4 @@ def _format(content_type: str, data: bytes) -> str:
     return "obj"
 
 
-def mass_range(category: str) -> tuple[float, float]:
-    """The documented mass range (kg) of a category."""
-    return CATEGORIES[category].mass
-
-
-__all__ = ["BACKENDS", "AssetLibrary", "TrellisConfig", "mass_range"]
+__all__ = ["BACKENDS", "AssetLibrary", "TrellisConfig"]
