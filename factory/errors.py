@@ -25,6 +25,10 @@ class RenderError(FactoryError):
     """No OpenGL backend could render offscreen."""
 
 
+class TaskError(FactoryError):
+    """A scene cannot host its task (objects missing, unreachable, not graspable)."""
+
+
 __all__ = [
     "CompileError",
     "ConfigError",
@@ -34,5 +38,6 @@ __all__ = [
     "SchemaVersionError",
     "StageFailed",
     "StoreError",
+    "TaskError",
     "UnsafePathError",
 ]

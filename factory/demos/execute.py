@@ -1,0 +1,273 @@
+"""Batched execution of planned episodes through the position controller, with recording.
+
+All episodes of one scene run together in one ``mujoco.batch.Batch`` (one simulation per
+episode, a thread per core): each recording period, ``Batch.rollout`` applies the per-step
+control targets; at every frame the MuJoCo integration state is copied out (exact replay), the
+robot's state and the action are recorded, and the named cameras are rendered (RGB + depth).
+Nothing is teleported: the arm follows the targets through the actuators and the object moves
+only by contact.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from factory.demos.pick_place import EpisodePlan, SceneSetup
+from factory.demos.robot import CAMERAS, RobotIndex
+from factory.demos.task import Outcome, check_success
+
+log = logging.getLogger(__name__)
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+"""The recorded MuJoCo state (``mj_setState`` with it reproduces the simulation exactly)."""
+
+
+@dataclass(frozen=True)
+class RecordConfig:
+    """What is recorded.
+
+    Attributes:
+        fps: frames per second (Hz).
+        width, height: image size (px).
+        cameras: recording cameras (``left``, ``right``, ``wrist``).
+        depth: ``uint16_mm`` (millimetres) or ``float32`` (metres).
+        render: render images (off: states and robot signals only).
+    """
+
+    fps: float = 20.0
+    width: int = 128
+    height: int = 128
+    cameras: tuple[str, ...] = ("left", "right", "wrist")
+    depth: str = "uint16_mm"
+    render: bool = True
+
+
+@dataclass
+class Recording:
+    """One executed episode's frames (F of them) and its outcome.
+
+    Attributes:
+        time: (F,) s; state: (F, nstate) MuJoCo integration state; joint_pos: (F, 7) rad;
+        gripper: (F, 1) opening between the fingers (m); ee_pose: (F, 7) tool site position (m)
+        and quaternion (w, x, y, z) in the world frame; action: (F, 8) next arm joint targets
+        (rad) and gripper command (m; negative squeezes); rgb: camera -> (F, H, W, 3) uint8;
+        depth: camera -> (F, H, W) uint16 mm or float32 m.
+    """
+
+    time: np.ndarray
+    state: np.ndarray
+    joint_pos: np.ndarray
+    gripper: np.ndarray
+    ee_pose: np.ndarray
+    action: np.ndarray
+    rgb: dict[str, np.ndarray] = field(default_factory=dict)
+    depth: dict[str, np.ndarray] = field(default_factory=dict)
+    outcome: Outcome | None = None
+    sim_seconds: float = 0.0
+    render_seconds: float = 0.0
+
+
+class FrameRenderer:
+    """Renders the recording cameras of a composed model from states."""
+
+    def __init__(self, model: mujoco.MjModel, cfg: RecordConfig) -> None:
+        from factory.scenes.gl import configure_gl
+
+        configure_gl("auto")
+        self.model = model
+        self.cfg = cfg
+        self.data = mujoco.MjData(model)
+        self.renderer = mujoco.Renderer(model, cfg.height, cfg.width)
+        self.cams = [model.camera(CAMERAS[c]).id for c in cfg.cameras]
+        self.frames = 0
+
+    def render(self, data: mujoco.MjData) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """RGB (H, W, 3) uint8 and depth (H, W) images per camera of a state in ``data``."""
+        rgbs, depths = [], []
+        r = self.renderer
+        for cam in self.cams:
+            r.update_scene(data, camera=cam)
+            rgbs.append(r.render().copy())
+            r.enable_depth_rendering()
+            d = r.render().copy()
+            r.disable_depth_rendering()
+            if self.cfg.depth == "uint16_mm":
+                d = np.clip(np.round(d * 1000.0), 0, 65535).astype(np.uint16)
+            depths.append(d)
+        self.frames += 1
+        return rgbs, depths
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+def _robot_signals(
+    model: mujoco.MjModel, data: mujoco.MjData, robot: RobotIndex
+) -> tuple[np.ndarray, float, np.ndarray]:
+    q = np.array(data.qpos[robot.qpos])
+    fingers = data.qpos[robot.finger_qpos]
+    width = float(fingers[0] - fingers[1])
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, data.site_xmat[robot.site])
+    ee = np.concatenate([data.site_xpos[robot.site], quat])
+    return q, width, ee
+
+
+def _robot_penetration(
+    model: mujoco.MjModel, data: mujoco.MjData, robot_geom: np.ndarray, allowed: np.ndarray
+) -> float:
+    """Deepest contact between a robot geom and a scene geom not in ``allowed`` (m)."""
+    worst = 0.0
+    for c in data.contact[: data.ncon]:
+        g1, g2 = int(c.geom[0]), int(c.geom[1])
+        if robot_geom[g1] == robot_geom[g2]:
+            continue
+        other = g2 if robot_geom[g1] else g1
+        if allowed[other]:
+            continue
+        worst = max(worst, -float(c.dist))
+    return worst
+
+
+def execute(
+    setup: SceneSetup,
+    plans: list[EpisodePlan],
+    cfg: RecordConfig,
+    nthread: int = 0,
+    renderer: FrameRenderer | None = None,
+) -> list[Recording]:
+    """Runs the planned episodes of one scene together and records them.
+
+    Args:
+        setup: the scene with the robot.
+        plans: planned episodes (their ``qpos0`` and ``ctrl``).
+        cfg: what to record.
+        nthread: simulation threads (0: one per core).
+        renderer: a renderer to reuse (made if None and ``cfg.render``).
+
+    Returns:
+        one recording per plan, with its success check.
+    """
+    from mujoco.batch import Batch
+
+    model, robot = setup.model, setup.robot
+    n = len(plans)
+    if n == 0:
+        return []
+    dt = float(model.opt.timestep)
+    per_frame = max(1, int(round(1.0 / (cfg.fps * dt))))
+    lengths = [len(p.ctrl) for p in plans]
+    n_frames = [int(np.ceil(t / per_frame)) + 1 for t in lengths]
+    total = max(n_frames) - 1
+    ctrl = np.zeros((n, total * per_frame, model.nu))
+    for i, p in enumerate(plans):
+        ctrl[i, : len(p.ctrl)] = p.ctrl
+        ctrl[i, len(p.ctrl) :] = p.ctrl[-1]
+    batch = Batch(model, n, nthread, persistent=True)
+    batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+    qpos = batch.bind("qpos")
+    for i, p in enumerate(plans):
+        qpos[i] = p.qpos0
+    batch.bind("ctrl")[:] = ctrl[:, 0]
+    batch.forward()
+    own = renderer
+    if own is None and cfg.render:
+        own = FrameRenderer(model, cfg)
+    data = mujoco.MjData(model)
+    robot_geom = np.zeros(model.ngeom, bool)
+    robot_geom[robot.geoms] = True
+    pick = model.body(setup.objects.pick.id).id
+    target = model.body(setup.objects.target.id).id
+    support = model.body(setup.objects.support.id).id
+    allowed = np.isin(model.geom_bodyid, [pick, target, support])
+    nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+    states = np.zeros((n, total + 1, nstate))
+    worst = np.zeros(n)
+    recs = [
+        Recording(
+            time=np.arange(f) / cfg.fps,
+            state=np.zeros((f, nstate)),
+            joint_pos=np.zeros((f, 7)),
+            gripper=np.zeros((f, 1)),
+            ee_pose=np.zeros((f, 7)),
+            action=np.zeros((f, 8)),
+            rgb={c: np.zeros((f, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
+            if cfg.render
+            else {},
+            depth={
+                c: np.zeros(
+                    (f, cfg.height, cfg.width),
+                    np.uint16 if cfg.depth == "uint16_mm" else np.float32,
+                )
+                for c in cfg.cameras
+            }
+            if cfg.render
+            else {},
+        )
+        for f in n_frames
+    ]
+    sim_s = render_s = 0.0
+
+    def record(frame: int) -> float:
+        t0 = time.perf_counter()
+        for i in range(n):
+            if frame >= n_frames[i]:
+                continue
+            rec = recs[i]
+            mujoco.mj_setState(model, data, states[i, frame], STATE_SPEC)
+            mujoco.mj_forward(model, data)
+            worst[i] = max(worst[i], _robot_penetration(model, data, robot_geom, allowed))
+            q, width, ee = _robot_signals(model, data, robot)
+            rec.state[frame] = states[i, frame]
+            rec.joint_pos[frame] = q
+            rec.gripper[frame, 0] = width
+            rec.ee_pose[frame] = ee
+            step = min((frame + 1) * per_frame, lengths[i]) - 1
+            nxt = plans[i].ctrl[step]
+            fingers = nxt[robot.ctrl_fingers]
+            rec.action[frame] = np.concatenate([nxt[robot.ctrl_arm], [fingers[0] - fingers[1]]])
+            if own is not None:
+                rgbs, depths = own.render(data)
+                for c, im, dp in zip(cfg.cameras, rgbs, depths, strict=True):
+                    rec.rgb[c][frame] = im
+                    rec.depth[c][frame] = dp
+        return time.perf_counter() - t0
+
+    states[:, 0] = batch.state
+    render_s += record(0)
+    for f in range(total):
+        t0 = time.perf_counter()
+        batch.rollout(per_frame, control=ctrl[:, f * per_frame : (f + 1) * per_frame], record=())
+        sim_s += time.perf_counter() - t0
+        states[:, f + 1] = batch.state
+        render_s += record(f + 1)
+    if renderer is None and own is not None:
+        own.close()
+    # Success checks from the recorded states.
+    qadr = int(model.jnt_qposadr[model.body_jntadr[pick]])
+    qpos_slice = slice(1, 1 + model.nq)  # time, then qpos in the integration state
+    hold_frames = max(1, int(round(0.5 * cfg.fps)))
+    for i, p in enumerate(plans):
+        rec = recs[i]
+        last = n_frames[i] - 1
+        lift_frame = min(last, int(np.ceil(p.phases["transport"] / per_frame)))
+        q_end = rec.state[last, qpos_slice]
+        q_before = rec.state[max(0, last - hold_frames), qpos_slice]
+        rec.outcome = check_success(
+            model,
+            q_end,
+            q_before,
+            float(rec.state[lift_frame, qpos_slice][qadr + 2]),
+            float(rec.state[0, qpos_slice][qadr + 2]),
+            setup.objects,
+            robot,
+            float(worst[i]),
+        )
+        rec.sim_seconds = sim_s / n
+        rec.render_seconds = render_s / n
+    return recs

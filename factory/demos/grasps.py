@@ -1,0 +1,407 @@
+"""Antipodal grasps from an object's collision geometry.
+
+The object is the union of its convex collision pieces (as compiled: mesh hulls, boxes,
+cylinders, spheres). A candidate starts from a point ``p`` sampled on the union's surface with
+outward normal ``n``: one finger presses at ``p`` along the closing axis ``a = -n``; the other
+finger meets the material where the line ``p + t a`` leaves the union (exact ray/half-space
+intersection with every piece). The pair is antipodal when the exit normal lies inside the
+friction cone around ``a``, and holdable when the span fits the open hand. Approach directions
+are perpendicular to ``a``. Candidates are then filtered by collision of the open gripper (and
+its pre-grasp pose) with the whole scene in the composed MuJoCo model, and ranked.
+
+Frames: grasp poses are tool-site poses (see :mod:`factory.demos.robot`): +z approach, +x
+closing axis; ``pose_tool_in_obj`` is a 4x4 transform in the object's body frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from factory.demos.robot import PANDA, RobotIndex
+
+
+@dataclass(frozen=True)
+class GraspConfig:
+    """Grasp sampling parameters.
+
+    Attributes:
+        samples: surface points sampled per object.
+        approaches: approach directions tried per antipodal pair (around the closing axis).
+        friction: friction coefficient of the cone test (finger pad on the object).
+        width_margin: required slack between the span and the open hand (m).
+        min_width: thinner spans are rejected (m).
+        max_tilt_deg: approaches tilted more than this from straight down are dropped.
+        pregrasp: retreat of the pre-grasp pose along the approach (m).
+        clearance: required distance of the open gripper from everything (m).
+        keep: candidates returned after filtering.
+        pad_half: half size of the finger pad patch probed around each contact (m).
+        min_contact: least share of the pad patch that must touch material on both sides.
+    """
+
+    samples: int = 600
+    approaches: int = 8
+    friction: float = 0.5
+    width_margin: float = 0.012
+    min_width: float = 0.003
+    max_tilt_deg: float = 60.0
+    pregrasp: float = 0.10
+    clearance: float = 0.002
+    keep: int = 24
+    pad_half: float = 0.007
+    min_contact: float = 0.6
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """One grasp.
+
+    Attributes:
+        pose_tool_in_obj: tool-site pose in the object frame (4, 4).
+        width: span between the contacts (m).
+        quality: antipodal quality in [0, 1] (cosine of the exit normal to the axis).
+        contact: share of the finger-pad patch that meets material at the same span.
+        score: ranking score (higher is better).
+        contacts_in_obj: the two contact points (2, 3), object frame.
+    """
+
+    pose_tool_in_obj: np.ndarray
+    width: float
+    quality: float
+    contact: float
+    score: float
+    contacts_in_obj: np.ndarray
+
+
+@dataclass
+class Piece:
+    """A convex collision piece in the object frame: vertices, facets, outward half-spaces."""
+
+    vertices: np.ndarray  # (v, 3)
+    triangles: np.ndarray  # (f, 3) vertex indices
+    normals: np.ndarray  # (f, 3) outward unit normals of the triangles
+    planes: np.ndarray  # (h, 4): n . x + d <= 0 inside
+
+
+def _primitive_vertices(gtype: int, size: np.ndarray) -> np.ndarray | None:
+    g = mujoco.mjtGeom
+    if gtype == g.mjGEOM_BOX:
+        return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * size
+    if gtype in (g.mjGEOM_CYLINDER, g.mjGEOM_CAPSULE):
+        ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+        ring = np.stack([np.cos(ang), np.sin(ang)], 1) * size[0]
+        half = size[1] + (size[0] if gtype == g.mjGEOM_CAPSULE else 0.0)
+        return np.concatenate(
+            [np.c_[ring, np.full(24, -half)], np.c_[ring, np.full(24, half)]], axis=0
+        )
+    if gtype == g.mjGEOM_SPHERE:
+        phi = np.arccos(1 - 2 * (np.arange(60) + 0.5) / 60)
+        th = np.pi * (1 + 5**0.5) * np.arange(60)
+        return size[0] * np.c_[np.sin(phi) * np.cos(th), np.sin(phi) * np.sin(th), np.cos(phi)]
+    if gtype == g.mjGEOM_ELLIPSOID:
+        return _primitive_vertices(g.mjGEOM_SPHERE, np.ones(3)) * size  # type: ignore[operator]
+    return None
+
+
+def collision_pieces(model: mujoco.MjModel, body: int) -> list[Piece]:
+    """The convex collision pieces of a body, in the body frame.
+
+    Raises:
+        ValueError: the body has no collision geometry.
+    """
+    pieces = []
+    for gid in np.flatnonzero(model.geom_bodyid == body):
+        if model.geom_contype[gid] == 0 and model.geom_conaffinity[gid] == 0:
+            continue
+        gtype = int(model.geom_type[gid])
+        if gtype == mujoco.mjtGeom.mjGEOM_MESH:
+            mid = int(model.geom_dataid[gid])
+            adr, n = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
+            verts = np.array(model.mesh_vert[adr : adr + n], dtype=float)
+        else:
+            verts = _primitive_vertices(gtype, np.array(model.geom_size[gid], dtype=float))
+            if verts is None:
+                continue
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[gid])
+        verts = verts @ rot.reshape(3, 3).T + model.geom_pos[gid]
+        try:
+            hull = ConvexHull(verts)
+        except QhullError:
+            continue
+        tri = hull.simplices
+        a, b, c = (verts[tri[:, k]] for k in range(3))
+        nrm = np.cross(b - a, c - a)
+        nrm /= np.linalg.norm(nrm, axis=1, keepdims=True) + 1e-12
+        centre = verts[hull.vertices].mean(0)
+        flip = np.einsum("ij,ij->i", nrm, a - centre) < 0
+        nrm[flip] *= -1
+        pieces.append(Piece(verts, tri, nrm, np.array(hull.equations)))
+    if not pieces:
+        raise ValueError(f"body {model.body(body).name!r} has no collision geometry")
+    return pieces
+
+
+def _line_intervals(
+    pieces: list[Piece], origin: np.ndarray, axis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entry/exit parameters of lines ``origin + t axis`` through each piece.
+
+    Args:
+        origin, axis: (n, 3) each.
+
+    Returns:
+        ``t_in (n, P)``, ``t_out (n, P)`` (``t_in > t_out`` where the line misses) and the
+        outward normal at each exit ``(n, P, 3)``.
+    """
+    n = len(origin)
+    t_in = np.full((n, len(pieces)), -np.inf)
+    t_out = np.full((n, len(pieces)), np.inf)
+    exit_n = np.zeros((n, len(pieces), 3))
+    for k, piece in enumerate(pieces):
+        nrm, off = piece.planes[:, :3], piece.planes[:, 3]
+        num = -(origin @ nrm.T + off)  # (n, h): n.x + d <= 0  <=>  t (n.a) <= num
+        den = axis @ nrm.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = num / den
+        enter = np.where(den < -1e-12, t, -np.inf)
+        leave = np.where(den > 1e-12, t, np.inf)
+        parallel_out = (np.abs(den) <= 1e-12) & (num < 0)
+        t_in[:, k] = enter.max(1)
+        t_out[:, k] = leave.min(1)
+        t_in[parallel_out.any(1), k] = np.inf
+        exit_n[:, k] = nrm[leave.argmin(1)]
+    return t_in, t_out, exit_n
+
+
+def _union_exit(
+    t_in: np.ndarray, t_out: np.ndarray, start: float = 1e-4
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where lines leave the union of pieces after entering at ``t ~ 0``.
+
+    Returns:
+        ``t_exit (n,)`` (NaN where the line is not inside the union just after 0), the piece
+        index defining the exit ``(n,)``, and the start of the next material after the exit
+        ``(n,)`` (inf if none).
+    """
+    n = len(t_in)
+    t_exit = np.full(n, np.nan)
+    which = np.zeros(n, dtype=int)
+    nxt = np.full(n, np.inf)
+    for i in range(n):
+        ks = np.flatnonzero(t_in[i] < t_out[i])
+        ks = ks[np.argsort(t_in[i, ks])]
+        comp_end, comp_arg, found = -np.inf, -1, False
+        for k in ks:
+            a, b = t_in[i, k], t_out[i, k]
+            if a > comp_end + 1e-6:  # a new component starts
+                if found:
+                    nxt[i] = a
+                    break
+                comp_end, comp_arg = b, k
+            elif b > comp_end:
+                comp_end, comp_arg = b, k
+            if not found and t_in[i, k] <= start < comp_end:
+                found = True
+        if found:
+            t_exit[i], which[i] = comp_end, comp_arg
+    return t_exit, which, nxt
+
+
+def _sample_surface(
+    pieces: list[Piece], count: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Points and outward normals on the union's surface (points inside other pieces dropped)."""
+    tris, nrms, owner = [], [], []
+    for k, piece in enumerate(pieces):
+        tris.append(piece.vertices[piece.triangles])
+        nrms.append(piece.normals)
+        owner.append(np.full(len(piece.triangles), k))
+    tri = np.concatenate(tris)
+    nrm = np.concatenate(nrms)
+    own = np.concatenate(owner)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    pick = rng.choice(len(tri), size=count, p=area / area.sum())
+    r1, r2 = rng.random(count), rng.random(count)
+    s = np.sqrt(r1)
+    w = np.stack([1 - s, s * (1 - r2), s * r2], 1)
+    pts = np.einsum("nk,nkj->nj", w, tri[pick])
+    keep = np.ones(count, bool)
+    for k, piece in enumerate(pieces):
+        inside = (pts @ piece.planes[:, :3].T + piece.planes[:, 3] < -1e-4).all(1)
+        keep &= ~(inside & (own[pick] != k))
+    return pts[keep], nrm[pick][keep]
+
+
+def pad_contact(
+    pieces: list[Piece],
+    point: np.ndarray,
+    axis: np.ndarray,
+    approach: np.ndarray,
+    width: float,
+    half: float,
+    tol: float = 0.003,
+) -> float:
+    """Share of a finger-pad patch around a contact that grips material at the same span.
+
+    Lines parallel to the closing ``axis`` through a 3x3 patch (``half`` m around ``point`` in
+    the plane of ``approach`` and ``axis x approach``) must enter the object within ``tol`` of
+    the contact plane and leave it within ``tol`` of the other finger.
+    """
+    side = np.cross(axis, approach)
+    offs = np.array([(u, v) for u in (-half, 0.0, half) for v in (-half, 0.0, half)])
+    origin = point[None] + offs[:, :1] * approach + offs[:, 1:] * side - axis * 0.01
+    t_in, t_out, _ = _line_intervals(pieces, origin, np.broadcast_to(axis, origin.shape))
+    t_exit, _, _ = _union_exit(t_in - 0.01, t_out - 0.01, start=tol)
+    hits = t_in < t_out
+    first = np.where(hits, t_in - 0.01, np.inf).min(1)
+    good = (np.abs(first) <= tol) & (np.abs(t_exit - width) <= tol)
+    return float(good.mean())
+
+
+def antipodal_candidates(
+    pieces: list[Piece],
+    rot_obj_in_world: np.ndarray,
+    cfg: GraspConfig,
+    rng: np.random.Generator,
+    com_in_obj: np.ndarray | None = None,
+) -> list[Grasp]:
+    """Antipodal grasp candidates of an object, geometry only (no scene collision yet).
+
+    Args:
+        pieces: the object's convex pieces (:func:`collision_pieces`), object frame.
+        rot_obj_in_world: the object's orientation (3, 3), to prefer top-down approaches.
+        cfg: sampling parameters.
+        rng: random generator.
+        com_in_obj: centre of mass (3,), object frame; spans near it rank higher.
+
+    Returns:
+        candidates sorted by score (best first).
+    """
+    pts, nrm = _sample_surface(pieces, cfg.samples, rng)
+    axis = -nrm
+    t_in, t_out, exit_n = _line_intervals(pieces, pts, axis)
+    t_exit, which, nxt = _union_exit(t_in, t_out)
+    open_w = 2 * PANDA.finger_max
+    ok = np.isfinite(t_exit) & (t_exit >= cfg.min_width) & (t_exit <= open_w - cfg.width_margin)
+    # The far finger must not meet more material on its way in (e.g. a handle behind a wall).
+    ok &= ~(nxt < t_exit / 2 + open_w / 2 + 0.01)
+    idx = np.flatnonzero(ok)
+    n_exit = exit_n[idx, which[idx]]
+    quality = np.einsum("ij,ij->i", n_exit, axis[idx])
+    cone = 1 / np.sqrt(1 + cfg.friction**2)
+    good = quality >= cone
+    idx, quality = idx[good], quality[good]
+    com = np.zeros(3) if com_in_obj is None else np.asarray(com_in_obj)
+    down_obj = rot_obj_in_world.T @ np.array([0.0, 0.0, -1.0])
+    min_down = np.cos(np.radians(cfg.max_tilt_deg))
+    out: list[Grasp] = []
+    for i, q in zip(idx, quality, strict=True):
+        a = axis[i]
+        width = float(t_exit[i])
+        centre = pts[i] + a * width / 2
+        helper = np.array([0.0, 0.0, 1.0]) if abs(a[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        u = np.cross(a, helper)
+        u /= np.linalg.norm(u)
+        v = np.cross(a, u)
+        for th in np.linspace(0, 2 * np.pi, cfg.approaches, endpoint=False):
+            d = np.cos(th) * u + np.sin(th) * v
+            down = float(d @ down_obj)
+            if down < min_down:
+                continue
+            # Prefer the approach most nearly straight down: rotate d towards down within the
+            # plane perpendicular to a.
+            y = np.cross(d, a)
+            pose = np.eye(4)
+            pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = a, y, d, centre
+            contact = pad_contact(pieces, pts[i], a, d, width, cfg.pad_half)
+            if contact < cfg.min_contact:
+                continue
+            off = np.linalg.norm(np.cross(centre - com, d))
+            score = (
+                0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width / open_w)
+            )
+            out.append(
+                Grasp(
+                    pose,
+                    width,
+                    float(q),
+                    contact,
+                    float(score),
+                    np.stack([pts[i], pts[i] + a * width]),
+                )
+            )
+    # Many samples give nearly the same approach: keep the best per (centre, approach) cell.
+    out.sort(key=lambda g: -g.score)
+    seen: set[tuple[int, ...]] = set()
+    unique = []
+    for g in out:
+        key = tuple(np.round(g.pose_tool_in_obj[:3, 3] / 0.01).astype(int)) + tuple(
+            np.round(g.pose_tool_in_obj[:3, 2] * 4).astype(int)
+        )
+        if key not in seen:
+            seen.add(key)
+            unique.append(g)
+    return unique
+
+
+@dataclass
+class GripperShape:
+    """The collision geoms of the open gripper, relative to the tool site.
+
+    Attributes:
+        geoms: geom ids in the composed model (n,).
+        pose_geom_in_tool: (n, 4, 4).
+    """
+
+    geoms: np.ndarray
+    pose_geom_in_tool: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, robot: RobotIndex, opening: float) -> GripperShape:
+        data = mujoco.MjData(model)
+        data.qpos[robot.finger_qpos] = robot.finger_pos(opening)
+        mujoco.mj_kinematics(model, data)
+        site = _pose(data.site_xpos[robot.site], data.site_xmat[robot.site])
+        inv = np.linalg.inv(site)
+        geoms = robot.finger_geoms
+        rel = np.stack([inv @ _pose(data.geom_xpos[g], data.geom_xmat[g]) for g in geoms])
+        return cls(geoms, rel)
+
+
+def _pose(pos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = np.asarray(xmat).reshape(3, 3)
+    out[:3, 3] = pos
+    return out
+
+
+def gripper_clear(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    shape: GripperShape,
+    pose_tool_in_world: np.ndarray,
+    clearance: float,
+    ignore_bodies: np.ndarray,
+) -> bool:
+    """Whether the open gripper at a tool pose stays ``clearance`` away from every scene geom.
+
+    ``data`` must hold the scene's kinematics (``mj_kinematics``); the gripper geoms' poses in
+    it are overwritten.
+    """
+    for g, rel in zip(shape.geoms, shape.pose_geom_in_tool, strict=True):
+        pose = pose_tool_in_world @ rel
+        data.geom_xpos[g] = pose[:3, 3]
+        data.geom_xmat[g] = pose[:3, :3].reshape(-1)
+    centre = pose_tool_in_world[:3, 3]
+    near = np.linalg.norm(data.geom_xpos - centre, axis=1) < model.geom_rbound + 0.2
+    collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    others = np.flatnonzero(near & collides & ~np.isin(model.geom_bodyid, ignore_bodies))
+    for g in shape.geoms:
+        for o in others:
+            if mujoco.mj_geomDistance(model, data, int(g), int(o), clearance, None) < clearance:
+                return False
+    return True

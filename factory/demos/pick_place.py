@@ -1,0 +1,485 @@
+"""Planning one pick-and-place demonstration: grasp, IK, RRTConnect, ruckig -> control targets.
+
+Per scene, :func:`setup_scene` composes the scene with the robot at a base spot from which the
+workspace is reachable and the robot is free. Per episode, :func:`plan_episode` randomizes the
+task objects' poses, picks a grasp, solves IK for pre-grasp, grasp, lift, pre-place, place and
+retreat, plans the two free-space motions with RRTConnect (the object attached during
+transport), times every segment with ruckig, and returns per-physics-step control targets.
+Nothing is simulated here: :mod:`factory.demos.execute` runs the targets through the
+controller.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from factory.demos.grasps import (
+    Grasp,
+    GraspConfig,
+    GripperShape,
+    antipodal_candidates,
+    collision_pieces,
+    gripper_clear,
+)
+from factory.demos.ik import IKConfig, IKSolver
+from factory.demos.planner import Attachment, CollisionChecker, PlannerConfig, plan
+from factory.demos.robot import (
+    GRIP_CLOSED,
+    GRIP_OPEN,
+    HOME_QPOS,
+    CameraRig,
+    RobotIndex,
+    RobotPlacement,
+    add_robot,
+)
+from factory.demos.task import (
+    TaskObjects,
+    Workspace,
+    base_candidates,
+    initial_state,
+    move_robot,
+    randomize,
+    task_objects,
+)
+from factory.demos.timing import Limits, time_path
+from factory.errors import TaskError
+from factory.schema import Scene
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class MotionConfig:
+    """Timing of the demonstration.
+
+    Attributes:
+        speed, accel, jerk: shares of the Panda's limits for free-space motions.
+        slow: extra share for the short approach, lift, lower and retreat moves.
+        pregrasp: approach distance (m); lift: lift height (m); place_drop: the object is
+            released this far above the target's surface (m); preplace: height above the
+            place pose (m).
+        settle, close, release, hold: pauses (s): before moving, closing the hand, opening it,
+            at the end.
+    """
+
+    speed: float = 0.5
+    accel: float = 0.3
+    jerk: float = 0.2
+    slow: float = 0.3
+    pregrasp: float = 0.10
+    lift: float = 0.15
+    place_drop: float = 0.015
+    preplace: float = 0.10
+    settle: float = 0.3
+    close: float = 0.8
+    release: float = 0.5
+    hold: float = 0.8
+
+
+@dataclass
+class SceneSetup:
+    """A scene ready for planning: composed model at a chosen base spot."""
+
+    scene: Scene
+    objects: TaskObjects
+    placement: RobotPlacement
+    model: mujoco.MjModel
+    robot: RobotIndex
+    rig: CameraRig
+    compose_seconds: float
+
+
+@dataclass
+class EpisodePlan:
+    """What execution needs for one episode.
+
+    Attributes:
+        qpos0: initial state (nq,).
+        ctrl: control targets per physics step (T, nu).
+        phases: phase name -> first physics step.
+        grasp_width: span of the chosen grasp (m).
+        plan_seconds: planning time per planned segment (s), by segment name.
+        seconds: total planning time of the episode (s).
+        attempts: grasp candidates tried.
+    """
+
+    qpos0: np.ndarray
+    ctrl: np.ndarray
+    phases: dict[str, int]
+    grasp_width: float
+    plan_seconds: dict[str, float]
+    seconds: float
+    attempts: int
+
+
+@dataclass
+class PlanFailure:
+    """Why an episode could not be planned: reason key and detail."""
+
+    reason: str
+    detail: str
+    seconds: float
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+def compose(
+    scene: Scene, assets_root: str | Path | None, placement: RobotPlacement, rig: CameraRig
+) -> mujoco.MjModel:
+    """Compiles a scene with the robot at ``placement`` (scene masses as in compile)."""
+    from factory.sim.compile import compile_scene
+
+    compiled = compile_scene(scene, assets_root)
+    add_robot(compiled.spec, placement, rig)
+    return compiled.spec.compile()
+
+
+def _pose(pos: np.ndarray, mat: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = np.asarray(mat).reshape(3, 3)
+    out[:3, 3] = pos
+    return out
+
+
+def _base_pose(p: RobotPlacement) -> np.ndarray:
+    out = np.eye(4)
+    c, s = np.cos(p.yaw), np.sin(p.yaw)
+    out[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    out[:3, 3] = p.pos()
+    return out
+
+
+def _top_down(xyz: np.ndarray, yaw: float) -> np.ndarray:
+    out = np.eye(4)
+    c, s = np.cos(yaw), np.sin(yaw)
+    out[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.diag([1.0, -1.0, -1.0])
+    out[:3, 3] = xyz
+    return out
+
+
+def setup_scene(
+    scene: Scene,
+    assets_root: str | Path | None,
+    ws: Workspace | None = None,
+    rig: CameraRig | None = None,
+    ik: IKSolver | None = None,
+    max_spots: int = 24,
+) -> SceneSetup:
+    """Chooses the robot's base spot and composes the scene with the robot there.
+
+    A spot is taken when the robot at home collides with nothing and a top-down tool pose
+    above the middle of the reachable workspace has an IK solution.
+
+    Raises:
+        TaskError: the scene lacks task objects, or no spot around the support works.
+    """
+    t0 = time.perf_counter()
+    ws = ws or Workspace()
+    rig = rig or CameraRig()
+    objects = task_objects(scene)
+    spots = base_candidates(objects)
+    if not spots:
+        raise TaskError(f"scene {scene.id!r}: no base spot around {objects.support.id!r}")
+    model = compose(scene, assets_root, spots[0], rig)
+    robot = RobotIndex.of(model)
+    base_body = model.body("panda/robot0_base").id
+    ik = ik or IKSolver()
+    qpos = initial_state(model, robot)
+    checker = CollisionChecker(model, robot, qpos)
+    mid = 0.5 * (ws.reach_min + ws.reach_max)
+    for spot in spots[:max_spots]:
+        move_robot(checker.model, spot, base_body)
+        if not checker.valid(HOME_QPOS):
+            continue
+        tool = _top_down(np.array([mid, 0.0, 0.12]), 0.0)
+        if ik.solve(tool, [HOME_QPOS]) is None:
+            continue
+        model = compose(scene, assets_root, spot, rig)
+        return SceneSetup(scene, objects, spot, model, robot, rig, time.perf_counter() - t0)
+    raise TaskError(
+        f"scene {scene.id!r}: no free base spot next to {objects.support.id!r} "
+        f"(tried {min(len(spots), max_spots)})"
+    )
+
+
+def _surface_height(model: mujoco.MjModel, body: int, pose: np.ndarray) -> float:
+    """World height of the topmost surface of ``body`` on the vertical line through its origin."""
+    from factory.demos.grasps import _line_intervals
+
+    pieces = collision_pieces(model, body)
+    up = pose[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    origin = (up * 2.0)[None]
+    t_in, t_out, _ = _line_intervals(pieces, origin, -up[None])
+    hit = t_in < t_out
+    if not hit.any():
+        return float(pose[2, 3])
+    return float(pose[2, 3] + 2.0 - t_in[hit].min())
+
+
+class EpisodePlanner:
+    """Plans the episodes of one scene.
+
+    Args:
+        setup: the scene with the robot placed.
+        grasp_cfg, ik_cfg, planner_cfg, motion: parameters.
+        ws: where task objects are put per episode.
+        max_grasps: grasp candidates tried per episode.
+    """
+
+    def __init__(
+        self,
+        setup: SceneSetup,
+        grasp_cfg: GraspConfig | None = None,
+        ik_cfg: IKConfig | None = None,
+        planner_cfg: PlannerConfig | None = None,
+        motion: MotionConfig | None = None,
+        ws: Workspace | None = None,
+        max_grasps: int = 12,
+    ) -> None:
+        self.setup = setup
+        self.grasp_cfg = grasp_cfg or GraspConfig()
+        self.ik = IKSolver(ik_cfg)
+        self.planner_cfg = planner_cfg or PlannerConfig()
+        self.motion = motion or MotionConfig()
+        self.ws = ws or Workspace()
+        self.max_grasps = max_grasps
+        m = setup.model
+        self.model = m
+        self.robot = setup.robot
+        self.checker = CollisionChecker(m, self.robot, initial_state(m, self.robot))
+        self.shape = GripperShape.of(m, self.robot, GRIP_OPEN)
+        self.pick_body = m.body(setup.objects.pick.id).id
+        self.target_body = m.body(setup.objects.target.id).id
+        self.support_body = m.body(setup.objects.support.id).id
+        jnt = int(m.body_jntadr[self.pick_body])
+        self.pick_adr = int(m.jnt_qposadr[jnt])
+        self.pieces = collision_pieces(m, self.pick_body)
+        self.base = _base_pose(setup.placement)
+        self.base_inv = np.linalg.inv(self.base)
+        self.dt = float(m.opt.timestep)
+        mo = self.motion
+        self.fast = Limits.panda(mo.speed, mo.accel, mo.jerk)
+        self.slow = Limits.panda(mo.speed * mo.slow, mo.accel * mo.slow, mo.jerk * mo.slow)
+
+    # ---- helpers
+    def _ik(self, pose_world: np.ndarray, seeds: list[np.ndarray]) -> np.ndarray | None:
+        return self.ik.solve(self.base_inv @ pose_world, seeds, accept=self.checker.valid)
+
+    def _grasps(self, data: mujoco.MjData) -> list[Grasp]:
+        pose = _pose(data.xpos[self.pick_body], data.xmat[self.pick_body])
+        cands = antipodal_candidates(
+            self.pieces,
+            pose[:3, :3],
+            self.grasp_cfg,
+            self._rng,
+            self.model.body_ipos[self.pick_body],
+        )
+        out = []
+        back = np.eye(4)
+        back[2, 3] = -self.grasp_cfg.pregrasp
+        for g in cands:
+            tool = pose @ g.pose_tool_in_obj
+            if gripper_clear(
+                self.model, data, self.shape, tool, self.grasp_cfg.clearance, self.robot.bodies
+            ) and gripper_clear(
+                self.model, data, self.shape, tool @ back, self.grasp_cfg.clearance,
+                self.robot.bodies,
+            ):
+                out.append(g)
+            if len(out) >= self.grasp_cfg.keep:
+                break
+        mujoco.mj_kinematics(self.model, data)  # undo the probe's geom poses
+        return out
+
+    def plan_episode(self, seed: int, randomize_objects: bool = True) -> EpisodePlan | PlanFailure:
+        """Plans one episode (deterministic in ``seed``)."""
+        t0 = time.perf_counter()
+        self._rng = np.random.default_rng(seed)
+        m, robot, setup = self.model, self.robot, self.setup
+        qpos = initial_state(m, robot)
+        if randomize_objects:
+            try:
+                qpos = randomize(
+                    m, qpos, setup.scene, setup.objects, setup.placement, self.ws, self._rng
+                )
+            except TaskError as e:
+                return PlanFailure("no_object_pose", str(e), time.perf_counter() - t0)
+        data = mujoco.MjData(m)
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(m, data)
+        self.checker.set_scene(qpos)
+        self.checker.attach(None)
+        self.checker.ignore_bodies([])
+        if not self.checker.valid(HOME_QPOS):
+            return PlanFailure("collision", "robot at home collides", time.perf_counter() - t0)
+        grasps = self._grasps(data)
+        if not grasps:
+            return PlanFailure(
+                "no_grasp",
+                f"no collision-free antipodal grasp on {setup.objects.pick.id!r}",
+                time.perf_counter() - t0,
+            )
+        counts: Counter[str] = Counter()
+        obj_pose = _pose(data.xpos[self.pick_body], data.xmat[self.pick_body])
+        target_pose = _pose(data.xpos[self.target_body], data.xmat[self.target_body])
+        surface = _surface_height(m, self.target_body, target_pose)
+        pick_bottom = qpos[self.pick_adr + 2]
+        for attempt, g in enumerate(grasps[: self.max_grasps]):
+            result = self._try_grasp(g, qpos, obj_pose, surface, pick_bottom, counts)
+            if isinstance(result, EpisodePlan):
+                result.seconds = time.perf_counter() - t0
+                result.attempts = attempt + 1
+                return result
+        reason = counts.most_common(1)[0][0] if counts else "plan_failed"
+        return PlanFailure(
+            reason,
+            f"{len(grasps[: self.max_grasps])} grasps tried: {dict(counts)}",
+            time.perf_counter() - t0,
+            dict(counts),
+        )
+
+    def _try_grasp(
+        self,
+        g: Grasp,
+        qpos: np.ndarray,
+        obj_pose: np.ndarray,
+        surface: float,
+        pick_bottom: float,
+        counts: Counter[str],
+    ) -> EpisodePlan | None:
+        mo, ck = self.motion, self.checker
+        grasp = obj_pose @ g.pose_tool_in_obj
+        pre = grasp.copy()
+        pre[:3, 3] -= grasp[:3, 2] * mo.pregrasp
+        lift = grasp.copy()
+        lift[2, 3] += mo.lift
+        ck.attach(None)
+        ck.ignore_bodies([])
+        q_pre = self._ik(pre, [HOME_QPOS])
+        if q_pre is None:
+            counts["ik_failed"] += 1
+            return None
+        q_grasp = self._ik(grasp, [q_pre])
+        if q_grasp is None or not ck.segment_valid(q_pre, q_grasp):
+            counts["ik_failed" if q_grasp is None else "approach_collision"] += 1
+            return None
+        pose_obj_in_tool = np.linalg.inv(grasp) @ obj_pose
+        ck.attach(Attachment(self.pick_body, self.pick_adr, pose_obj_in_tool))
+        ck.ignore_bodies([self.support_body])
+        q_lift = self._ik(lift, [q_grasp])
+        if q_lift is None or not ck.segment_valid(q_grasp, q_lift):
+            counts["ik_failed" if q_lift is None else "lift_collision"] += 1
+            return None
+        ck.ignore_bodies([])
+        # Place: the object upright above the target, turned by the first yaw that works.
+        plan_place = None
+        for turn in (0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4):
+            c, s = np.cos(turn), np.sin(turn)
+            rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+            place_obj = np.eye(4)
+            place_obj[:3, :3] = rot @ obj_pose[:3, :3]
+            place_obj[:2, 3] = self._target_xy
+            place_obj[2, 3] = surface + mo.place_drop + (obj_pose[2, 3] - pick_bottom)
+            place = place_obj @ np.linalg.inv(pose_obj_in_tool)
+            preplace = place.copy()
+            preplace[2, 3] += mo.preplace
+            q_preplace = self._ik(preplace, [q_lift])
+            if q_preplace is None:
+                continue
+            q_place = self._ik(place, [q_preplace])
+            if q_place is None or not ck.segment_valid(q_preplace, q_place):
+                continue
+            plan_place = (q_preplace, q_place, place)
+            break
+        if plan_place is None:
+            counts["ik_failed"] += 1
+            return None
+        q_preplace, q_place, place = plan_place
+        retreat = place.copy()
+        retreat[:3, 3] -= place[:3, 2] * mo.pregrasp
+        ck.attach(None)
+        ck.ignore_bodies([self.pick_body])
+        q_retreat = self._ik(retreat, [q_place])
+        if q_retreat is None or not ck.segment_valid(q_place, q_retreat):
+            counts["ik_failed" if q_retreat is None else "retreat_collision"] += 1
+            return None
+        # Free-space motions.
+        ck.ignore_bodies([])
+        seconds: dict[str, float] = {}
+        seed = int(self._rng.integers(2**31 - 1))
+        reach = plan(ck, HOME_QPOS, q_pre, self.planner_cfg, seed)
+        seconds["reach"] = reach.seconds
+        if reach.path is None:
+            counts["plan_failed"] += 1
+            return None
+        ck.attach(Attachment(self.pick_body, self.pick_adr, pose_obj_in_tool))
+        carry = plan(ck, q_lift, q_preplace, self.planner_cfg, seed + 1)
+        seconds["transport"] = carry.seconds
+        ck.attach(None)
+        if carry.path is None:
+            counts["plan_failed"] += 1
+            return None
+        return self._timeline(qpos, reach.path, q_pre, q_grasp, q_lift, carry.path, q_preplace,
+                              q_place, q_retreat, g.width, seconds)
+
+    @property
+    def _target_xy(self) -> np.ndarray:
+        return np.array(self.checker.base[self._target_adr : self._target_adr + 2])
+
+    @property
+    def _target_adr(self) -> int:
+        return int(self.model.jnt_qposadr[self.model.body_jntadr[self.target_body]])
+
+    def _timeline(
+        self,
+        qpos: np.ndarray,
+        reach: np.ndarray,
+        q_pre: np.ndarray,
+        q_grasp: np.ndarray,
+        q_lift: np.ndarray,
+        carry: np.ndarray,
+        q_preplace: np.ndarray,
+        q_place: np.ndarray,
+        q_retreat: np.ndarray,
+        width: float,
+        seconds: dict[str, float],
+    ) -> EpisodePlan:
+        mo, dt = self.motion, self.dt
+        arm: list[np.ndarray] = []
+        grip: list[float] = []
+        phases: dict[str, int] = {}
+
+        def hold(name: str, q: np.ndarray, secs: float, opening: float) -> None:
+            phases[name] = len(arm)
+            n = max(1, int(round(secs / dt)))
+            arm.extend([q] * n)
+            grip.extend([opening] * n)
+
+        def move(name: str, path: np.ndarray, limits: Limits, opening: float) -> None:
+            phases[name] = len(arm)
+            timed = time_path(path, limits, dt)
+            arm.extend(list(timed.q[1:]))
+            grip.extend([opening] * (len(timed.q) - 1))
+
+        hold("settle", HOME_QPOS, mo.settle, GRIP_OPEN)
+        move("reach", reach, self.fast, GRIP_OPEN)
+        move("approach", np.stack([q_pre, q_grasp]), self.slow, GRIP_OPEN)
+        hold("close", q_grasp, mo.close, GRIP_CLOSED)
+        move("lift", np.stack([q_grasp, q_lift]), self.slow, GRIP_CLOSED)
+        move("transport", carry, self.fast, GRIP_CLOSED)
+        move("lower", np.stack([q_preplace, q_place]), self.slow, GRIP_CLOSED)
+        hold("release", q_place, mo.release, GRIP_OPEN)
+        move("retreat", np.stack([q_place, q_retreat]), self.slow, GRIP_OPEN)
+        hold("hold", q_retreat, mo.hold, GRIP_OPEN)
+        phases["end"] = len(arm)
+        robot = self.robot
+        ctrl = np.zeros((len(arm), self.model.nu))
+        ctrl[:, robot.ctrl_arm] = np.asarray(arm)
+        ctrl[:, robot.ctrl_fingers] = np.stack([robot.gripper_ctrl(o) for o in grip])
+        return EpisodePlan(qpos, ctrl, phases, width, seconds, 0.0, 0)

@@ -1,0 +1,322 @@
+"""The Franka Panda with the Panda gripper, composed from robosuite's MJCF robot models.
+
+robosuite 1.5.1's model classes (:class:`robosuite.models.robots.Panda`,
+:class:`robosuite.models.grippers.PandaGripper`) give the arm and hand MJCF; its environment
+runtime is not used. Here the arm's torque motors become position actuators with the Panda's
+torque limits, robot bodies get gravity compensation (as the real controller does), a pedestal
+holds the base at table height, and a ``wrist`` camera rides on the hand.
+
+Frames: the robot base frame has +x pointing forward (towards the table), +z up; its origin is
+the centre of link0's bottom. The tool frame is the site ``gripper0_grip_site`` between the
+finger pads: +z is the approach direction (out of the palm), +x the closing axis.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+PREFIX = "panda/"
+"""Every name of the robot in a composed model starts with this."""
+ARM_JOINTS: tuple[str, ...] = tuple(f"{PREFIX}robot0_joint{i}" for i in range(1, 8))
+FINGER_JOINTS: tuple[str, str] = (f"{PREFIX}gripper0_finger_joint1", f"{PREFIX}gripper0_finger_joint2")
+TOOL_SITE = f"{PREFIX}gripper0_grip_site"
+HAND_BODY = f"{PREFIX}robot0_right_hand"
+
+
+@dataclass(frozen=True)
+class PandaLimits:
+    """The Franka Emika Panda's joint limits (datasheet), per arm joint.
+
+    Attributes:
+        q_min, q_max: position limits (rad).
+        v_max: velocity limits (rad/s).
+        a_max: acceleration limits (rad/s^2).
+        j_max: jerk limits (rad/s^3).
+        tau_max: torque limits (N m).
+        finger_max: opening per finger (m); the hand opens to twice this.
+        finger_speed: finger speed (m/s).
+    """
+
+    q_min: tuple[float, ...] = (-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973)
+    q_max: tuple[float, ...] = (2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973)
+    v_max: tuple[float, ...] = (2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61)
+    a_max: tuple[float, ...] = (15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0)
+    j_max: tuple[float, ...] = (7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0)
+    tau_max: tuple[float, ...] = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
+    finger_max: float = 0.04
+    finger_speed: float = 0.05
+
+
+PANDA = PandaLimits()
+
+HOME_QPOS = np.array([0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785])
+"""A ready pose above the table (rad): tool about 0.45 m in front of the base, pointing down."""
+
+SQUEEZE = 0.01
+"""How far past closed a finger target goes when grasping (m): ~2000 N/m x (this + contact)."""
+GRIP_CLOSED = -2 * SQUEEZE
+GRIP_OPEN = 2 * 0.04
+
+_KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
+_KV = (450.0, 450.0, 350.0, 350.0, 200.0, 200.0, 200.0)
+
+
+@dataclass(frozen=True)
+class RobotPlacement:
+    """Where the robot stands: base position (m, world) and heading (rad about +z)."""
+
+    x: float
+    y: float
+    z: float
+    yaw: float
+    pedestal: bool = True
+
+    def pos(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.z])
+
+    def quat(self) -> np.ndarray:
+        return np.array([math.cos(self.yaw / 2), 0.0, 0.0, math.sin(self.yaw / 2)])
+
+    def to_world(self, p_base: np.ndarray) -> np.ndarray:
+        """Points ``(..., 3)`` in the base frame -> world frame."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return np.asarray(p_base) @ rot.T + self.pos()
+
+    def to_base(self, p_world: np.ndarray) -> np.ndarray:
+        """Points ``(..., 3)`` in the world frame -> base frame."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return (np.asarray(p_world) - self.pos()) @ rot
+
+
+CAMERAS: dict[str, str] = {
+    "left": "camera_left",
+    "right": "camera_right",
+    "wrist": f"{PREFIX}wrist_camera",
+}
+"""Recording camera name -> camera name in the composed model."""
+
+
+@dataclass(frozen=True)
+class CameraRig:
+    """The recording cameras.
+
+    Third-person cameras look at the workspace centre (``workspace`` m ahead of the base, at
+    base height) from ``offset`` (m, base frame, relative to that centre); ``left`` is on the
+    robot's left (+y). ``wrist`` rides on the hand.
+    """
+
+    workspace: float = 0.5
+    left_offset: tuple[float, float, float] = (-0.05, 0.75, 0.6)
+    right_offset: tuple[float, float, float] = (-0.05, -0.75, 0.6)
+    fovy: float = 50.0
+    wrist_fovy: float = 75.0
+    names: tuple[str, ...] = field(default=("left", "right", "wrist"))
+
+
+def _xml() -> str:
+    """The arm + hand MJCF from robosuite's model classes (absolute mesh paths)."""
+    # robosuite logs set-up hints on import (macros, optional robots); they are not ours.
+    for name in ("robosuite", "robosuite_logs"):
+        logging.getLogger(name).setLevel(logging.ERROR)
+    from robosuite.models.grippers import PandaGripper
+    from robosuite.models.robots import Panda
+
+    robot = Panda()
+    robot.add_gripper(PandaGripper())
+    return str(robot.get_xml())
+
+
+@functools.lru_cache(maxsize=1)
+def _robot_xml() -> str:
+    try:
+        return _xml()
+    except ImportError as e:  # pragma: no cover - the demos extra is part of setup.sh
+        from factory.errors import ConfigError
+
+        raise ConfigError(
+            f"the robot model needs robosuite ({e}): pip install -e '.[demos]'"
+        ) from None
+
+
+def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco.MjSpec:
+    """The Panda arm + gripper as an MjSpec, with position-controlled joints.
+
+    Args:
+        pedestal_height: height of a column under the base (m); 0 for none.
+        wrist_fovy: vertical field of view of the ``wrist`` camera (deg).
+
+    Returns:
+        a spec whose actuators are ``robot0_act1..7`` (joint position targets, rad) and the two
+        finger position actuators (m), in that order.
+    """
+    spec = mujoco.MjSpec.from_string(_robot_xml())
+    spec.compiler.degree = False
+    for act in list(spec.actuators):
+        if act.name.startswith("robot0_torq"):
+            spec.delete(act)
+    fingers = list(spec.actuators)
+    for act in fingers:  # re-added after the arm so that the order is arm, fingers
+        spec.delete(act)
+    for i in range(7):
+        act = spec.add_actuator(name=f"robot0_act{i + 1}", target=f"robot0_joint{i + 1}")
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_position(kp=_KP[i], kv=_KV[i])
+        act.ctrllimited = True
+        act.ctrlrange = [PANDA.q_min[i], PANDA.q_max[i]]
+        act.forcelimited = True
+        act.forcerange = [-PANDA.tau_max[i], PANDA.tau_max[i]]
+    for k in range(2):
+        act = spec.add_actuator(name=f"gripper0_act{k + 1}", target=f"gripper0_finger_joint{k + 1}")
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_position(kp=2000.0, kv=20.0)
+        act.ctrllimited = True
+        # Targets reach past the closed stop so that a closed hand keeps squeezing.
+        act.ctrlrange = (
+            [-SQUEEZE, PANDA.finger_max] if k == 0 else [-PANDA.finger_max, SQUEEZE]
+        )
+        act.forcelimited = True
+        act.forcerange = [-40.0, 40.0]
+    for body in spec.bodies:
+        if body.name.startswith(("robot0_", "gripper0_")):
+            body.gravcomp = 1.0
+    # Finger pads grip; high friction and soft enough contacts, as robosuite sets them.
+    for geom in spec.geoms:
+        if "pad_collision" in geom.name:
+            geom.friction = [2.0, 0.05, 0.0001]
+            geom.condim = 4
+    hand = spec.body("robot0_right_hand")
+    hand.add_camera(
+        name="wrist_camera", pos=[0.05, 0.0, 0.0], quat=[0.0, 0.707108, 0.707108, 0.0], fovy=wrist_fovy
+    )
+    base = spec.body("robot0_base")
+    if pedestal_height > 0:
+        base.add_geom(
+            name="robot0_pedestal",
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+            size=[0.11, pedestal_height / 2, 0],
+            pos=[-0.02, 0.0, -pedestal_height / 2],
+            rgba=[0.2, 0.2, 0.22, 1.0],
+        )
+    return spec
+
+
+def _look_quat(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Quaternion of a MuJoCo camera at ``eye`` looking at ``target`` (world z up)."""
+    fwd = target - eye
+    fwd = fwd / np.linalg.norm(fwd)
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    right = right / np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    mat = np.stack([right, up, -fwd], axis=1)  # camera x, y, z axes as columns
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, mat.reshape(-1))
+    return q
+
+
+def add_robot(
+    spec: mujoco.MjSpec,
+    placement: RobotPlacement,
+    rig: CameraRig | None = None,
+) -> None:
+    """Attaches the Panda and the recording cameras to a scene spec (in place).
+
+    Args:
+        spec: the scene's spec (see :func:`factory.sim.compile.build_spec`).
+        placement: where the base stands; with ``pedestal`` a column reaches the floor.
+        rig: the third-person cameras; default :class:`CameraRig`.
+    """
+    rig = rig or CameraRig()
+    robot = panda_spec(placement.z if placement.pedestal else 0.0, rig.wrist_fovy)
+    frame = spec.worldbody.add_frame(pos=placement.pos().tolist(), quat=placement.quat().tolist())
+    spec.attach(robot, frame=frame, prefix=PREFIX)
+    center = placement.to_world(np.array([rig.workspace, 0.0, 0.0]))
+    for name, offset in (("left", rig.left_offset), ("right", rig.right_offset)):
+        eye = placement.to_world(np.array([rig.workspace, 0.0, 0.0]) + np.asarray(offset))
+        spec.worldbody.add_camera(
+            name=CAMERAS[name], pos=eye.tolist(), quat=_look_quat(eye, center).tolist(), fovy=rig.fovy
+        )
+
+
+def robot_model() -> mujoco.MjModel:
+    """The robot alone (base at the origin, no pedestal), for IK; names as in a scene."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    spec.attach(panda_spec(), frame=spec.worldbody.add_frame(), prefix=PREFIX)
+    return spec.compile()
+
+
+@dataclass
+class RobotIndex:
+    """Addresses of the robot in a compiled model (ids into qpos, qvel, ctrl, bodies, geoms).
+
+    Attributes:
+        qpos: arm joint qpos addresses (7,).
+        dof: arm joint dof addresses (7,).
+        finger_qpos: finger joint qpos addresses (2,).
+        ctrl_arm: arm actuator indices (7,); ctrl_fingers: finger actuator indices (2,).
+        site: the tool site id; hand: the hand body id.
+        geoms: every robot geom that collides (contype or conaffinity set).
+        finger_geoms: geoms of the finger bodies (allowed to touch the grasped object).
+        bodies: robot body ids.
+    """
+
+    qpos: np.ndarray
+    dof: np.ndarray
+    finger_qpos: np.ndarray
+    ctrl_arm: np.ndarray
+    ctrl_fingers: np.ndarray
+    site: int
+    hand: int
+    geoms: np.ndarray
+    finger_geoms: np.ndarray
+    bodies: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> RobotIndex:
+        def jq(name: str) -> int:
+            return int(model.jnt_qposadr[model.joint(name).id])
+
+        bodies = np.array(
+            [b for b in range(model.nbody) if model.body(b).name.startswith(PREFIX)]
+        )
+        in_robot = np.isin(model.geom_bodyid, bodies)
+        collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+        finger_bodies = [
+            b
+            for b in bodies
+            if "finger" in model.body(b).name or model.body(b).name == "gripper0_right_gripper"
+        ]
+        return cls(
+            qpos=np.array([jq(j) for j in ARM_JOINTS]),
+            dof=np.array([int(model.jnt_dofadr[model.joint(j).id]) for j in ARM_JOINTS]),
+            finger_qpos=np.array([jq(j) for j in FINGER_JOINTS]),
+            ctrl_arm=np.array([model.actuator(f"{PREFIX}robot0_act{i + 1}").id for i in range(7)]),
+            ctrl_fingers=np.array(
+                [model.actuator(f"{PREFIX}gripper0_act{k + 1}").id for k in range(2)]
+            ),
+            site=int(model.site(TOOL_SITE).id),
+            hand=int(model.body(HAND_BODY).id),
+            geoms=np.flatnonzero(in_robot & collides),
+            finger_geoms=np.flatnonzero(np.isin(model.geom_bodyid, finger_bodies) & collides),
+            bodies=bodies,
+        )
+
+    def gripper_ctrl(self, opening: float) -> np.ndarray:
+        """Finger targets (2,) for a total opening (m): 0.08 open, negative squeezes."""
+        half = float(np.clip(opening / 2, -SQUEEZE, PANDA.finger_max))
+        return np.array([half, -half])
+
+    def finger_pos(self, opening: float) -> np.ndarray:
+        """Finger joint positions (2,) for a total opening (m), within the joint range."""
+        half = float(np.clip(opening / 2, 0.0, PANDA.finger_max))
+        return np.array([half, -half])
