@@ -209,6 +209,47 @@ class ExportConfig:
 
 
 @dataclass
+class DemosConfig:
+    """``stage=demos``: planned, recorded robot demonstrations in every scene (task=...).
+
+    Attributes:
+        episodes_per_scene: successful episodes wanted per scene.
+        attempts: tries per episode (new object poses and seeds) before it counts as failed.
+        batch: episodes executed together in one batched simulation.
+        workers: planning processes (0: one per core; 1: plan in this process).
+        nthread: simulation threads of the batch (0: one per core).
+        randomize: new task-object poses per episode (configuration-level randomization).
+        fps: recording rate (Hz).
+        width, height: image size (px).
+        cameras: ``left``, ``right`` (third-person views of the table), ``wrist``.
+        depth: ``uint16_mm`` or ``float32`` (metres).
+        render: record images (off: states and robot signals only).
+        backend: execution backend: ``cpu`` (mujoco.batch).
+        plan_timeout: seconds per RRTConnect query.
+        speed: share of the Panda's velocity limit for free motions (acceleration and jerk
+            use 0.6 and 0.4 of it).
+        max_grasps: grasp candidates tried per episode.
+    """
+
+    episodes_per_scene: int = 4
+    attempts: int = 3
+    batch: int = 16
+    workers: int = 1
+    nthread: int = 0
+    randomize: bool = True
+    fps: float = 20.0
+    width: int = 128
+    height: int = 128
+    cameras: list[str] = field(default_factory=lambda: ["left", "right", "wrist"])
+    depth: str = "uint16_mm"
+    render: bool = True
+    backend: str = "cpu"
+    plan_timeout: float = 5.0
+    speed: float = 0.5
+    max_grasps: int = 12
+
+
+@dataclass
 class AllConfig:
     """``stage=all``: the stages to run, in order."""
 
@@ -227,6 +268,7 @@ class FactoryConfig:
         seed: the root random seed.
         force: redo finished items instead of skipping them.
         log_level: ``DEBUG``, ``INFO``, ``WARNING`` or ``ERROR``.
+        task: the robot task of ``stage=demos`` (``pick_place``).
     """
 
     stage: str = "list"
@@ -235,6 +277,7 @@ class FactoryConfig:
     seed: int = 0
     force: bool = False
     log_level: str = "INFO"
+    task: str = "pick_place"
     shard: ShardConfig = field(default_factory=ShardConfig)
     ingest: IngestConfig = field(default_factory=IngestConfig)
     assets: AssetsConfig = field(default_factory=AssetsConfig)
@@ -245,6 +288,7 @@ class FactoryConfig:
     validate: ValidateConfig = field(default_factory=ValidateConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
     export: ExportConfig = field(default_factory=ExportConfig)
+    demos: DemosConfig = field(default_factory=DemosConfig)
     all: AllConfig = field(default_factory=AllConfig)
 
 

@@ -24,6 +24,7 @@ STAGES: dict[str, str] = {
     "validate": "factory.sim.validate:run",
     "render": "factory.scenes.build:run_render",
     "export": "factory.scenes.build:run_export",
+    "demos": "factory.demos.stage:run",
     "all": "factory.stages:run_all",
 }
 """Every stage, in pipeline order."""
@@ -40,6 +41,7 @@ DESCRIPTIONS: dict[str, str] = {
     "validate": "physics metrics per scene (collision %, stability %); validate.repair=true",
     "render": "render top-down and corner views: scenes/<id>/renders/*.png",
     "export": "write scenes back out (export.format=sage: layout JSON + PLY meshes)",
+    "demos": "recorded robot demonstrations (task=pick_place): episodes/shard-<k>.zarr",
     "all": "run the stages listed in all.stages, in order",
 }
 

@@ -73,7 +73,12 @@ class Recording:
 
 
 class FrameRenderer:
-    """Renders the recording cameras of a composed model from states."""
+    """Renders the recording cameras of a composed model: RGB and depth from one GL pass.
+
+    Shadows and reflections are off (they cost several times the image at this size);
+    collision geoms (group 3) and sites are hidden. Depth is the depth buffer of the RGB pass,
+    so it matches the image: transparent geoms (window glass) do not occlude.
+    """
 
     def __init__(self, model: mujoco.MjModel, cfg: RecordConfig) -> None:
         from factory.scenes.gl import configure_gl
@@ -81,24 +86,48 @@ class FrameRenderer:
         configure_gl("auto")
         self.model = model
         self.cfg = cfg
-        self.data = mujoco.MjData(model)
         self.renderer = mujoco.Renderer(model, cfg.height, cfg.width)
+        flags = self.renderer.scene.flags
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        self.option = mujoco.MjvOption()
+        self.option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
+        self.option.sitegroup[:] = 0
         self.cams = [model.camera(CAMERAS[c]).id for c in cfg.cameras]
+        self._rgb = np.empty((cfg.height, cfg.width, 3), np.uint8)
+        self._z = np.empty((cfg.height, cfg.width), np.float32)
+        extent = model.stat.extent
+        self._near = np.float32(model.vis.map.znear * extent)
+        self._far = np.float32(model.vis.map.zfar * extent)
         self.frames = 0
 
+    def _metric(self, z: np.ndarray) -> np.ndarray:
+        """Reversed-Z depth buffer -> distance along the optical axis (m), as mujoco.Renderer."""
+        near, far = self._near, self._far
+        c = -(far + near) / (far - near)
+        d = -(np.float32(2) * far * near) / (far - near)
+        c = np.float32(-0.5) * c - np.float32(0.5)
+        d = np.float32(-0.5) * d
+        return (d / (z.astype(np.float64) + c)).astype(np.float32)
+
     def render(self, data: mujoco.MjData) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """RGB (H, W, 3) uint8 and depth (H, W) images per camera of a state in ``data``."""
-        rgbs, depths = [], []
+        """RGB (H, W, 3) uint8 and depth (H, W) images per camera of the state in ``data``.
+
+        ``data`` needs current kinematics (``mj_forward`` or ``mj_kinematics`` + ``mj_camlight``).
+        """
         r = self.renderer
+        r._gl_context.make_current()
+        rect, ctx = r._rect, r._mjr_context  # one render, both buffers read
+        rgbs, depths = [], []
         for cam in self.cams:
-            r.update_scene(data, camera=cam)
-            rgbs.append(r.render().copy())
-            r.enable_depth_rendering()
-            d = r.render().copy()
-            r.disable_depth_rendering()
+            r.update_scene(data, camera=cam, scene_option=self.option)
+            mujoco.mjr_render(rect, r.scene, ctx)
+            mujoco.mjr_readPixels(self._rgb, self._z, rect, ctx)
+            rgbs.append(np.flipud(self._rgb).copy())
+            depth = self._metric(np.flipud(self._z))
             if self.cfg.depth == "uint16_mm":
-                d = np.clip(np.round(d * 1000.0), 0, 65535).astype(np.uint16)
-            depths.append(d)
+                depth = np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
+            depths.append(depth)
         self.frames += 1
         return rgbs, depths
 

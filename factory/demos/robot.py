@@ -189,11 +189,14 @@ def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco
     for body in spec.bodies:
         if body.name.startswith(("robot0_", "gripper0_")):
             body.gravcomp = 1.0
-    # Finger pads grip; high friction and soft enough contacts, as robosuite sets them.
+    # Finger pads grip with high friction, as robosuite sets them. Collision geoms go to
+    # group 3, which cameras do not draw (the visual meshes are in groups 1-2).
     for geom in spec.geoms:
         if "pad_collision" in geom.name:
             geom.friction = [2.0, 0.05, 0.0001]
             geom.condim = 4
+        if geom.contype or geom.conaffinity:
+            geom.group = 3
     hand = spec.body("robot0_right_hand")
     hand.add_camera(
         name="wrist_camera", pos=[0.05, 0.0, 0.0], quat=[0.0, 0.707108, 0.707108, 0.0], fovy=wrist_fovy
