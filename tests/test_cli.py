@@ -33,7 +33,8 @@ def test_help_and_list(cli) -> None:
 
 def test_small_profile_end_to_end(cli, tmp_path: Path) -> None:
     run = tmp_path / "run"
-    out = cli("stage=all", "profile=small", f"run_dir={run}")
+    stages = "all.stages=[ingest,compile,validate,render]"
+    out = cli("stage=all", "profile=small", f"run_dir={run}", stages)
     assert out.returncode == 0, out.stderr
     scene_dir = run / "scenes" / "kitchen_pick_place"
     assert (scene_dir / "scene.json").is_file() and (scene_dir / "model.xml").is_file()
@@ -45,7 +46,7 @@ def test_small_profile_end_to_end(cli, tmp_path: Path) -> None:
     assert not list(Path.cwd().glob("outputs"))  # Hydra wrote nothing to the cwd
     # idempotent: a re-run skips everything and changes nothing
     before = {p: p.stat().st_mtime_ns for p in scene_dir.rglob("*") if p.is_file()}
-    again = cli("stage=all", "profile=small", f"run_dir={run}")
+    again = cli("stage=all", "profile=small", f"run_dir={run}", stages)
     assert again.returncode == 0, again.stderr
     after = {p: p.stat().st_mtime_ns for p in scene_dir.rglob("*") if p.is_file()}
     assert before == after
@@ -64,6 +65,7 @@ def test_sage_zip_ingest_compile_export(cli, tmp_path: Path, sage_package: Path,
         "stage=all",
         "profile=small",
         f"run_dir={run}",
+        "all.stages=[ingest,compile,validate,render]",
         f"ingest.source={archive}",
         "render.views=[top]",
     )

@@ -257,9 +257,7 @@ def execute(
             rec.gripper[frame, 0] = width
             rec.ee_pose[frame] = ee
             step = min((frame + 1) * per_frame, lengths[i]) - 1
-            nxt = plans[i].ctrl[step]
-            fingers = nxt[robot.ctrl_fingers]
-            rec.action[frame] = np.concatenate([nxt[robot.ctrl_arm], [fingers[0] - fingers[1]]])
+            rec.action[frame] = plans[i].targets[step]
             if own is not None:
                 rgbs, depths = own.render(data)
                 for c, im, dp in zip(cfg.cameras, rgbs, depths, strict=True):

@@ -102,7 +102,10 @@ class EpisodePlan:
 
     Attributes:
         qpos0: initial state (nq,).
-        ctrl: control targets per physics step (T, nu).
+        ctrl: actuator controls per physics step (T, nu): desired joint positions plus a
+            velocity lead (``kv/kp * qd``) so that the PD actuators track without lag.
+        targets: desired arm joint positions (rad) and gripper command (m) per physics step
+            (T, 8): the recorded action.
         phases: phase name -> first physics step.
         grasp_width: span of the chosen grasp (m).
         plan_seconds: planning time per planned segment (s), by segment name.
@@ -112,6 +115,7 @@ class EpisodePlan:
 
     qpos0: np.ndarray
     ctrl: np.ndarray
+    targets: np.ndarray
     phases: dict[str, int]
     grasp_width: float
     plan_seconds: dict[str, float]
@@ -452,6 +456,7 @@ class EpisodePlanner:
     ) -> EpisodePlan:
         mo, dt = self.motion, self.dt
         arm: list[np.ndarray] = []
+        vel: list[np.ndarray] = []
         grip: list[float] = []
         phases: dict[str, int] = {}
 
@@ -459,12 +464,14 @@ class EpisodePlanner:
             phases[name] = len(arm)
             n = max(1, int(round(secs / dt)))
             arm.extend([q] * n)
+            vel.extend([np.zeros(7)] * n)
             grip.extend([opening] * n)
 
         def move(name: str, path: np.ndarray, limits: Limits, opening: float) -> None:
             phases[name] = len(arm)
             timed = time_path(path, limits, dt)
             arm.extend(list(timed.q[1:]))
+            vel.extend(list(timed.qd[1:]))
             grip.extend([opening] * (len(timed.q) - 1))
 
         hold("settle", HOME_QPOS, mo.settle, GRIP_OPEN)
@@ -479,7 +486,12 @@ class EpisodePlanner:
         hold("hold", q_retreat, mo.hold, GRIP_OPEN)
         phases["end"] = len(arm)
         robot = self.robot
-        ctrl = np.zeros((len(arm), self.model.nu))
-        ctrl[:, robot.ctrl_arm] = np.asarray(arm)
+        m = self.model
+        lead = -m.actuator_biasprm[robot.ctrl_arm, 2] / m.actuator_gainprm[robot.ctrl_arm, 0]
+        ctrl = np.zeros((len(arm), m.nu))
+        ctrl[:, robot.ctrl_arm] = np.asarray(arm) + lead * np.asarray(vel)
         ctrl[:, robot.ctrl_fingers] = np.stack([robot.gripper_ctrl(o) for o in grip])
-        return EpisodePlan(qpos, ctrl, phases, width, seconds, 0.0, 0)
+        lo, hi = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+        ctrl = np.clip(ctrl, lo, hi)
+        targets = np.concatenate([np.asarray(arm), np.asarray(grip)[:, None]], axis=1)
+        return EpisodePlan(qpos, ctrl, targets, phases, width, seconds, 0.0, 0)

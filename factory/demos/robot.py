@@ -297,7 +297,7 @@ class RobotIndex:
         finger_bodies = [
             b
             for b in bodies
-            if "finger" in model.body(b).name or model.body(b).name == "gripper0_right_gripper"
+            if "finger" in model.body(b).name or model.body(b).name == f"{PREFIX}gripper0_right_gripper"
         ]
         return cls(
             qpos=np.array([jq(j) for j in ARM_JOINTS]),

@@ -1,0 +1,384 @@
+"""Demonstrations: grasps, IK, planning, timing, success check, execution, storage, replay."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+pytest.importorskip("robosuite")
+pytest.importorskip("ompl")
+
+from factory.demos.episodes import EpisodeStore  # noqa: E402
+from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute  # noqa: E402
+from factory.demos.grasps import (  # noqa: E402
+    GraspConfig,
+    GripperShape,
+    antipodal_candidates,
+    collision_pieces,
+    gripper_clear,
+)
+from factory.demos.ik import IKSolver  # noqa: E402
+from factory.demos.pick_place import (  # noqa: E402
+    EpisodePlan,
+    EpisodePlanner,
+    PlanFailure,
+    setup_scene,
+)
+from factory.demos.planner import CollisionChecker, PlannerConfig, plan  # noqa: E402
+from factory.demos.robot import HOME_QPOS, PANDA, RobotIndex  # noqa: E402
+from factory.demos.task import check_success, initial_state, task_objects  # noqa: E402
+from factory.demos.timing import Limits, time_path, time_segment  # noqa: E402
+from factory.errors import StoreError, TaskError  # noqa: E402
+from factory.scenes.assets import AssetLibrary  # noqa: E402
+from factory.scenes.tools import ToolSession  # noqa: E402
+from factory.schema import Scene, scene_to_json  # noqa: E402
+from factory.schema.episode import episode_info_from_dict  # noqa: E402
+
+
+def _kitchen(assets: Path, seed: int = 3) -> Scene:
+    """A kitchen with a dining table, a mug (pick) and a bowl (target) on it."""
+    session = ToolSession(AssetLibrary(assets), physics=False)
+    assert session.init_scene("a kitchen", seed=seed)["ok"]
+    table = session.place_objects("dining table", placement="floor", rule="center")
+    assert table["ok"], table
+    tid = table["placed"][0]
+    for text, role in (("bowl", "place_target"), ("mug", "pick")):
+        res = session.place_objects(text, placement="on_top", target=tid, task_role=role)
+        assert res["ok"], res
+    session.place_objects("plate", placement="on_top", target=tid)
+    scene = session.scene
+    scene.task = None
+    return scene
+
+
+@pytest.fixture(scope="module")
+def kitchen(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scene, Path]:
+    assets = tmp_path_factory.mktemp("assets")
+    return _kitchen(assets), assets
+
+
+@pytest.fixture(scope="module")
+def setup(kitchen):
+    scene, assets = kitchen
+    return setup_scene(scene, assets)
+
+
+@pytest.fixture(scope="module")
+def planner(setup) -> EpisodePlanner:
+    return EpisodePlanner(setup)
+
+
+@pytest.fixture(scope="module")
+def planned(planner) -> list[EpisodePlan]:
+    plans = []
+    for seed in range(6):
+        res = planner.plan_episode(seed)
+        if isinstance(res, EpisodePlan):
+            plans.append(res)
+        if len(plans) == 2:
+            break
+    assert len(plans) == 2, "two of six seeds must plan"
+    return plans
+
+
+# ---- grasps
+
+
+@pytest.mark.parametrize("category", ["mug", "bowl"])
+def test_antipodal_grasps(setup, category: str) -> None:
+    model = setup.model
+    obj = next(o for o in setup.scene.objects if o.category == category)
+    body = model.body(obj.id).id
+    data = mujoco.MjData(model)
+    data.qpos[:] = initial_state(model, setup.robot)
+    mujoco.mj_kinematics(model, data)
+    pieces = collision_pieces(model, body)
+    rot = data.xmat[body].reshape(3, 3)
+    cfg = GraspConfig()
+    grasps = antipodal_candidates(pieces, rot, cfg, np.random.default_rng(0))
+    assert len(grasps) > 10
+    scores = [g.score for g in grasps]
+    assert scores == sorted(scores, reverse=True)
+    cone = 1 / np.sqrt(1 + cfg.friction**2)
+    for g in grasps[:20]:
+        assert cfg.min_width <= g.width <= 2 * PANDA.finger_max - cfg.width_margin
+        assert g.quality >= cone and g.contact >= cfg.min_contact
+        a = g.pose_tool_in_obj[:3, 0]  # closing axis
+        d = g.pose_tool_in_obj[:3, 2]  # approach
+        assert abs(a @ d) < 1e-6
+        span = g.contacts_in_obj[1] - g.contacts_in_obj[0]
+        assert np.allclose(span / np.linalg.norm(span), a, atol=1e-6)
+        assert (rot @ d)[2] <= -np.cos(np.radians(cfg.max_tilt_deg)) + 1e-9
+    # the open gripper at the best grasps is clear of the scene; sunk into the table it is not
+    shape = GripperShape.of(model, setup.robot, 0.08)
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = rot, data.xpos[body]
+    clear = [
+        gripper_clear(model, data, shape, pose @ g.pose_tool_in_obj, 0.002, setup.robot.bodies)
+        for g in grasps[:200]
+    ]
+    assert any(clear)
+    sunk = pose @ grasps[0].pose_tool_in_obj
+    sunk[2, 3] -= 0.1  # fingers into the table top
+    assert not gripper_clear(model, data, shape, sunk, 0.002, setup.robot.bodies)
+
+
+def test_grasp_rejects_object_wider_than_hand() -> None:
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="crate")
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1])
+    model = spec.compile()
+    pieces = collision_pieces(model, model.body("crate").id)
+    assert antipodal_candidates(pieces, np.eye(3), GraspConfig(), np.random.default_rng(0)) == []
+
+
+# ---- IK
+
+
+def test_ik_reaches_and_respects_limits() -> None:
+    ik = IKSolver(seed=1)
+    home = ik.tool_pose(HOME_QPOS)
+    rng = np.random.default_rng(0)
+    for _ in range(8):
+        target = home.copy()
+        target[:3, 3] += rng.uniform([-0.1, -0.3, -0.3], [0.2, 0.3, 0.0])
+        q = ik.solve(target)
+        assert q is not None
+        assert np.all(q >= np.array(PANDA.q_min) - 1e-6) and np.all(q <= np.array(PANDA.q_max))
+        reached = ik.tool_pose(q)
+        assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) < 0.003
+        cos = (np.trace(reached[:3, :3].T @ target[:3, :3]) - 1) / 2
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 1.5
+    far = home.copy()
+    far[:3, 3] = [1.6, 0.0, 0.3]  # beyond the Panda's 0.855 m reach
+    assert ik.solve(far) is None
+
+
+# ---- planning
+
+
+def test_planned_path_is_collision_free_at_fine_resolution(setup, planner) -> None:
+    model, robot = setup.model, setup.robot
+    checker = CollisionChecker(model, robot, initial_state(model, robot))
+    # a goal on the other side of the table edge: the straight line dips into the table
+    ik = planner.ik
+    base_inv = planner.base_inv
+    top = setup.objects.pick.position.z
+    pose = np.eye(4)
+    pose[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    pose[:3, 3] = setup.placement.to_world(np.array([0.45, 0.25, 0.0])) + [0, 0, 0.06 - 0.0]
+    pose[2, 3] = top + 0.06
+    goal = ik.solve(base_inv @ pose, [HOME_QPOS], accept=checker.valid)
+    assert goal is not None
+    res = plan(checker, HOME_QPOS, goal, PlannerConfig(timeout=5.0), seed=0)
+    assert res.path is not None, res.reason
+    assert np.allclose(res.path[0], HOME_QPOS) and np.allclose(res.path[-1], goal)
+    # independent re-check at 0.005 rad joint steps
+    for a, b in zip(res.path[:-1], res.path[1:], strict=True):
+        n = int(np.ceil(np.abs(b - a).max() / 0.005))
+        for k in range(n + 1):
+            assert checker.valid(a + (b - a) * k / n)
+    # a goal inside the table is refused with a reason
+    sunk = goal.copy()
+    bad = plan(checker, HOME_QPOS, _inside_table(checker, ik, base_inv, pose), PlannerConfig())
+    assert bad.path is None and "collision" in bad.reason
+    assert sunk is not None
+
+
+def _inside_table(checker, ik, base_inv, pose) -> np.ndarray:
+    low = pose.copy()
+    low[2, 3] -= 0.12
+    q = ik.solve(base_inv @ low, [HOME_QPOS])
+    assert q is not None and not checker.valid(q)
+    return q
+
+
+# ---- timing
+
+
+def test_ruckig_respects_limits_and_stays_on_segments() -> None:
+    limits = Limits.panda(0.5, 0.3, 0.2)
+    path = np.stack([HOME_QPOS, HOME_QPOS + 0.6, HOME_QPOS - np.array([0.3, 0, 0.2, 0.1, 0, 0.4, 0])])
+    path[:, 3] = np.clip(path[:, 3], PANDA.q_min[3], PANDA.q_max[3])
+    dt = 0.002
+    timed = time_path(path, limits, dt)
+    assert np.allclose(timed.q[0], path[0]) and np.allclose(timed.q[-1], path[-1])
+    assert np.all(np.abs(timed.qd) <= limits.v + 1e-6)
+    assert np.all(np.abs(timed.qdd) <= limits.a + 1e-6)
+    jerk = np.diff(timed.qdd, axis=0) / dt
+    assert np.all(np.abs(jerk) <= limits.j * 1.01 + 1e-6)
+    # finite differences agree with ruckig's velocities
+    assert np.allclose(np.diff(timed.q, axis=0) / dt, 0.5 * (timed.qd[1:] + timed.qd[:-1]), atol=1e-2)
+    # phase synchronization: every sample of a segment lies on the straight segment
+    seg = time_segment(path[0], path[1], limits, dt)
+    direction = (path[1] - path[0]) / np.linalg.norm(path[1] - path[0])
+    rel = seg.q - path[0]
+    off_line = rel - np.outer(rel @ direction, direction)
+    assert np.abs(off_line).max() < 1e-6
+    with pytest.raises(ValueError, match="scale"):
+        Limits.panda(1.5)
+
+
+# ---- execution, success, storage, replay
+
+
+def test_execution_success_and_replay(setup, planned, tmp_path: Path) -> None:
+    cfg = RecordConfig(width=64, height=64)
+    recs = execute(setup, planned, cfg, nthread=2)
+    assert len(recs) == 2
+    for rec, plan_ in zip(recs, planned, strict=True):
+        assert rec.outcome is not None and rec.outcome.success, rec.outcome
+        assert rec.outcome.details["lift_m"] > 0.1
+        n = len(rec.time)
+        assert rec.state.shape[0] == rec.joint_pos.shape[0] == rec.action.shape[0] == n
+        assert rec.rgb["wrist"].shape == (n, 64, 64, 3) and rec.depth["left"].dtype == np.uint16
+        assert 300 < np.median(rec.depth["left"]) < 5000  # mm: the table is ~0.5-2 m away
+        # the action (desired joints at the end of a frame) is tracked within 10 mrad
+        assert np.abs(rec.action[:-1, :7] - rec.joint_pos[1:]).max() < 0.01
+        assert len(plan_.ctrl) <= (n - 1) * 25
+    # replay: recorded states reproduce the recorded images exactly
+    model, rec = setup.model, recs[0]
+    renderer = FrameRenderer(model, cfg)
+    data = mujoco.MjData(model)
+    for frame in (0, len(rec.time) // 2, len(rec.time) - 1):
+        mujoco.mj_setState(model, data, rec.state[frame], STATE_SPEC)
+        mujoco.mj_forward(model, data)
+        rgbs, depths = renderer.render(data)
+        for cam, im, dp in zip(cfg.cameras, rgbs, depths, strict=True):
+            assert np.array_equal(im, rec.rgb[cam][frame])
+            assert np.array_equal(dp, rec.depth[cam][frame])
+    renderer.close()
+    # replay of the physics: the states step into the recorded ones
+    data2 = mujoco.MjData(model)
+    mujoco.mj_setState(model, data2, rec.state[10], STATE_SPEC)
+    for step in range(25):
+        data2.ctrl[:] = planned[0].ctrl[10 * 25 + step]
+        mujoco.mj_step(model, data2)
+    out = np.zeros(mujoco.mj_stateSize(model, STATE_SPEC))
+    mujoco.mj_getState(model, data2, out, STATE_SPEC)
+    assert np.allclose(out, rec.state[11], atol=1e-9)
+
+
+def test_success_check_on_failure(setup, planned) -> None:
+    # Without closing the hand the mug never leaves the table: a slip.
+    p = planned[0]
+    robot = setup.robot
+    ctrl = p.ctrl.copy()
+    ctrl[:, robot.ctrl_fingers] = robot.gripper_ctrl(0.08)
+    rec = execute(setup, [replace(p, ctrl=ctrl)], RecordConfig(render=False))[0]
+    assert rec.outcome is not None and not rec.outcome.success
+    assert rec.outcome.reason == "slip"
+    # The object left where it started is not on the target.
+    q0 = p.qpos0
+    out = check_success(
+        setup.model, q0, q0, 0.5, 0.0, setup.objects, robot, max_robot_penetration=0.0
+    )
+    assert not out.success and out.reason == "not_on_target"
+
+
+def test_missing_task_objects_and_unreachable(kitchen) -> None:
+    scene, assets = kitchen
+    bare = Scene.__new__(Scene)
+    bare.__dict__.update(scene.__dict__)
+    bare.objects = [replace(o, task_role=None) for o in scene.objects]
+    with pytest.raises(TaskError, match="no a pick object|no a place target|pick object"):
+        task_objects(bare)
+    ik = IKSolver()
+    assert ik.solve(np.diag([1.0, -1.0, -1.0, 1.0]) + np.array([[0, 0, 0, 2.0]] * 3 + [[0] * 4])) is None
+
+
+# ---- episode store
+
+
+def test_episode_store_atomic_and_checked(tmp_path: Path) -> None:
+    from factory.schema.episode import EpisodeInfo, RobotBase
+
+    store = EpisodeStore(tmp_path / "episodes" / "shard-0.zarr")
+    info = EpisodeInfo(
+        episode_id="s-ep000", scene_id="s", task="pick_place", instruction="x", seed=1,
+        success=True, failure_reason="", pick_id="mug", target_id="bowl", support_id="table",
+        robot=RobotBase(0, 0, 0.7, 0), fps=20.0, timestep=0.002, n_frames=3,
+        cameras=["left"], image_size=[4, 4], depth_format="uint16_mm",
+        state_spec=int(STATE_SPEC),
+    )
+    arrays = {
+        "time": np.arange(3) / 20.0,
+        "action": np.ones((3, 8), np.float32),
+        "rgb/left": np.zeros((3, 4, 4, 3), np.uint8),
+    }
+    store.write(info, arrays)
+    assert store.episode_ids() == ["s-ep000"] and "s-ep000" in store
+    assert store.info("s-ep000") == info
+    assert np.array_equal(store.arrays("s-ep000")["action"][:], arrays["action"])
+    with pytest.raises(StoreError, match="already"):
+        store.write(info, arrays)
+    bad = replace(info, episode_id="s-ep001", n_frames=4)
+    with pytest.raises(StoreError, match="n_frames"):
+        store.write(bad, arrays)
+    # a killed writer leaves only a staging folder, which is not an episode and is cleaned
+    (store.staging / "s-ep002.123").mkdir(parents=True)
+    assert store.episode_ids() == ["s-ep000"]
+    store.clean_staging()
+    assert not store.staging.exists()
+    raw = json.loads((store.path / "s-ep000" / "zarr.json").read_text())["attributes"]
+    raw["schema_version"] = 99
+    with pytest.raises(Exception, match="schema_version"):
+        episode_info_from_dict(raw)
+
+
+# ---- the stage, through the CLI
+
+
+def test_demos_stage_cli(cli, kitchen, tmp_path: Path) -> None:
+    scene, assets = kitchen
+    run = tmp_path / "run"
+    (run / "scenes" / scene.id).mkdir(parents=True)
+    (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    # a second scene without task objects: reported, the run goes on
+    bare = replace(scene, id="no_task", objects=[replace(o, task_role=None) for o in scene.objects])
+    (run / "scenes" / "no_task").mkdir()
+    (run / "scenes" / "no_task" / "scene.json").write_text(scene_to_json(bare))
+    import shutil
+
+    shutil.copytree(assets, run / "assets")
+    out = cli(
+        "stage=demos", f"run_dir={run}", "demos.episodes_per_scene=1", "demos.width=32",
+        "demos.height=32", "task=pick_place",
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
+    assert summary["new_successes"] == 1 and summary["episodes_stored"] == 1
+    assert "no place target" in summary["scenes"]["no_task"]["error"] or "no a pick" in summary[
+        "scenes"]["no_task"]["error"]
+    store = EpisodeStore(run / "episodes" / "shard-0.zarr")
+    (eid,) = store.episode_ids()
+    info = store.info(eid)
+    assert info.success and info.scene_id == scene.id and info.n_frames > 50
+    g = store.arrays(eid)
+    assert g["rgb/left"].shape == (info.n_frames, 32, 32, 3)
+    # resume: nothing left to do
+    again = cli("stage=demos", f"run_dir={run}", "demos.episodes_per_scene=1")
+    assert again.returncode == 0
+    assert json.loads((run / "episodes" / "summary-0-of-1.json").read_text())["new_successes"] == 0
+    bad = cli("stage=demos", f"run_dir={run}", "task=fold_laundry")
+    assert bad.returncode == 2 and "unknown task" in bad.stderr
+
+
+def test_robot_index(setup) -> None:
+    robot: RobotIndex = setup.robot
+    model = setup.model
+    assert len(robot.qpos) == 7 and len(robot.ctrl_arm) == 7
+    # position actuators with the Panda's torque limits
+    for i, a in enumerate(robot.ctrl_arm):
+        assert model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
+        assert model.actuator_forcerange[a][1] == pytest.approx(PANDA.tau_max[i])
+        assert model.actuator_ctrlrange[a][0] == pytest.approx(PANDA.q_min[i])
+    data = mujoco.MjData(model)
+    data.qpos[:] = initial_state(model, robot)
+    checker = CollisionChecker(model, robot, data.qpos)
+    assert checker.valid(HOME_QPOS)
