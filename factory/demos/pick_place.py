@@ -204,12 +204,68 @@ def setup_scene(
         tool = _top_down(np.array([mid, 0.0, 0.12]), 0.0)
         if ik.solve(tool, [HOME_QPOS]) is None:
             continue
+        rig = aim_cameras(scene, assets_root, spot, rig)
         model = compose(scene, assets_root, spot, rig)
         return SceneSetup(scene, objects, spot, model, robot, rig, time.perf_counter() - t0)
     raise TaskError(
         f"scene {scene.id!r}: no free base spot next to {objects.support.id!r} "
         f"(tried {min(len(spots), max_spots)})"
     )
+
+
+def _clear_view(
+    model: mujoco.MjModel, data: mujoco.MjData, eye: np.ndarray, targets: np.ndarray
+) -> bool:
+    """Whether every ray from ``eye`` reaches within 5 cm of each target point (3,)."""
+    geomid = np.zeros(1, np.int32)
+    for t in targets:
+        d = t - eye
+        dist = float(np.linalg.norm(d))
+        hit = mujoco.mj_ray(model, data, eye, d / dist, None, 1, -1, geomid)
+        if 0 <= hit < dist - 0.05:
+            return False
+    return True
+
+
+def aim_cameras(
+    scene: Scene, assets_root: str | Path | None, placement: RobotPlacement, rig: CameraRig
+) -> CameraRig:
+    """Moves the third-person cameras until nothing in the scene blocks their view of the
+    workspace (rays to a grid on the table top), trying turns around it and higher eyes."""
+    from dataclasses import replace
+
+    from factory.sim.compile import compile_scene
+
+    model = compile_scene(scene, assets_root).model
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    top = placement.z
+    grid = [
+        placement.to_world(np.array([rig.workspace + dx, dy, 0.02]))
+        for dx in (-0.2, 0.0, 0.2)
+        for dy in (-0.25, 0.0, 0.25)
+    ]
+    targets = np.array(grid)
+    targets[:, 2] = top + 0.02
+    centre = np.array([rig.workspace, 0.0, 0.0])
+    chosen = {}
+    for side, offset in (("left", rig.left_offset), ("right", rig.right_offset)):
+        best = offset
+        for turn in (0.0, 20.0, -20.0, 40.0, -40.0, 60.0, -60.0):
+            for lift, pull in ((0.0, 1.0), (0.25, 1.0), (0.1, 0.75)):
+                a = np.radians(turn)
+                rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+                cand = rot @ (np.asarray(offset) * [1.0, pull, 1.0]) + [0, 0, lift]
+                if _clear_view(model, data, placement.to_world(centre + cand), targets):
+                    best = tuple(float(v) for v in cand)
+                    break
+            else:
+                continue
+            break
+        else:
+            log.info("scene %s: every %s camera pose is partly blocked", scene.id, side)
+        chosen[side] = best
+    return replace(rig, left_offset=chosen["left"], right_offset=chosen["right"])
 
 
 def _surface_height(model: mujoco.MjModel, body: int, pose: np.ndarray) -> float:

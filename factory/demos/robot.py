@@ -208,7 +208,7 @@ def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco
             type=mujoco.mjtGeom.mjGEOM_CYLINDER,
             size=[0.11, pedestal_height / 2, 0],
             pos=[-0.02, 0.0, -pedestal_height / 2],
-            rgba=[0.2, 0.2, 0.22, 1.0],
+            rgba=[0.55, 0.56, 0.58, 1.0],
         )
     return spec
 

@@ -1,0 +1,143 @@
+"""Benchmark of demonstration recording: successful demos per hour (per CPU core), success rate
+and failure reasons, planning time per segment, rendering frames/s.
+
+    python scripts/bench_demos.py [--scenes 2] [--episodes 4] [--cores 1] [--batch 16]
+        [--run-dir runs/bench_demos] [--out benchmarks/results/demos-cpu1.json]
+
+Scenes are generated first (kitchens with a pick-and-place task; not timed; kept in
+``--run-dir`` and reused). ``stage=demos`` then runs through the real CLI on ``--cores`` cores
+(``taskset``; planning workers, simulation threads and Mesa's renderer threads all limited to
+them) twice: a cold run into an empty episode store and a warm run after deleting the episodes
+(same scenes, imports and caches warm on disk). The numbers come from the stage's summary and
+the wall clock.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PROMPT = "a kitchen where the robot picks up a mug and puts it in the bowl"
+
+
+def _cli(args: list[str], cores: int, env: dict[str, str]) -> float:
+    cmd = [sys.executable, "-m", "factory", *args]
+    if shutil.which("taskset") and cores < (os.cpu_count() or 1):
+        cmd = ["taskset", "-c", f"0-{cores - 1}", *cmd]
+    t0 = time.perf_counter()
+    out = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{out.stderr[-4000:]}")
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--scenes", type=int, default=2)
+    p.add_argument("--episodes", type=int, default=4, help="episodes per scene")
+    p.add_argument("--cores", type=int, default=1)
+    p.add_argument("--batch", type=int, default=16)
+    p.add_argument("--run-dir", type=Path, default=ROOT / "runs" / "bench_demos")
+    p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--gl", default=None, help="MUJOCO_GL for rendering (egl, osmesa)")
+    args = p.parse_args()
+    env = dict(os.environ)
+    env["LP_NUM_THREADS"] = str(args.cores)  # Mesa llvmpipe render threads
+    env["OMP_NUM_THREADS"] = str(args.cores)
+    if args.gl:
+        env["MUJOCO_GL"] = args.gl
+    run = args.run_dir
+    scenes = sorted((run / "scenes").glob("*/scene.json")) if run.exists() else []
+    if len(scenes) < args.scenes:
+        _cli(
+            [
+                "stage=generate",
+                f"run_dir={run}",
+                f"generate.prompts=[{PROMPT}]",
+                f"generate.scenes_per_prompt={args.scenes}",
+                "generate.render=false",
+            ],
+            os.cpu_count() or 1,
+            env,
+        )
+    results = {}
+    for label in ("cold", "warm"):
+        shutil.rmtree(run / "episodes", ignore_errors=True)
+        wall = _cli(
+            [
+                "stage=demos",
+                f"run_dir={run}",
+                f"demos.episodes_per_scene={args.episodes}",
+                f"demos.workers={args.cores}",
+                f"demos.nthread={args.cores}",
+                f"demos.batch={args.batch}",
+            ],
+            args.cores,
+            env,
+        )
+        summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
+        sec = summary["seconds"]
+        ok = summary["new_successes"]
+        infos = []
+        for store in (run / "episodes").glob("shard-*.zarr"):
+            for ep in store.iterdir():
+                meta = ep / "zarr.json"
+                if meta.is_file():
+                    infos.append(json.loads(meta.read_text())["attributes"])
+        frames = sum(i["n_frames"] for i in infos)
+        cams = len(infos[0]["cameras"]) if infos else 0
+        results[label] = {
+            "wall_s": wall,
+            "stage_wall_s": sec["wall"],
+            "successful_demos": ok,
+            "failures": summary["failures"],
+            "success_rate": summary["success_rate"],
+            "demos_per_hour": ok / wall * 3600,
+            "demos_per_core_hour": ok / wall * 3600 / args.cores,
+            "seconds_per_demo": wall / max(ok, 1),
+            "plan_per_segment_s": sec["plan_per_segment"],
+            "plan_per_episode_s": sec["plan_per_episode"],
+            "simulate_s": sec["simulate"],
+            "render_s": sec["render"],
+            "frames": frames,
+            "render_frames_per_s": frames / sec["render"] if sec["render"] else None,
+            "render_images_per_s": frames * cams * 2 / sec["render"] if sec["render"] else None,
+            "sim_seconds_simulated": frames / infos[0]["fps"] if infos else 0,
+        }
+        r = results[label]
+        print(
+            f"{label}: {ok} successful demos in {wall:.1f} s on {args.cores} core(s): "
+            f"{r['demos_per_core_hour']:.0f} demos per core-hour, success rate "
+            f"{r['success_rate']:.2f}, failures {r['failures'] or 'none'}; planning per segment "
+            f"median {sec['plan_per_segment'].get('median', 0):.3f} s, p95 "
+            f"{sec['plan_per_segment'].get('p95', 0):.3f} s; rendering "
+            f"{r['render_frames_per_s'] or 0:.1f} frames/s ({cams} cameras, RGB + depth)"
+        )
+    out = {
+        "benchmark": "demos",
+        "machine": {
+            "platform": platform.platform(),
+            "cpus_total": os.cpu_count(),
+            "cores_used": args.cores,
+            "gl": env.get("MUJOCO_GL", "auto"),
+        },
+        "scenes": args.scenes,
+        "episodes_per_scene": args.episodes,
+        "results": results,
+    }
+    path = args.out or ROOT / "benchmarks" / "results" / f"demos-cpu{args.cores}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
