@@ -66,8 +66,14 @@ def main() -> None:
     picks = np.linspace(0, len(frames) - 1, 5).round().astype(int)
     strip = np.concatenate([np.asarray(frames[i]) for i in picks], axis=0)
     Image.fromarray(strip).save(args.out.with_suffix(".png"))
-    log.info("%s: %d frames of %s (%s) -> %s", eid, len(frames), info.scene_id,
-             ", ".join(info.cameras), args.out)
+    log.info(
+        "%s: %d frames of %s (%s) -> %s",
+        eid,
+        len(frames),
+        info.scene_id,
+        ", ".join(info.cameras),
+        args.out,
+    )
 
 
 if __name__ == "__main__":

@@ -59,7 +59,7 @@ class EpisodeStore:
         zarr = _zarr()
         try:
             root = zarr.open_group(str(self.path), mode="r")
-        except Exception as e:  # noqa: BLE001 - zarr raises several types here
+        except Exception as e:
             raise StoreError(f"{self.path} is not a zarr episode store: {e}") from None
         attrs = dict(root.attrs)
         if attrs.get("kind") != STORE_KIND or attrs.get("schema_version") != EPISODE_SCHEMA_VERSION:

@@ -189,7 +189,7 @@ def execute(
     if n == 0:
         return []
     dt = float(model.opt.timestep)
-    per_frame = max(1, int(round(1.0 / (cfg.fps * dt))))
+    per_frame = max(1, round(1.0 / (cfg.fps * dt)))
     lengths = [len(p.ctrl) for p in plans]
     n_frames = [int(np.ceil(t / per_frame)) + 1 for t in lengths]
     total = max(n_frames) - 1
@@ -278,7 +278,7 @@ def execute(
     # Success checks from the recorded states.
     qadr = int(model.jnt_qposadr[model.body_jntadr[pick]])
     qpos_slice = slice(1, 1 + model.nq)  # time, then qpos in the integration state
-    hold_frames = max(1, int(round(0.5 * cfg.fps)))
+    hold_frames = max(1, round(0.5 * cfg.fps))
     for i, p in enumerate(plans):
         rec = recs[i]
         last = n_frames[i] - 1

@@ -102,7 +102,8 @@ def _primitive_vertices(gtype: int, size: np.ndarray) -> np.ndarray | None:
         th = np.pi * (1 + 5**0.5) * np.arange(60)
         return size[0] * np.c_[np.sin(phi) * np.cos(th), np.sin(phi) * np.sin(th), np.cos(phi)]
     if gtype == g.mjGEOM_ELLIPSOID:
-        return _primitive_vertices(g.mjGEOM_SPHERE, np.ones(3)) * size  # type: ignore[operator]
+        unit = _primitive_vertices(g.mjGEOM_SPHERE, np.ones(3))
+        return None if unit is None else unit * size
     return None
 
 
@@ -122,9 +123,10 @@ def collision_pieces(model: mujoco.MjModel, body: int) -> list[Piece]:
             adr, n = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
             verts = np.array(model.mesh_vert[adr : adr + n], dtype=float)
         else:
-            verts = _primitive_vertices(gtype, np.array(model.geom_size[gid], dtype=float))
-            if verts is None:
+            prim = _primitive_vertices(gtype, np.array(model.geom_size[gid], dtype=float))
+            if prim is None:
                 continue
+            verts = prim
         rot = np.zeros(9)
         mujoco.mju_quat2Mat(rot, model.geom_quat[gid])
         verts = verts @ rot.reshape(3, 3).T + model.geom_pos[gid]
@@ -321,9 +323,7 @@ def antipodal_candidates(
             if contact < cfg.min_contact:
                 continue
             off = np.linalg.norm(np.cross(centre - com, d))
-            score = (
-                0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width / open_w)
-            )
+            score = 0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width / open_w)
             out.append(
                 Grasp(
                     pose,

@@ -77,7 +77,11 @@ class IKSolver:
             ):
                 return np.array(self.configuration.q[self.robot.qpos])
             vel = mink.solve_ik(
-                self.configuration, tasks, self.cfg.dt, solver="daqp", damping=1e-4,
+                self.configuration,
+                tasks,
+                self.cfg.dt,
+                solver="daqp",
+                damping=1e-4,
                 limits=self.limits,
             )
             self.configuration.integrate_inplace(vel, self.cfg.dt)

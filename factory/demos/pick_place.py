@@ -248,9 +248,9 @@ def aim_cameras(
     targets = np.array(grid)
     targets[:, 2] = top + 0.02
     centre = np.array([rig.workspace, 0.0, 0.0])
-    chosen = {}
+    chosen: dict[str, tuple[float, ...]] = {}
     for side, offset in (("left", rig.left_offset), ("right", rig.right_offset)):
-        best = offset
+        best: tuple[float, ...] = offset
         for turn in (0.0, 20.0, -20.0, 40.0, -40.0, 60.0, -60.0):
             for lift, pull in ((0.0, 1.0), (0.25, 1.0), (0.1, 0.75)):
                 a = np.radians(turn)
@@ -348,7 +348,11 @@ class EpisodePlanner:
             if gripper_clear(
                 self.model, data, self.shape, tool, self.grasp_cfg.clearance, self.robot.bodies
             ) and gripper_clear(
-                self.model, data, self.shape, tool @ back, self.grasp_cfg.clearance,
+                self.model,
+                data,
+                self.shape,
+                tool @ back,
+                self.grasp_cfg.clearance,
                 self.robot.bodies,
             ):
                 out.append(g)
@@ -485,8 +489,19 @@ class EpisodePlanner:
         if carry.path is None:
             counts["plan_failed"] += 1
             return None
-        return self._timeline(qpos, reach.path, q_pre, q_grasp, q_lift, carry.path, q_preplace,
-                              q_place, q_retreat, g.width, seconds)
+        return self._timeline(
+            qpos,
+            reach.path,
+            q_pre,
+            q_grasp,
+            q_lift,
+            carry.path,
+            q_preplace,
+            q_place,
+            q_retreat,
+            g.width,
+            seconds,
+        )
 
     @property
     def _target_xy(self) -> np.ndarray:
@@ -518,7 +533,7 @@ class EpisodePlanner:
 
         def hold(name: str, q: np.ndarray, secs: float, opening: float) -> None:
             phases[name] = len(arm)
-            n = max(1, int(round(secs / dt)))
+            n = max(1, round(secs / dt))
             arm.extend([q] * n)
             vel.extend([np.zeros(7)] * n)
             grip.extend([opening] * n)

@@ -219,9 +219,7 @@ def plan(
     reason = "no path found"
     for _attempt in range(cfg.attempts):
         setup = og.SimpleSetup(space)
-        setup.setStateValidityChecker(
-            lambda s: checker.valid(np.array([s[i] for i in range(7)]))
-        )
+        setup.setStateValidityChecker(lambda s: checker.valid(np.array([s[i] for i in range(7)])))
         start, goal = space.allocState(), space.allocState()
         for i in range(7):
             start[i], goal[i] = float(q_start[i]), float(q_goal[i])
@@ -238,7 +236,9 @@ def plan(
             continue
         setup.simplifySolution(cfg.simplify)
         sol = setup.getSolutionPath()
-        path = np.array([[sol.getState(k)[i] for i in range(7)] for k in range(sol.getStateCount())])
+        path = np.array(
+            [[sol.getState(k)[i] for i in range(7)] for k in range(sol.getStateCount())]
+        )
         path[0], path[-1] = q_start, q_goal
         if checker.path_valid(path, cfg.check_step):
             return PlanResult(path, time.perf_counter() - t0)

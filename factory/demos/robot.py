@@ -26,7 +26,10 @@ log = logging.getLogger(__name__)
 PREFIX = "panda/"
 """Every name of the robot in a composed model starts with this."""
 ARM_JOINTS: tuple[str, ...] = tuple(f"{PREFIX}robot0_joint{i}" for i in range(1, 8))
-FINGER_JOINTS: tuple[str, str] = (f"{PREFIX}gripper0_finger_joint1", f"{PREFIX}gripper0_finger_joint2")
+FINGER_JOINTS: tuple[str, str] = (
+    f"{PREFIX}gripper0_finger_joint1",
+    f"{PREFIX}gripper0_finger_joint2",
+)
 TOOL_SITE = f"{PREFIX}gripper0_grip_site"
 HAND_BODY = f"{PREFIX}robot0_right_hand"
 
@@ -116,8 +119,8 @@ class CameraRig:
     """
 
     workspace: float = 0.5
-    left_offset: tuple[float, float, float] = (-0.05, 0.75, 0.6)
-    right_offset: tuple[float, float, float] = (-0.05, -0.75, 0.6)
+    left_offset: tuple[float, ...] = (-0.05, 0.75, 0.6)
+    right_offset: tuple[float, ...] = (-0.05, -0.75, 0.6)
     fovy: float = 50.0
     wrist_fovy: float = 75.0
     names: tuple[str, ...] = field(default=("left", "right", "wrist"))
@@ -181,9 +184,7 @@ def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco
         act.set_to_position(kp=2000.0, kv=20.0)
         act.ctrllimited = True
         # Targets reach past the closed stop so that a closed hand keeps squeezing.
-        act.ctrlrange = (
-            [-SQUEEZE, PANDA.finger_max] if k == 0 else [-PANDA.finger_max, SQUEEZE]
-        )
+        act.ctrlrange = [-SQUEEZE, PANDA.finger_max] if k == 0 else [-PANDA.finger_max, SQUEEZE]
         act.forcelimited = True
         act.forcerange = [-40.0, 40.0]
     for body in spec.bodies:
@@ -199,7 +200,10 @@ def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco
             geom.group = 3
     hand = spec.body("robot0_right_hand")
     hand.add_camera(
-        name="wrist_camera", pos=[0.05, 0.0, 0.0], quat=[0.0, 0.707108, 0.707108, 0.0], fovy=wrist_fovy
+        name="wrist_camera",
+        pos=[0.05, 0.0, 0.0],
+        quat=[0.0, 0.707108, 0.707108, 0.0],
+        fovy=wrist_fovy,
     )
     base = spec.body("robot0_base")
     if pedestal_height > 0:
@@ -246,7 +250,10 @@ def add_robot(
     for name, offset in (("left", rig.left_offset), ("right", rig.right_offset)):
         eye = placement.to_world(np.array([rig.workspace, 0.0, 0.0]) + np.asarray(offset))
         spec.worldbody.add_camera(
-            name=CAMERAS[name], pos=eye.tolist(), quat=_look_quat(eye, center).tolist(), fovy=rig.fovy
+            name=CAMERAS[name],
+            pos=eye.tolist(),
+            quat=_look_quat(eye, center).tolist(),
+            fovy=rig.fovy,
         )
 
 
@@ -289,15 +296,14 @@ class RobotIndex:
         def jq(name: str) -> int:
             return int(model.jnt_qposadr[model.joint(name).id])
 
-        bodies = np.array(
-            [b for b in range(model.nbody) if model.body(b).name.startswith(PREFIX)]
-        )
+        bodies = np.array([b for b in range(model.nbody) if model.body(b).name.startswith(PREFIX)])
         in_robot = np.isin(model.geom_bodyid, bodies)
         collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         finger_bodies = [
             b
             for b in bodies
-            if "finger" in model.body(b).name or model.body(b).name == f"{PREFIX}gripper0_right_gripper"
+            if "finger" in model.body(b).name
+            or model.body(b).name == f"{PREFIX}gripper0_right_gripper"
         ]
         return cls(
             qpos=np.array([jq(j) for j in ARM_JOINTS]),

@@ -208,9 +208,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 done: set[int] = set()
                 for start in range(0, len(planned), dc.batch):
                     chunk = planned[start : start + dc.batch]
-                    recs = execute(
-                        setup, [p for _, _, p in chunk], rec_cfg, dc.nthread, renderer
-                    )
+                    recs = execute(setup, [p for _, _, p in chunk], rec_cfg, dc.nthread, renderer)
                     for (k, job, plan), rec in zip(chunk, recs, strict=True):
                         sim_s += rec.sim_seconds
                         render_s += rec.render_seconds
@@ -247,9 +245,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
                             image_size=[dc.height, dc.width],
                             depth_format=dc.depth,
                             state_spec=int(STATE_SPEC),
-                            phases={
-                                n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()
-                            },
+                            phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
                             grasp_width=plan.grasp_width,
                             plan_seconds=plan.plan_seconds,
                             outcome=rec.outcome.details,
@@ -277,9 +273,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
                         attempt[k] += 1
                 exhausted = [k for k in open_slots if k not in done and attempt[k] >= dc.attempts]
                 bar.update(len(exhausted))
-                open_slots = [
-                    k for k in open_slots if k not in done and attempt[k] < dc.attempts
-                ]
+                open_slots = [k for k in open_slots if k not in done and attempt[k] < dc.attempts]
             if renderer is not None:
                 renderer.close()
             info["episodes"] += info["new"]
@@ -299,8 +293,8 @@ def run(ctx: StageContext) -> dict[str, Any]:
         "episodes_stored": len(episodes),
         "new_successes": n_ok,
         "failures": dict(reasons),
-        "success_rate": n_ok / max(1, n_ok + sum(v for k, v in reasons.items()
-                                                 if k != "scene_unusable")),
+        "success_rate": n_ok
+        / max(1, n_ok + sum(v for k, v in reasons.items() if k != "scene_unusable")),
         "scenes": scenes,
         "seconds": {
             "wall": wall,

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from factory.errors import TaskError
 from factory.demos.robot import HOME_QPOS, RobotIndex, RobotPlacement
+from factory.errors import TaskError
 from factory.schema import Scene, SceneObject
 
 
@@ -61,7 +61,7 @@ def task_objects(scene: Scene) -> TaskObjects:
             pick = pick or _by_text(scene, spec.pick, set())
             target = target or _by_text(scene, spec.target, {pick.id} if pick else set())
     if pick is None or target is None:
-        missing = "a pick object" if pick is None else "a place target"
+        missing = "pick object" if pick is None else "place target"
         raise TaskError(
             f"scene {scene.id!r} has no {missing}: give objects task_role 'pick' and "
             "'place_target', or a task instruction naming objects in the scene"

@@ -29,7 +29,9 @@ class Limits:
             if not 0 < f <= 1:
                 raise ValueError(f"{name} scale must be in (0, 1], got {f}")
         return cls(
-            np.array(PANDA.v_max) * speed, np.array(PANDA.a_max) * accel, np.array(PANDA.j_max) * jerk
+            np.array(PANDA.v_max) * speed,
+            np.array(PANDA.a_max) * accel,
+            np.array(PANDA.j_max) * jerk,
         )
 
 
