@@ -16,7 +16,10 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import os
+import shutil
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -126,29 +129,80 @@ class CameraRig:
     names: tuple[str, ...] = field(default=("left", "right", "wrist"))
 
 
-def _xml() -> str:
+ROBOSUITE_VERSION = "1.5.1"
+
+
+def robot_cache_dir() -> Path:
+    """Where the composed robot MJCF and its meshes are kept (``FACTORY_ROBOT_CACHE``)."""
+    root = os.environ.get("FACTORY_ROBOT_CACHE") or "~/.cache/factory/robots"
+    return Path(root).expanduser() / f"panda-robosuite-{ROBOSUITE_VERSION}"
+
+
+def _robosuite_xml() -> str:
     """The arm + hand MJCF from robosuite's model classes (absolute mesh paths)."""
     # robosuite logs set-up hints on import (macros, optional robots); they are not ours.
     for name in ("robosuite", "robosuite_logs"):
         logging.getLogger(name).setLevel(logging.ERROR)
-    from robosuite.models.grippers import PandaGripper
-    from robosuite.models.robots import Panda
+    try:
+        import robosuite
+        from robosuite.models.grippers import PandaGripper
+        from robosuite.models.robots import Panda
+    except ImportError as e:  # pragma: no cover - the demos extra is part of setup.sh
+        from factory.errors import ConfigError
 
+        raise ConfigError(
+            f"the robot model needs robosuite {ROBOSUITE_VERSION} ({e}): pip install -e '.[demos]'"
+        ) from None
+    if robosuite.__version__ != ROBOSUITE_VERSION:
+        log.warning(
+            "robosuite %s, models expected from %s", robosuite.__version__, ROBOSUITE_VERSION
+        )
     robot = Panda()
     robot.add_gripper(PandaGripper())
     return str(robot.get_xml())
 
 
+def export_robot(cache: Path) -> None:
+    """Writes robosuite's composed Panda MJCF with the files it references under ``cache``
+    (``robot.xml`` with relative paths, files under ``files/``), atomically."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(_robosuite_xml())
+    tmp = cache.with_name(cache.name + f".tmp-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    for k, el in enumerate(root.iter()):
+        src = el.get("file")
+        if not src:
+            continue
+        rel = f"files/{k:04d}_{Path(src).name}"
+        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, tmp / rel)
+        el.set("file", rel)
+    (tmp / "robot.xml").write_text(ET.tostring(root, encoding="unicode"))
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.rename(tmp, cache)
+    except OSError:  # another process wrote it first
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 @functools.lru_cache(maxsize=1)
 def _robot_xml() -> str:
-    try:
-        return _xml()
-    except ImportError as e:  # pragma: no cover - the demos extra is part of setup.sh
-        from factory.errors import ConfigError
+    """The Panda MJCF with absolute file paths: from the cache, made from robosuite once."""
+    import xml.etree.ElementTree as ET
 
-        raise ConfigError(
-            f"the robot model needs robosuite ({e}): pip install -e '.[demos]'"
-        ) from None
+    cache = robot_cache_dir()
+    if not (cache / "robot.xml").is_file():
+        try:
+            export_robot(cache)
+        except OSError as e:  # unwritable cache: use robosuite's paths directly
+            log.info("robot cache %s not writable (%s); using robosuite's files", cache, e)
+            return _robosuite_xml()
+    root = ET.fromstring((cache / "robot.xml").read_text())
+    for el in root.iter():
+        if el.get("file"):
+            el.set("file", str(cache / el.get("file", "")))
+    return ET.tostring(root, encoding="unicode")
 
 
 def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco.MjSpec:

@@ -404,3 +404,22 @@ def test_robot_index(setup) -> None:
     data.qpos[:] = initial_state(model, robot)
     checker = CollisionChecker(model, robot, data.qpos)
     assert checker.valid(HOME_QPOS)
+
+
+def test_robot_cache_matches_robosuite(tmp_path: Path, monkeypatch) -> None:
+    from factory.demos import robot as robot_mod
+
+    monkeypatch.setenv("FACTORY_ROBOT_CACHE", str(tmp_path / "cache"))
+    robot_mod._robot_xml.cache_clear()
+    try:
+        cached = robot_mod.robot_model()  # exports the cache, then loads from it
+        assert (robot_mod.robot_cache_dir() / "robot.xml").is_file()
+        spec = mujoco.MjSpec()
+        direct = mujoco.MjSpec.from_string(robot_mod._robosuite_xml())
+        spec.attach(direct, frame=spec.worldbody.add_frame(), prefix=robot_mod.PREFIX)
+        plain = spec.compile()
+        assert cached.nbody == plain.nbody and cached.nmesh == plain.nmesh
+        assert np.allclose(cached.mesh_vert, plain.mesh_vert)
+        assert np.allclose(cached.body_mass, plain.body_mass)
+    finally:
+        robot_mod._robot_xml.cache_clear()
