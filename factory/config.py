@@ -215,9 +215,10 @@ class DemosConfig:
     Attributes:
         episodes_per_scene: successful episodes wanted per scene.
         attempts: tries per episode (new object poses and seeds) before it counts as failed.
-        batch: episodes executed together in one batched simulation.
-        workers: planning processes (0: one per core; 1: plan in this process).
-        nthread: simulation threads of the batch (0: one per core).
+        batch: episodes planned and executed together (one work item: a scene and up to this
+            many of its episode slots).
+        workers: processes running work items in parallel (0: one per core; 1: this process).
+        nthread: simulation threads per worker (0: the cores divided among the workers).
         randomize: new task-object poses per episode (configuration-level randomization).
         fps: recording rate (Hz).
         width, height: image size (px).
@@ -229,6 +230,10 @@ class DemosConfig:
         speed: share of the Panda's velocity limit for free motions (acceleration and jerk
             use 0.6 and 0.4 of it).
         max_grasps: grasp candidates tried per episode.
+        sleep: let bodies at rest sleep (MuJoCo island sleeping; about 4x faster execution).
+            Recorded states replay images exactly either way; stepping the physics from a
+            recorded state reproduces the next one exactly only with ``sleep=false`` (sleep
+            timers are not part of MuJoCo's state), within ~1e-5 with it.
     """
 
     episodes_per_scene: int = 4
@@ -247,6 +252,7 @@ class DemosConfig:
     plan_timeout: float = 5.0
     speed: float = 0.5
     max_grasps: int = 12
+    sleep: bool = True
 
 
 @dataclass

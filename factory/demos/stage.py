@@ -1,11 +1,14 @@
 """``stage=demos``: planned, executed and recorded demonstrations in every scene of a run.
 
-Per scene of this shard: choose the robot's base spot, then fill ``demos.episodes_per_scene``
-episode slots. Each round plans every open slot (new object poses and seeds; optionally in a
-process pool), executes the plans together in batches, checks success and stores the
-successful episodes in ``episodes/shard-<k>.zarr``. Failures are counted by reason. A scene
-that cannot host the task (objects missing, no base spot) is reported with its reason and the
-run goes on. Re-running skips stored episodes, so an interrupted run resumes.
+Work is split into items: a scene and a chunk of up to ``demos.batch`` of its episode slots
+that are not stored yet. An item chooses the robot's base spot (deterministic per scene), then
+in rounds plans every open slot (new object poses and seeds), executes the plans together in
+one batched simulation, checks success and stores the successful episodes in
+``episodes/shard-<k>.zarr``; failed slots are tried again up to ``demos.attempts`` times.
+Items run in ``demos.workers`` processes (each with its own simulation and GL context), or in
+this process. A scene that cannot host the task (objects missing, no base spot) is reported
+with its reason and the run goes on. Re-running skips stored episodes, so an interrupted run
+resumes.
 """
 
 from __future__ import annotations
@@ -15,13 +18,14 @@ import logging
 import os
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from factory.config import DemosConfig
 from factory.errors import ConfigError, FactoryError, StoreError
 from factory.stages import StageContext
 from factory.store import atomic_write_json
@@ -35,7 +39,7 @@ SUMMARY_SCHEMA_VERSION = 1
 
 
 def episode_seed(root: int, scene_id: str, slot: int, attempt: int) -> int:
-    """A stable per-episode seed (independent of shard layout and order)."""
+    """A stable per-episode seed (independent of shard layout, workers and order)."""
     digest = hashlib.sha256(f"{root}/{scene_id}/{slot}/{attempt}".encode()).digest()
     return int.from_bytes(digest[:4], "little")
 
@@ -45,44 +49,204 @@ def episode_id(scene_id: str, slot: int) -> str:
 
 
 @dataclass(frozen=True)
-class _Job:
-    scene_json: str
-    assets: str | None
-    placement: Any
-    rig: Any
-    motion: Any
-    planner: Any
-    max_grasps: int
-    randomize: bool
+class WorkItem:
+    """A scene and the episode slots to fill in it."""
+
+    scene_id: str
+    slots: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class _Env:
+    """What a worker needs besides the item (picklable)."""
+
+    run_dir: str
+    store_path: str
+    demos: DemosConfig
+    task: str
     seed: int
+    nthread: int
 
 
-_PLANNERS: dict[tuple[str, Any], Any] = {}
-
-
-def _planner_for(job: _Job) -> Any:
-    from factory.demos.pick_place import EpisodePlanner, SceneSetup, compose
-    from factory.demos.robot import RobotIndex
-    from factory.demos.task import task_objects
-    from factory.schema import load_scene
-
-    key = (job.scene_json, job.placement)
-    if key not in _PLANNERS:
-        _PLANNERS.clear()
-        scene = load_scene(job.scene_json)
-        model = compose(scene, job.assets, job.placement, job.rig)
-        setup = SceneSetup(
-            scene, task_objects(scene), job.placement, model, RobotIndex.of(model), job.rig, 0.0
+def check_config(dc: DemosConfig, task: str) -> None:
+    """Raises :class:`ConfigError` naming a bad ``demos.*`` value or task."""
+    if task not in TASKS:
+        raise ConfigError(f"unknown task {task!r}: choose one of {', '.join(TASKS)}")
+    if dc.backend != "cpu":
+        raise ConfigError(
+            f"demos.backend={dc.backend!r} is not available: batched execution runs on 'cpu' "
+            "(mujoco.batch)"
         )
-        _PLANNERS[key] = EpisodePlanner(
-            setup, planner_cfg=job.planner, motion=job.motion, max_grasps=job.max_grasps
+    if dc.depth not in ("uint16_mm", "float32"):
+        raise ConfigError(f"demos.depth must be uint16_mm or float32, got {dc.depth!r}")
+    unknown = [c for c in dc.cameras if c not in ("left", "right", "wrist")]
+    if unknown:
+        raise ConfigError(f"demos.cameras: unknown camera(s) {unknown}; use left, right, wrist")
+    if dc.episodes_per_scene < 1 or dc.attempts < 1 or dc.batch < 1 or dc.workers < 0:
+        raise ConfigError(
+            "demos.episodes_per_scene, demos.attempts and demos.batch must be >= 1 and "
+            "demos.workers >= 0"
         )
-    return _PLANNERS[key]
+    if dc.fps <= 0 or dc.width < 8 or dc.height < 8:
+        raise ConfigError("demos.fps must be > 0 and demos.width/height >= 8 px")
 
 
-def _plan_job(job: _Job) -> Any:
-    """Plans one episode (runs in a worker process or inline)."""
-    return _planner_for(job).plan_episode(job.seed, job.randomize)
+_SETUPS: dict[str, Any] = {}
+
+
+def _setup(env: _Env, scene_id: str) -> Any:
+    """The scene's setup and planner, made once per process and scene."""
+    import mujoco
+
+    from factory.demos.pick_place import EpisodePlanner, MotionConfig, setup_scene
+    from factory.demos.planner import PlannerConfig
+    from factory.store import RunStore
+
+    if scene_id not in _SETUPS:
+        _SETUPS.clear()
+        store = RunStore(env.run_dir)
+        scene = store.load_scene(scene_id)
+        setup = setup_scene(scene, store.assets_dir)
+        dc = env.demos
+        if not dc.sleep:
+            setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+        motion = MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
+        planner = EpisodePlanner(
+            setup,
+            planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
+            motion=motion,
+            max_grasps=dc.max_grasps,
+        )
+        _SETUPS[scene_id] = (setup, planner)
+    return _SETUPS[scene_id]
+
+
+def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
+    """Fills the item's slots (in a worker process or inline); returns its statistics."""
+    from factory import __version__
+    from factory.demos.episodes import EpisodeStore
+    from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute
+    from factory.demos.pick_place import EpisodePlan
+    from factory.schema.episode import EpisodeInfo, RobotBase
+
+    dc = env.demos
+    out: dict[str, Any] = {
+        "scene_id": item.scene_id,
+        "new": 0,
+        "failures": Counter(),
+        "error": None,
+        "plan": [],
+        "segments": [],
+        "simulate": 0.0,
+        "render": 0.0,
+        "frames": 0,
+    }
+    try:
+        setup, planner = _setup(env, item.scene_id)
+    except FactoryError as e:
+        out["error"] = str(e)
+        out["failures"]["scene_unusable"] += len(item.slots)
+        return out
+    out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
+    scene = setup.scene
+    rec_cfg = RecordConfig(
+        fps=dc.fps,
+        width=dc.width,
+        height=dc.height,
+        cameras=tuple(dc.cameras),
+        depth=dc.depth,
+        render=dc.render,
+    )
+    store = EpisodeStore(env.store_path)
+    renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
+    per_frame = max(1, round(1.0 / (dc.fps * setup.model.opt.timestep)))
+    objects = setup.objects
+    instruction = (
+        scene.task.instruction
+        if scene.task and scene.task.instruction
+        else f"put the {objects.pick.category.replace('_', ' ')} {objects.relation} the "
+        f"{objects.target.category.replace('_', ' ')}"
+    )
+    attempt = dict.fromkeys(item.slots, 0)
+    open_slots = [k for k in item.slots if episode_id(item.scene_id, k) not in store]
+    try:
+        while open_slots:
+            planned: list[tuple[int, int, EpisodePlan]] = []
+            for k in open_slots:
+                seed = episode_seed(env.seed, item.scene_id, k, attempt[k])
+                res = planner.plan_episode(seed, dc.randomize)
+                if isinstance(res, EpisodePlan):
+                    planned.append((k, seed, res))
+                    out["plan"].append(res.seconds)
+                    out["segments"].extend(res.plan_seconds.values())
+                else:
+                    out["failures"][res.reason] += 1
+                    log.info("scene %s slot %d: plan failed: %s", item.scene_id, k, res.detail)
+            recs = execute(setup, [p for _, _, p in planned], rec_cfg, env.nthread, renderer)
+            done: set[int] = set()
+            for (k, seed, plan), rec in zip(planned, recs, strict=True):
+                out["simulate"] += rec.sim_seconds
+                out["render"] += rec.render_seconds
+                assert rec.outcome is not None
+                if not rec.outcome.success:
+                    out["failures"][rec.outcome.reason] += 1
+                    continue
+                meta = EpisodeInfo(
+                    episode_id=episode_id(item.scene_id, k),
+                    scene_id=item.scene_id,
+                    task=env.task,
+                    instruction=instruction,
+                    seed=seed,
+                    success=True,
+                    failure_reason="",
+                    pick_id=objects.pick.id,
+                    target_id=objects.target.id,
+                    support_id=objects.support.id,
+                    robot=RobotBase(
+                        setup.placement.x, setup.placement.y, setup.placement.z, setup.placement.yaw
+                    ),
+                    fps=dc.fps,
+                    timestep=float(setup.model.opt.timestep),
+                    n_frames=len(rec.time),
+                    cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
+                    image_size=[dc.height, dc.width],
+                    depth_format=dc.depth,
+                    state_spec=int(STATE_SPEC),
+                    phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
+                    grasp_width=plan.grasp_width,
+                    plan_seconds=plan.plan_seconds,
+                    outcome=rec.outcome.details,
+                    factory_version=__version__,
+                )
+                arrays: dict[str, np.ndarray] = {
+                    "time": rec.time,
+                    "state": rec.state,
+                    "joint_pos": rec.joint_pos.astype(np.float32),
+                    "gripper": rec.gripper.astype(np.float32),
+                    "ee_pose": rec.ee_pose.astype(np.float32),
+                    "action": rec.action.astype(np.float32),
+                }
+                for cam, im in rec.rgb.items():
+                    arrays[f"rgb/{cam}"] = im
+                for cam, dp in rec.depth.items():
+                    arrays[f"depth/{cam}"] = dp
+                store.write(meta, arrays)
+                out["frames"] += len(rec.time)
+                done.add(k)
+                out["new"] += 1
+            for k in open_slots:
+                if k not in done:
+                    attempt[k] += 1
+            open_slots = [k for k in open_slots if k not in done and attempt[k] < dc.attempts]
+    finally:
+        if renderer is not None:
+            renderer.close()
+    return out
+
+
+def _run_item_logged(env: _Env, item: WorkItem) -> dict[str, Any]:
+    logging.basicConfig(level=logging.WARNING)
+    return run_item(env, item)
 
 
 def _stats(values: list[float]) -> dict[str, float]:
@@ -101,29 +265,11 @@ def run(ctx: StageContext) -> dict[str, Any]:
     """Runs the demos stage for this shard's scenes; returns the summary."""
     from tqdm import tqdm
 
-    from factory import __version__
     from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute
-    from factory.demos.pick_place import EpisodePlan, MotionConfig, setup_scene
-    from factory.demos.planner import PlannerConfig
-    from factory.schema.episode import EpisodeInfo, RobotBase
 
     cfg = ctx.cfg
     dc = cfg.demos
-    if cfg.task not in TASKS:
-        raise ConfigError(f"unknown task {cfg.task!r}: choose one of {', '.join(TASKS)}")
-    if dc.backend != "cpu":
-        raise ConfigError(
-            f"demos.backend={dc.backend!r} is not available: batched execution runs on 'cpu' "
-            "(mujoco.batch)"
-        )
-    if dc.depth not in ("uint16_mm", "float32"):
-        raise ConfigError(f"demos.depth must be uint16_mm or float32, got {dc.depth!r}")
-    unknown = [c for c in dc.cameras if c not in ("left", "right", "wrist")]
-    if unknown:
-        raise ConfigError(f"demos.cameras: unknown camera(s) {unknown}; use left, right, wrist")
-    if dc.episodes_per_scene < 1 or dc.attempts < 1 or dc.batch < 1:
-        raise ConfigError("demos.episodes_per_scene, demos.attempts and demos.batch must be >= 1")
+    check_config(dc, cfg.task)
     store = ctx.require_store()
     ids = store.scene_ids()
     if not ids:
@@ -131,160 +277,58 @@ def run(ctx: StageContext) -> dict[str, Any]:
     scene_ids = ctx.shard.select(ids)
     episodes = EpisodeStore(store.episodes_shard(ctx.shard))
     episodes.clean_staging()
-    rec_cfg = RecordConfig(
-        fps=dc.fps,
-        width=dc.width,
-        height=dc.height,
-        cameras=tuple(dc.cameras),
-        depth=dc.depth,
-        render=dc.render,
-    )
-    motion = MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
-    planner_cfg = PlannerConfig(timeout=dc.plan_timeout)
-    workers = dc.workers or (os.cpu_count() or 1)
-    pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    stored = set(episodes.episode_ids())
+    items: list[WorkItem] = []
+    for sid in scene_ids:
+        todo = [k for k in range(dc.episodes_per_scene) if episode_id(sid, k) not in stored]
+        for start in range(0, len(todo), dc.batch):
+            items.append(WorkItem(sid, tuple(todo[start : start + dc.batch])))
+    cores = os.cpu_count() or 1
+    workers = min(dc.workers or cores, max(1, len(items)))
+    nthread = dc.nthread or max(1, cores // workers)
+    env = _Env(str(store.root), str(episodes.path), dc, cfg.task, cfg.seed, nthread)
     t_start = time.perf_counter()
-    scenes: dict[str, Any] = {}
-    plan_times: list[float] = []
-    segment_times: list[float] = []
-    sim_s = render_s = 0.0
-    n_ok = 0
-    reasons: Counter[str] = Counter()
-    total_slots = len(scene_ids) * dc.episodes_per_scene
-    bar = tqdm(total=total_slots, desc="demos", unit="episode", disable=None)
-    try:
-        for scene_id in scene_ids:
-            slots = [
-                k for k in range(dc.episodes_per_scene) if episode_id(scene_id, k) not in episodes
-            ]
-            bar.update(dc.episodes_per_scene - len(slots))
-            info: dict[str, Any] = {
-                "episodes": dc.episodes_per_scene - len(slots),
-                "new": 0,
-                "failures": {},
-            }
-            scenes[scene_id] = info
-            if not slots:
-                continue
-            scene = store.load_scene(scene_id)
-            try:
-                setup = setup_scene(scene, store.assets_dir)
-            except FactoryError as e:
-                info["error"] = str(e)
-                reasons["scene_unusable"] += len(slots)
-                log.warning("scene %s: no demos: %s", scene_id, e)
-                bar.update(len(slots))
-                continue
-            info["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
-            renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
-            fails: Counter[str] = Counter()
-            attempt = {k: 0 for k in slots}
-            open_slots = list(slots)
-            while open_slots:
-                jobs = [
-                    _Job(
-                        str(store.scene_json(scene_id)),
-                        str(store.assets_dir),
-                        setup.placement,
-                        setup.rig,
-                        motion,
-                        planner_cfg,
-                        dc.max_grasps,
-                        dc.randomize,
-                        episode_seed(cfg.seed, scene_id, k, attempt[k]),
-                    )
-                    for k in open_slots
-                ]
-                results = list(pool.map(_plan_job, jobs)) if pool else [_plan_job(j) for j in jobs]
-                planned: list[tuple[int, _Job, EpisodePlan]] = []
-                for k, job, res in zip(open_slots, jobs, results, strict=True):
-                    if isinstance(res, EpisodePlan):
-                        planned.append((k, job, res))
-                        plan_times.append(res.seconds)
-                        segment_times.extend(res.plan_seconds.values())
-                    else:
-                        fails[res.reason] += 1
-                        log.info("scene %s slot %d: plan failed: %s", scene_id, k, res.detail)
-                done: set[int] = set()
-                for start in range(0, len(planned), dc.batch):
-                    chunk = planned[start : start + dc.batch]
-                    recs = execute(setup, [p for _, _, p in chunk], rec_cfg, dc.nthread, renderer)
-                    for (k, job, plan), rec in zip(chunk, recs, strict=True):
-                        sim_s += rec.sim_seconds
-                        render_s += rec.render_seconds
-                        assert rec.outcome is not None
-                        if not rec.outcome.success:
-                            fails[rec.outcome.reason] += 1
-                            continue
-                        per_frame = max(1, round(1.0 / (dc.fps * setup.model.opt.timestep)))
-                        meta = EpisodeInfo(
-                            episode_id=episode_id(scene_id, k),
-                            scene_id=scene_id,
-                            task=cfg.task,
-                            instruction=scene.task.instruction
-                            if scene.task and scene.task.instruction
-                            else f"put the {setup.objects.pick.category.replace('_', ' ')} "
-                            f"{setup.objects.relation} the "
-                            f"{setup.objects.target.category.replace('_', ' ')}",
-                            seed=job.seed,
-                            success=True,
-                            failure_reason="",
-                            pick_id=setup.objects.pick.id,
-                            target_id=setup.objects.target.id,
-                            support_id=setup.objects.support.id,
-                            robot=RobotBase(
-                                setup.placement.x,
-                                setup.placement.y,
-                                setup.placement.z,
-                                setup.placement.yaw,
-                            ),
-                            fps=dc.fps,
-                            timestep=float(setup.model.opt.timestep),
-                            n_frames=len(rec.time),
-                            cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
-                            image_size=[dc.height, dc.width],
-                            depth_format=dc.depth,
-                            state_spec=int(STATE_SPEC),
-                            phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
-                            grasp_width=plan.grasp_width,
-                            plan_seconds=plan.plan_seconds,
-                            outcome=rec.outcome.details,
-                            factory_version=__version__,
-                        )
-                        arrays: dict[str, np.ndarray] = {
-                            "time": rec.time,
-                            "state": rec.state,
-                            "joint_pos": rec.joint_pos.astype(np.float32),
-                            "gripper": rec.gripper.astype(np.float32),
-                            "ee_pose": rec.ee_pose.astype(np.float32),
-                            "action": rec.action.astype(np.float32),
-                        }
-                        for cam, im in rec.rgb.items():
-                            arrays[f"rgb/{cam}"] = im
-                        for cam, dp in rec.depth.items():
-                            arrays[f"depth/{cam}"] = dp
-                        episodes.write(meta, arrays)
-                        done.add(k)
-                        info["new"] += 1
-                        n_ok += 1
-                        bar.update(1)
-                for k in open_slots:
-                    if k not in done:
-                        attempt[k] += 1
-                exhausted = [k for k in open_slots if k not in done and attempt[k] >= dc.attempts]
-                bar.update(len(exhausted))
-                open_slots = [k for k in open_slots if k not in done and attempt[k] < dc.attempts]
-            if renderer is not None:
-                renderer.close()
-            info["episodes"] += info["new"]
-            info["failures"] = dict(fails)
-            reasons.update(fails)
-    finally:
-        bar.close()
-        if pool is not None:
-            pool.shutdown()
-        episodes.clean_staging()
+    results: list[dict[str, Any]] = []
+    total = sum(len(i.slots) for i in items)
+    with tqdm(total=total, desc="demos", unit="episode", disable=None) as bar:
+        try:
+            if workers > 1:
+                with ProcessPoolExecutor(workers) as pool:
+                    futures = {pool.submit(_run_item_logged, env, it): it for it in items}
+                    for fut in as_completed(futures):
+                        results.append(fut.result())
+                        bar.update(len(futures[fut].slots))
+            else:
+                for it in items:
+                    results.append(run_item(env, it))
+                    bar.update(len(it.slots))
+        finally:
+            episodes.clean_staging()
     wall = time.perf_counter() - t_start
+    scenes: dict[str, Any] = {
+        sid: {"episodes": 0, "new": 0, "failures": Counter()} for sid in scene_ids
+    }
+    reasons: Counter[str] = Counter()
+    for r in results:
+        s = scenes[r["scene_id"]]
+        s["new"] += r["new"]
+        s["failures"].update(r["failures"])
+        reasons.update(r["failures"])
+        if r["error"]:
+            s["error"] = r["error"]
+            log.warning("scene %s: no demos: %s", r["scene_id"], r["error"])
+        if "robot_base" in r:
+            s["robot_base"] = r["robot_base"]
+    for eid in episodes.episode_ids():
+        sid = eid.rsplit("-ep", 1)[0]
+        if sid in scenes:
+            scenes[sid]["episodes"] += 1
+    for s in scenes.values():
+        s["failures"] = dict(s["failures"])
+    n_ok = sum(r["new"] for r in results)
+    tried = n_ok + sum(v for k, v in reasons.items() if k != "scene_unusable")
+    frames = sum(r["frames"] for r in results)
+    render_s = sum(r["render"] for r in results)
     summary = {
         "schema_version": SUMMARY_SCHEMA_VERSION,
         "task": cfg.task,
@@ -293,16 +337,18 @@ def run(ctx: StageContext) -> dict[str, Any]:
         "episodes_stored": len(episodes),
         "new_successes": n_ok,
         "failures": dict(reasons),
-        "success_rate": n_ok
-        / max(1, n_ok + sum(v for k, v in reasons.items() if k != "scene_unusable")),
+        "success_rate": n_ok / max(1, tried),
         "scenes": scenes,
+        "workers": workers,
+        "threads_per_worker": nthread,
         "seconds": {
             "wall": wall,
-            "plan_per_episode": _stats(plan_times),
-            "plan_per_segment": _stats(segment_times),
-            "simulate": sim_s,
+            "plan_per_episode": _stats([t for r in results for t in r["plan"]]),
+            "plan_per_segment": _stats([t for r in results for t in r["segments"]]),
+            "simulate": sum(r["simulate"] for r in results),
             "render": render_s,
         },
+        "frames": frames,
     }
     atomic_write_json(store.root / "episodes" / f"summary-{ctx.shard.name}.json", summary)
     log.info(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -256,7 +257,12 @@ def test_execution_success_and_replay(setup, planned, tmp_path: Path) -> None:
             assert np.array_equal(im, rec.rgb[cam][frame])
             assert np.array_equal(dp, rec.depth[cam][frame])
     renderer.close()
-    # replay of the physics: the states step into the recorded ones
+    # replay of the physics: without sleeping bodies the states step exactly into the recorded
+    # ones (sleep timers are not part of MuJoCo's state; with them it is within 1e-4)
+    awake = copy.copy(model)
+    awake.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    rec = execute(replace(setup, model=awake), planned[:1], replace(cfg, render=False))[0]
+    model = awake
     data2 = mujoco.MjData(model)
     mujoco.mj_setState(model, data2, rec.state[10], STATE_SPEC)
     for step in range(25):
