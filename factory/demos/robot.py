@@ -132,10 +132,33 @@ class CameraRig:
 ROBOSUITE_VERSION = "1.5.1"
 
 
+VISUAL_FACES = 2500
+"""Visual meshes of the robot are simplified to at most this many faces each (robosuite's have
+up to 15,000, 149,000 in all: nine tenths of a kitchen's triangles); collision meshes are kept."""
+
+
 def robot_cache_dir() -> Path:
     """Where the composed robot MJCF and its meshes are kept (``FACTORY_ROBOT_CACHE``)."""
     root = os.environ.get("FACTORY_ROBOT_CACHE") or "~/.cache/factory/robots"
-    return Path(root).expanduser() / f"panda-robosuite-{ROBOSUITE_VERSION}"
+    return Path(root).expanduser() / f"panda-robosuite-{ROBOSUITE_VERSION}-v{VISUAL_FACES}"
+
+
+def _simplify_obj(src: str, dst: Path, max_faces: int) -> None:
+    """Writes a visual OBJ with at most ``max_faces`` faces (fast-simplification)."""
+    import fast_simplification
+    import trimesh
+
+    mesh = trimesh.load(src, force="mesh", process=False)
+    mesh.merge_vertices()  # OBJ corners are per face; decimation needs shared vertices
+    faces = len(mesh.faces)
+    if faces > max_faces:
+        verts, tris = fast_simplification.simplify(
+            np.asarray(mesh.vertices, np.float32),
+            np.asarray(mesh.faces, np.int64),
+            target_reduction=1.0 - max_faces / faces,
+        )
+        mesh = trimesh.Trimesh(verts, tris, process=False)
+    dst.write_text(trimesh.exchange.obj.export_obj(mesh, include_normals=False))
 
 
 def _robosuite_xml() -> str:
@@ -176,7 +199,10 @@ def export_robot(cache: Path) -> None:
             continue
         rel = f"files/{k:04d}_{Path(src).name}"
         (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(src, tmp / rel)
+        if el.tag == "mesh" and src.endswith(".obj") and "_vis" in el.get("name", ""):
+            _simplify_obj(src, tmp / rel, VISUAL_FACES)
+        else:
+            shutil.copyfile(src, tmp / rel)
         el.set("file", rel)
     (tmp / "robot.xml").write_text(ET.tostring(root, encoding="unicode"))
     cache.parent.mkdir(parents=True, exist_ok=True)
