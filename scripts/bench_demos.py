@@ -77,7 +77,6 @@ def main() -> None:
                 f"run_dir={run}",
                 f"demos.episodes_per_scene={args.episodes}",
                 f"demos.workers={args.cores}",
-                f"demos.nthread={args.cores}",
                 f"demos.batch={args.batch}",
             ],
             args.cores,

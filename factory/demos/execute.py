@@ -86,7 +86,11 @@ class FrameRenderer:
         configure_gl("auto")
         self.model = model
         self.cfg = cfg
-        self.renderer = mujoco.Renderer(model, cfg.height, cfg.width)
+        n = len(cfg.cameras)
+        if n * cfg.width > model.vis.global_.offwidth or cfg.height > model.vis.global_.offheight:
+            model.vis.global_.offwidth = max(model.vis.global_.offwidth, n * cfg.width)
+            model.vis.global_.offheight = max(model.vis.global_.offheight, cfg.height)
+        self.renderer = mujoco.Renderer(model, cfg.height, n * cfg.width)
         flags = self.renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
@@ -94,8 +98,9 @@ class FrameRenderer:
         self.option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
         self.option.sitegroup[:] = 0
         self.cams = [model.camera(CAMERAS[c]).id for c in cfg.cameras]
-        self._rgb = np.empty((cfg.height, cfg.width, 3), np.uint8)
-        self._z = np.empty((cfg.height, cfg.width), np.float32)
+        self._rgb = np.empty((cfg.height, n * cfg.width, 3), np.uint8)
+        self._z = np.empty((cfg.height, n * cfg.width), np.float32)
+        self._rect = mujoco.MjrRect(0, 0, n * cfg.width, cfg.height)
         extent = model.stat.extent
         self._near = np.float32(model.vis.map.znear * extent)
         self._far = np.float32(model.vis.map.zfar * extent)
@@ -113,21 +118,23 @@ class FrameRenderer:
     def render(self, data: mujoco.MjData) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """RGB (H, W, 3) uint8 and depth (H, W) images per camera of the state in ``data``.
 
-        ``data`` needs current kinematics (``mj_forward`` or ``mj_kinematics`` + ``mj_camlight``).
+        The cameras are drawn side by side into one offscreen buffer and read back at once
+        (one GPU synchronization per frame). ``data`` needs current kinematics.
         """
         r = self.renderer
         r._gl_context.make_current()
-        rect, ctx = r._rect, r._mjr_context  # one render, both buffers read
-        rgbs, depths = [], []
-        for cam in self.cams:
+        ctx = r._mjr_context
+        w, h = self.cfg.width, self.cfg.height
+        for k, cam in enumerate(self.cams):
             r.update_scene(data, camera=cam, scene_option=self.option)
-            mujoco.mjr_render(rect, r.scene, ctx)
-            mujoco.mjr_readPixels(self._rgb, self._z, rect, ctx)
-            rgbs.append(np.flipud(self._rgb).copy())
-            depth = self._metric(np.flipud(self._z))
-            if self.cfg.depth == "uint16_mm":
-                depth = np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
-            depths.append(depth)
+            mujoco.mjr_render(mujoco.MjrRect(k * w, 0, w, h), r.scene, ctx)
+        mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
+        rgb = np.flipud(self._rgb)
+        depth = self._metric(np.flipud(self._z))
+        if self.cfg.depth == "uint16_mm":
+            depth = np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
+        rgbs = [rgb[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
+        depths = [depth[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
         self.frames += 1
         return rgbs, depths
 

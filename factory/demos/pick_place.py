@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import mujoco
@@ -50,7 +50,7 @@ from factory.demos.task import (
 )
 from factory.demos.timing import Limits, time_path
 from factory.errors import TaskError
-from factory.schema import Scene
+from factory.schema import Scene, SceneObject
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +94,8 @@ class SceneSetup:
     robot: RobotIndex
     rig: CameraRig
     compose_seconds: float
+    cleared: tuple[str, ...] = ()
+    """Objects taken out of the scene to free the base spot (with what stood on them)."""
 
 
 @dataclass
@@ -184,7 +186,10 @@ def setup_scene(
     """Chooses the robot's base spot and composes the scene with the robot there.
 
     A spot is taken when the robot at home collides with nothing and a top-down tool pose
-    above the middle of the reachable workspace has an IK solution.
+    above the middle of the reachable workspace has an IK solution. When every spot is
+    blocked only by movable floor objects (chairs around a table, a bin), the nearest such
+    spot is freed by taking those objects (and what stands on them) out of the scene; the
+    setup's ``cleared`` names them.
 
     Raises:
         TaskError: the scene lacks task objects, or no spot around the support works.
@@ -203,20 +208,71 @@ def setup_scene(
     qpos = initial_state(model, robot)
     checker = CollisionChecker(model, robot, qpos)
     mid = 0.5 * (ws.reach_min + ws.reach_max)
+    tool = _top_down(np.array([mid, 0.0, 0.12]), 0.0)
+    if ik.solve(tool, [HOME_QPOS]) is None:  # pragma: no cover - the pose is well inside
+        raise TaskError("the robot cannot reach its own workspace centre")
+    keep = {objects.pick.id, objects.target.id, objects.support.id}
+    scene_ids = {o.id for o in scene.objects}
+    blocked: list[tuple[RobotPlacement, set[str]]] = []
     for spot in spots[:max_spots]:
         move_robot(checker.model, spot, base_body)
-        if not checker.valid(HOME_QPOS):
-            continue
-        tool = _top_down(np.array([mid, 0.0, 0.12]), 0.0)
-        if ik.solve(tool, [HOME_QPOS]) is None:
-            continue
-        rig = aim_cameras(scene, assets_root, spot, rig)
-        model = compose(scene, assets_root, spot, rig)
-        return SceneSetup(scene, objects, spot, model, robot, rig, time.perf_counter() - t0)
+        hits = checker.collisions(HOME_QPOS)
+        if not hits:
+            rig = aim_cameras(scene, assets_root, spot, rig)
+            model = compose(scene, assets_root, spot, rig)
+            return SceneSetup(scene, objects, spot, model, robot, rig, time.perf_counter() - t0)
+        names = {b for pair in hits for b in pair[:2] if not b.startswith("panda/")}
+        if names and all(
+            n in scene_ids and n not in keep and _movable(scene.object(n)) for n in names
+        ):
+            blocked.append((spot, names))
+    for spot, names in blocked[:3]:
+        cleared = _with_dependents(scene, names)
+        trimmed = replace(scene, objects=[o for o in scene.objects if o.id not in cleared])
+        model = compose(trimmed, assets_root, spot, rig)
+        robot = RobotIndex.of(model)
+        check = CollisionChecker(model, robot, initial_state(model, robot))
+        if check.valid(HOME_QPOS):
+            log.info("scene %s: cleared %s for the robot's base", scene.id, sorted(cleared))
+            rig = aim_cameras(trimmed, assets_root, spot, rig)
+            model = compose(trimmed, assets_root, spot, rig)
+            return SceneSetup(
+                trimmed,
+                objects,
+                spot,
+                model,
+                robot,
+                rig,
+                time.perf_counter() - t0,
+                tuple(sorted(cleared)),
+            )
     raise TaskError(
         f"scene {scene.id!r}: no free base spot next to {objects.support.id!r} "
         f"(tried {min(len(spots), max_spots)})"
     )
+
+
+def _movable(obj: SceneObject) -> bool:
+    """Floor objects light enough to move aside (chairs, stools, bins), not fixtures."""
+    return (
+        not obj.is_static
+        and obj.placement.kind == "floor"
+        and obj.physics.mass <= 25.0
+        and max(obj.dimensions.width, obj.dimensions.length) <= 1.0
+    )
+
+
+def _with_dependents(scene: Scene, ids: set[str]) -> set[str]:
+    """``ids`` and every object standing on them, transitively."""
+    out = set(ids)
+    grew = True
+    while grew:
+        grew = False
+        for o in scene.objects:
+            if o.id not in out and o.placement.support_id in out:
+                out.add(o.id)
+                grew = True
+    return out
 
 
 def _clear_view(

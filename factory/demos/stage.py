@@ -148,6 +148,7 @@ def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
         out["failures"]["scene_unusable"] += len(item.slots)
         return out
     out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
+    out["cleared"] = list(setup.cleared)
     scene = setup.scene
     rec_cfg = RecordConfig(
         fps=dc.fps,
@@ -217,6 +218,7 @@ def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
                     plan_seconds=plan.plan_seconds,
                     outcome=rec.outcome.details,
                     factory_version=__version__,
+                    cleared=list(setup.cleared),
                 )
                 arrays: dict[str, np.ndarray] = {
                     "time": rec.time,
@@ -319,6 +321,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
             log.warning("scene %s: no demos: %s", r["scene_id"], r["error"])
         if "robot_base" in r:
             s["robot_base"] = r["robot_base"]
+            s["cleared"] = r["cleared"]
     for eid in episodes.episode_ids():
         sid = eid.rsplit("-ep", 1)[0]
         if sid in scenes:

@@ -59,6 +59,7 @@ class EpisodeInfo:
         plan_seconds: planning time per planned motion (s).
         outcome: numbers of the success check.
         factory_version: version of factory that recorded it.
+        cleared: objects of the scene taken out to free the robot's base spot.
     """
 
     episode_id: str
@@ -84,6 +85,7 @@ class EpisodeInfo:
     plan_seconds: dict[str, float] = field(default_factory=dict)
     outcome: dict[str, float] = field(default_factory=dict)
     factory_version: str = ""
+    cleared: list[str] = field(default_factory=list)
     schema_version: int = EPISODE_SCHEMA_VERSION
 
 

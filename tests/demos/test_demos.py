@@ -435,3 +435,20 @@ def test_robot_cache_matches_robosuite(tmp_path: Path, monkeypatch) -> None:
                 assert faces[0] == faces[1]
     finally:
         robot_mod._robot_xml.cache_clear()
+
+
+@pytest.mark.slow
+def test_blocked_table_is_cleared(tmp_path: Path) -> None:
+    """A generated kitchen whose dining table is ringed by chairs: the chair in the way of the
+    nearest spot is taken out, and the episode plans."""
+    from factory.scenes.generate import generate_scene
+
+    request = "a kitchen where the robot picks up a mug and puts it in the bowl"
+    scene, _ = generate_scene(request, AssetLibrary(tmp_path / "assets"), seed=4)
+    setup = setup_scene(scene, tmp_path / "assets")
+    assert setup.cleared, "this scene's table is blocked by chairs on every side"
+    for oid in setup.cleared:
+        original = scene.object(oid)
+        assert original.placement.kind == "floor" or original.placement.support_id in setup.cleared
+        assert oid not in {o.id for o in setup.scene.objects}
+    assert isinstance(EpisodePlanner(setup).plan_episode(0), EpisodePlan)
