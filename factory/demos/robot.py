@@ -149,6 +149,7 @@ def _simplify_obj(src: str, dst: Path, max_faces: int) -> None:
     import trimesh
 
     mesh = trimesh.load(src, force="mesh", process=False)
+    assert isinstance(mesh, trimesh.Trimesh)
     mesh.merge_vertices()  # OBJ corners are per face; decimation needs shared vertices
     faces = len(mesh.faces)
     if faces > max_faces:
