@@ -72,15 +72,15 @@ class MotionConfig:
     speed: float = 0.5
     accel: float = 0.3
     jerk: float = 0.2
-    slow: float = 0.3
+    slow: float = 0.5
     pregrasp: float = 0.10
     lift: float = 0.15
     place_drop: float = 0.015
     preplace: float = 0.10
-    settle: float = 0.3
-    close: float = 0.8
-    release: float = 0.5
-    hold: float = 0.8
+    settle: float = 0.2
+    close: float = 0.6
+    release: float = 0.4
+    hold: float = 0.6
 
 
 @dataclass
