@@ -75,7 +75,8 @@ class Recording:
 class FrameRenderer:
     """Renders the recording cameras of a composed model: RGB and depth from one GL pass.
 
-    Shadows and reflections are off (they cost several times the image at this size);
+    Shadows, reflections, the skybox and multisampling are off (they cost more than the image
+    itself at this size);
     collision geoms (group 3) and sites are hidden. Depth is the depth buffer of the RGB pass,
     so it matches the image: transparent geoms (window glass) do not occlude.
     """
@@ -87,6 +88,7 @@ class FrameRenderer:
         self.model = model
         self.cfg = cfg
         n = len(cfg.cameras)
+        model.vis.quality.offsamples = 0  # no multisampling: 1.7x faster on Mesa at 128 px
         if n * cfg.width > model.vis.global_.offwidth or cfg.height > model.vis.global_.offheight:
             model.vis.global_.offwidth = max(model.vis.global_.offwidth, n * cfg.width)
             model.vis.global_.offheight = max(model.vis.global_.offheight, cfg.height)
@@ -94,6 +96,7 @@ class FrameRenderer:
         flags = self.renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
         self.option = mujoco.MjvOption()
         self.option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
         self.option.sitegroup[:] = 0
