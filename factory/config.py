@@ -256,6 +256,21 @@ class DemosConfig:
 
 
 @dataclass
+class DatasetConfig:
+    """``stage=dataset``: episode stores -> LeRobot v3 datasets, merged across shards.
+
+    Attributes:
+        repo_id: the dataset's LeRobot repo id (``<user>/<name>``).
+        out: output folder; empty means ``<run_dir>/dataset`` (``shards/``, ``merged/``).
+        vcodec: video codec of the camera streams (``h264``, ``libsvtav1``, ...).
+    """
+
+    repo_id: str = "factory/demos"
+    out: str | None = None
+    vcodec: str = "h264"
+
+
+@dataclass
 class AllConfig:
     """``stage=all``: the stages to run, in order."""
 
@@ -295,6 +310,7 @@ class FactoryConfig:
     render: RenderConfig = field(default_factory=RenderConfig)
     export: ExportConfig = field(default_factory=ExportConfig)
     demos: DemosConfig = field(default_factory=DemosConfig)
+    dataset: DatasetConfig = field(default_factory=DatasetConfig)
     all: AllConfig = field(default_factory=AllConfig)
 
 

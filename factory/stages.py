@@ -25,6 +25,7 @@ STAGES: dict[str, str] = {
     "render": "factory.scenes.build:run_render",
     "export": "factory.scenes.build:run_export",
     "demos": "factory.demos.stage:run",
+    "dataset": "factory.dataset.stage:run",
     "all": "factory.stages:run_all",
 }
 """Every stage, in pipeline order."""
@@ -42,6 +43,7 @@ DESCRIPTIONS: dict[str, str] = {
     "render": "render top-down and corner views: scenes/<id>/renders/*.png",
     "export": "write scenes back out (export.format=sage: layout JSON + PLY meshes)",
     "demos": "recorded robot demonstrations (task=pick_place): episodes/shard-<k>.zarr",
+    "dataset": "LeRobot v3 dataset from every demos shard, merged: dataset/merged",
     "all": "run the stages listed in all.stages, in order",
 }
 

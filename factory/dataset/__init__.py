@@ -1,0 +1,1 @@
+"""LeRobot datasets from recorded episodes (``stage=dataset``)."""

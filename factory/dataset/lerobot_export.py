@@ -1,0 +1,314 @@
+"""Episode stores -> LeRobot v3 datasets, with lerobot's own writer and aggregator.
+
+Features of every frame:
+
+* ``observation.state`` (8,) float32: arm joints (rad) and the gripper opening (m);
+* ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
+* ``action`` (8,) float32: desired arm joints (rad) and the gripper command (m);
+* ``observation.images.<camera>`` video (H, W, 3);
+* ``observation.depth.<camera>`` (H*W,) uint16 millimetres, row-major (exact, in the parquet
+  files; reshape to (H, W));
+* the task string (the episode's instruction).
+
+``extras/<episode_id>/`` beside the data holds the episode's ``scene.json``, the scene's
+``model.xml`` (with the meshes it uses under ``extras/assets/``), ``robot.json`` (base
+placement, cameras, objects cleared) and ``states.npz`` (MuJoCo integration states, exact
+replay); ``meta/factory.json`` names the scenes, seeds, episode ids (by dataset episode index)
+and the factory version.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from factory.errors import StoreError
+
+log = logging.getLogger(__name__)
+
+FACTORY_META = "meta/factory.json"
+EXPORT_SCHEMA_VERSION = 1
+
+
+def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
+    """The LeRobot feature spec of episodes shaped like ``info`` (an ``EpisodeInfo``)."""
+    h, w = info.image_size
+    feats: dict[str, dict[str, Any]] = {
+        "observation.state": {
+            "dtype": "float32",
+            "shape": (8,),
+            "names": [f"joint{i}" for i in range(1, 8)] + ["gripper"],
+        },
+        "observation.ee_pose": {
+            "dtype": "float32",
+            "shape": (7,),
+            "names": ["x", "y", "z", "qw", "qx", "qy", "qz"],
+        },
+        "action": {
+            "dtype": "float32",
+            "shape": (8,),
+            "names": [f"joint{i}" for i in range(1, 8)] + ["gripper"],
+        },
+    }
+    for cam in info.cameras:
+        feats[f"observation.images.{cam}"] = {
+            "dtype": "video",
+            "shape": (h, w, 3),
+            "names": ["height", "width", "channels"],
+        }
+        if depth:
+            # Flat (H*W,) rows: lerobot's aggregator writes parquet through pandas, which
+            # cannot hold 2-D array cells; reshape to (H, W) (row-major) when reading.
+            feats[f"observation.depth.{cam}"] = {
+                "dtype": "uint16",
+                "shape": (h * w,),
+                "names": [f"row-major {h}x{w} mm"],
+            }
+    return feats
+
+
+def depth_mm(depth: np.ndarray) -> np.ndarray:
+    """Depth as uint16 millimetres (float metres are rounded to the millimetre)."""
+    if depth.dtype == np.uint16:
+        return depth
+    return np.clip(np.round(np.asarray(depth, np.float64) * 1000.0), 0, 65535).astype(np.uint16)
+
+
+def _check_shapes(info: Any, group: Any) -> None:
+    h, w = info.image_size
+    n = info.n_frames
+    expect = {"joint_pos": (n, 7), "gripper": (n, 1), "ee_pose": (n, 7), "action": (n, 8)}
+    for cam in info.cameras:
+        expect[f"rgb/{cam}"] = (n, h, w, 3)
+        expect[f"depth/{cam}"] = (n, h, w)
+    for name, shape in expect.items():
+        got = tuple(group[name].shape) if name in group else None
+        if got != shape:
+            raise StoreError(
+                f"episode {info.episode_id!r}: array {name!r} has shape {got}, expected {shape} "
+                "(re-record the episode)"
+            )
+
+
+def _write_extras(
+    dest: Path, info: Any, group: Any, run_dir: Path, copied_assets: set[str]
+) -> None:
+    """``extras/<episode_id>/`` (+ the scene's assets under ``extras/assets/``)."""
+    ep = dest / "extras" / info.episode_id
+    ep.mkdir(parents=True, exist_ok=True)
+    scene_dir = run_dir / "scenes" / info.scene_id
+    scene_json = scene_dir / "scene.json"
+    if not scene_json.is_file():
+        raise StoreError(
+            f"episode {info.episode_id!r}: its scene {scene_json} is missing from the run"
+        )
+    shutil.copyfile(scene_json, ep / "scene.json")
+    model = scene_dir / "model.xml"
+    if model.is_file():
+        text = model.read_text()
+        # the run's model.xml points at ../../assets; extras keep the same layout
+        (ep / "model.xml").write_text(text)
+        scene = json.loads(scene_json.read_text())
+        for obj in scene.get("objects", []):
+            aid = (obj.get("asset") or {}).get("asset_id")
+            if aid and aid not in copied_assets and (run_dir / "assets" / aid).is_dir():
+                shutil.copytree(run_dir / "assets" / aid, dest / "extras" / "assets" / aid)
+                copied_assets.add(aid)
+    robot = {
+        "base": info.robot.__dict__,
+        "cameras": info.cameras,
+        "cleared": info.cleared,
+        "pick_id": info.pick_id,
+        "target_id": info.target_id,
+        "support_id": info.support_id,
+        "seed": info.seed,
+        "fps": info.fps,
+        "timestep": info.timestep,
+        "state_spec": info.state_spec,
+    }
+    (ep / "robot.json").write_text(json.dumps(robot, indent=1))
+    np.savez_compressed(ep / "states.npz", state=group["state"][:], time=group["time"][:])
+
+
+def export_store(
+    store: Any,
+    dest: Path,
+    repo_id: str,
+    run_dir: Path,
+    vcodec: str = "h264",
+    version: str = "",
+) -> dict[str, Any]:
+    """Writes every episode of an episode store into a new LeRobot dataset at ``dest``.
+
+    The dataset is built in a sibling temporary folder and renamed to ``dest`` at the end, so
+    ``dest`` never holds a half-written dataset.
+
+    Returns:
+        the factory metadata written to ``meta/factory.json``.
+
+    Raises:
+        StoreError: an episode has wrong shapes, a scene is missing, or the store is empty.
+    """
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ids = store.episode_ids()
+    if not ids:
+        raise StoreError(f"{store.path} holds no episodes: run stage=demos first")
+    infos = [store.info(e) for e in ids]
+    first = infos[0]
+    for info in infos[1:]:
+        if (info.image_size, info.cameras, info.fps) != (first.image_size, first.cameras, first.fps):
+            raise StoreError(
+                f"episode {info.episode_id!r} differs from {first.episode_id!r} in image size, "
+                "cameras or fps: one dataset needs one shape"
+            )
+    tmp = dest.with_name(f".tmp-{dest.name}-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.parent.mkdir(parents=True, exist_ok=True)
+    ds = LeRobotDataset.create(
+        repo_id=repo_id,
+        fps=round(first.fps),
+        features=features_for(first),
+        root=tmp,
+        robot_type="franka_panda",
+        use_videos=True,
+        vcodec=vcodec,
+    )
+    copied: set[str] = set()
+    episodes = []
+    try:
+        for index, info in enumerate(infos):
+            group = store.arrays(info.episode_id)
+            _check_shapes(info, group)
+            joint = np.asarray(group["joint_pos"][:], np.float32)
+            grip = np.asarray(group["gripper"][:], np.float32)
+            ee = np.asarray(group["ee_pose"][:], np.float32)
+            act = np.asarray(group["action"][:], np.float32)
+            rgb = {c: group[f"rgb/{c}"][:] for c in info.cameras}
+            dep = {c: depth_mm(group[f"depth/{c}"][:]) for c in info.cameras}
+            for f in range(info.n_frames):
+                frame: dict[str, Any] = {
+                    "observation.state": np.concatenate([joint[f], grip[f]]),
+                    "observation.ee_pose": ee[f],
+                    "action": act[f],
+                    "task": info.instruction,
+                }
+                for c in info.cameras:
+                    frame[f"observation.images.{c}"] = rgb[c][f]
+                    frame[f"observation.depth.{c}"] = dep[c][f].reshape(-1)
+                ds.add_frame(frame)
+            ds.save_episode()
+            _write_extras(tmp, info, group, run_dir, copied)
+            episodes.append(
+                {
+                    "episode_index": index,
+                    "episode_id": info.episode_id,
+                    "scene_id": info.scene_id,
+                    "seed": info.seed,
+                    "n_frames": info.n_frames,
+                }
+            )
+        ds.finalize()
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    meta = {
+        "schema_version": EXPORT_SCHEMA_VERSION,
+        "factory_version": version,
+        "task": first.task,
+        "scenes": sorted({i.scene_id for i in infos}),
+        "episodes": episodes,
+        "depth_unit": "mm",
+        "state_spec": first.state_spec,
+    }
+    (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
+    if dest.exists():
+        old = dest.with_name(f".old-{dest.name}-{os.getpid()}")
+        os.rename(dest, old)
+        os.rename(tmp, dest)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.rename(tmp, dest)
+    return meta
+
+
+def merge_datasets(
+    shard_dirs: list[Path], dest: Path, repo_id: str, version: str = ""
+) -> dict[str, Any]:
+    """Merges shard datasets (from :func:`export_store`) into one with lerobot's
+    ``aggregate_datasets``; extras are combined and ``meta/factory.json`` re-indexed.
+
+    Built in a temporary folder, checked by loading it, then renamed to ``dest``.
+
+    Raises:
+        StoreError: two shards hold the same episode, or a shard is not a finished export.
+    """
+    from lerobot.datasets.aggregate import aggregate_datasets
+    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
+
+    metas = []
+    for d in shard_dirs:
+        path = d / FACTORY_META
+        if not path.is_file():
+            raise StoreError(f"{d} is not a finished shard dataset (no {FACTORY_META})")
+        metas.append(json.loads(path.read_text()))
+    seen: dict[str, Path] = {}
+    for d, meta in zip(shard_dirs, metas, strict=True):
+        for ep in meta["episodes"]:
+            if ep["episode_id"] in seen:
+                raise StoreError(
+                    f"episode {ep['episode_id']!r} is in two shards ({seen[ep['episode_id']]} "
+                    f"and {d}): shards must not overlap; re-run with one shard layout"
+                )
+            seen[ep["episode_id"]] = d
+    tmp = dest.with_name(f".tmp-{dest.name}-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        aggregate_datasets(
+            repo_ids=[f"{repo_id}-shard{k}" for k in range(len(shard_dirs))],
+            aggr_repo_id=repo_id,
+            roots=list(shard_dirs),
+            aggr_root=tmp,
+        )
+        episodes = []
+        offset = 0
+        for d, meta in zip(shard_dirs, metas, strict=True):
+            for ep in meta["episodes"]:
+                episodes.append({**ep, "episode_index": offset + ep["episode_index"]})
+            offset += len(meta["episodes"])
+            extras = d / "extras"
+            if extras.is_dir():
+                shutil.copytree(extras, tmp / "extras", dirs_exist_ok=True)
+        check = LeRobotDatasetMetadata(repo_id, root=tmp)
+        if check.total_episodes != len(episodes):
+            raise StoreError(
+                f"merged dataset has {check.total_episodes} episodes, expected {len(episodes)}"
+            )
+        merged = {
+            "schema_version": EXPORT_SCHEMA_VERSION,
+            "factory_version": version,
+            "task": metas[0]["task"],
+            "scenes": sorted({s for m in metas for s in m["scenes"]}),
+            "episodes": episodes,
+            "depth_unit": "mm",
+            "state_spec": metas[0]["state_spec"],
+            "shards": [d.name for d in shard_dirs],
+        }
+        (tmp / FACTORY_META).write_text(json.dumps(merged, indent=1))
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if dest.exists():
+        old = dest.with_name(f".old-{dest.name}-{os.getpid()}")
+        os.rename(dest, old)
+        os.rename(tmp, dest)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.rename(tmp, dest)
+    return merged
