@@ -162,8 +162,9 @@ def export_store(
         raise StoreError(f"{store.path} holds no episodes: run stage=demos first")
     infos = [store.info(e) for e in ids]
     first = infos[0]
+    shape = (first.image_size, first.cameras, first.fps)
     for info in infos[1:]:
-        if (info.image_size, info.cameras, info.fps) != (first.image_size, first.cameras, first.fps):
+        if (info.image_size, info.cameras, info.fps) != shape:
             raise StoreError(
                 f"episode {info.episode_id!r} differs from {first.episode_id!r} in image size, "
                 "cameras or fps: one dataset needs one shape"
