@@ -1,0 +1,220 @@
+"""LeRobot export and shard merge: round trip, errors, and a diffusion-policy training batch."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("lerobot")
+
+from factory.demos.episodes import EpisodeStore  # noqa: E402
+from factory.demos.execute import STATE_SPEC  # noqa: E402
+from factory.schema.episode import EpisodeInfo, RobotBase  # noqa: E402
+from factory.store import RunStore, Shard  # noqa: E402
+
+EXAMPLE_SCENE = (
+    Path(__file__).resolve().parents[2] / "factory/data/examples/kitchen_pick_place/scene.json"
+)
+H = W = 32
+CAMS = ["left", "wrist"]
+
+
+def _episode(eid: str, scene_id: str, n: int, seed: int) -> tuple[EpisodeInfo, dict]:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n)
+    yy, xx = np.mgrid[0:H, 0:W]
+    rgb = {}
+    for k, cam in enumerate(CAMS):
+        # smooth images with a moving square: what a video codec keeps well
+        frames = np.zeros((n, H, W, 3), np.uint8)
+        for f in range(n):
+            frames[f, ..., 0] = (4 * xx + 2 * f) % 256
+            frames[f, ..., 1] = (4 * yy + 40 * k) % 256
+            frames[f, ..., 2] = 128
+            x0 = (f + 3 * k) % (W - 8)
+            frames[f, 8:16, x0 : x0 + 8] = 255
+        rgb[cam] = frames
+    info = EpisodeInfo(
+        episode_id=eid,
+        scene_id=scene_id,
+        task="pick_place",
+        instruction="pick up the mug and put it in the bowl",
+        seed=seed,
+        success=True,
+        failure_reason="",
+        pick_id="mug",
+        target_id="bowl",
+        support_id="table",
+        robot=RobotBase(1.0, 2.0, 0.75, 0.5),
+        fps=20.0,
+        timestep=0.002,
+        n_frames=n,
+        cameras=CAMS,
+        image_size=[H, W],
+        depth_format="uint16_mm",
+        state_spec=int(STATE_SPEC),
+    )
+    arrays = {
+        "time": t / 20.0,
+        "state": rng.normal(size=(n, 30)),
+        "joint_pos": rng.normal(size=(n, 7)).astype(np.float32),
+        "gripper": rng.uniform(0, 0.08, size=(n, 1)).astype(np.float32),
+        "ee_pose": rng.normal(size=(n, 7)).astype(np.float32),
+        "action": rng.normal(size=(n, 8)).astype(np.float32),
+    }
+    for cam in CAMS:
+        arrays[f"rgb/{cam}"] = rgb[cam]
+        arrays[f"depth/{cam}"] = rng.integers(300, 4000, size=(n, H, W)).astype(np.uint16)
+    return info, arrays
+
+
+def _run(tmp_path: Path, shards: int = 2, per_shard: int = 2, finished: bool = True) -> RunStore:
+    store = RunStore(tmp_path / "run")
+    scene_id = "kitchen_pick_place"
+    (store.scenes_dir / scene_id).mkdir(parents=True)
+    shutil.copyfile(EXAMPLE_SCENE, store.scene_json(scene_id))
+    for k in range(shards):
+        ep = EpisodeStore(store.episodes_shard(Shard(k, shards)))
+        for j in range(per_shard):
+            info, arrays = _episode(f"{scene_id}-ep{k}{j}", scene_id, 24 + 3 * j, 10 * k + j)
+            ep.write(info, arrays)
+        status = "done" if finished or k == 0 else "running"
+        store.record_stage("demos", Shard(k, shards), status, {})
+    return store
+
+
+def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    store = _run(tmp_path)
+    out = cli("stage=dataset", f"run_dir={store.root}")
+    assert out.returncode == 0, out.stderr[-3000:]
+    merged = store.root / "dataset" / "merged"
+    meta = json.loads((merged / "meta" / "factory.json").read_text())
+    assert [e["episode_id"] for e in meta["episodes"]] == [
+        "kitchen_pick_place-ep00",
+        "kitchen_pick_place-ep01",
+        "kitchen_pick_place-ep10",
+        "kitchen_pick_place-ep11",
+    ]
+    assert meta["scenes"] == ["kitchen_pick_place"] and meta["factory_version"]
+    ds = LeRobotDataset("factory/demos", root=merged, video_backend="pyav")
+    assert ds.num_episodes == 4 and ds.fps == 20
+    index = 0
+    worst_rgb = 0.0
+    for e in meta["episodes"]:
+        shard = int(e["episode_id"][-2])
+        group = EpisodeStore(store.episodes_shard(Shard(shard, 2))).arrays(e["episode_id"])
+        for f in range(e["n_frames"]):
+            item = ds[index]
+            index += 1
+            state = np.concatenate([group["joint_pos"][f], group["gripper"][f]])
+            assert np.array_equal(item["observation.state"].numpy(), state)
+            assert np.array_equal(item["action"].numpy(), group["action"][f])
+            for cam in CAMS:
+                depth = item[f"observation.depth.{cam}"].numpy().reshape(H, W)
+                assert np.array_equal(depth, group[f"depth/{cam}"][f])  # exact millimetres
+                img = (item[f"observation.images.{cam}"].numpy().transpose(1, 2, 0) * 255).round()
+                err = np.abs(img - group[f"rgb/{cam}"][f].astype(float)).mean()
+                worst_rgb = max(worst_rgb, err)
+            assert item["task"] == "pick up the mug and put it in the bowl"
+    assert worst_rgb < 6.0, worst_rgb  # video codec tolerance (mean abs error, 0-255)
+    # extras: scene, robot placement and exact MuJoCo states per episode
+    extra = merged / "extras" / "kitchen_pick_place-ep10"
+    assert json.loads((extra / "scene.json").read_text())["id"] == "kitchen_pick_place"
+    assert json.loads((extra / "robot.json").read_text())["base"]["yaw"] == 0.5
+    states = np.load(extra / "states.npz")["state"]
+    group = EpisodeStore(store.episodes_shard(Shard(1, 2))).arrays("kitchen_pick_place-ep10")
+    assert np.array_equal(states, group["state"][:])
+    # re-running redoes nothing but the merge
+    again = cli("stage=dataset", f"run_dir={store.root}")
+    assert again.returncode == 0
+    result = json.loads((store.root / "manifest.json").read_text())["stages"]["dataset"]
+    assert result["shards"]["0-of-1"]["result"]["exported"] == 0
+
+
+def test_unfinished_or_missing_shard(cli, tmp_path: Path) -> None:
+    store = _run(tmp_path, finished=False)
+    out = cli("stage=dataset", f"run_dir={store.root}")
+    assert out.returncode == 2 and "shard(s) {1: 'running'} of 2 have not finished" in out.stderr
+    assert not (store.root / "dataset" / "merged").exists()
+    store.record_stage("demos", Shard(1, 2), "done", {})
+    shutil.rmtree(store.episodes_shard(Shard(1, 2)))
+    out = cli("stage=dataset", f"run_dir={store.root}")
+    assert out.returncode == 2 and "shard-1.zarr is missing" in out.stderr
+    assert not (store.root / "dataset" / "merged").exists()
+
+
+def test_duplicate_episode_and_bad_shape(tmp_path: Path) -> None:
+    from factory.dataset.lerobot_export import export_store, merge_datasets
+    from factory.errors import StoreError
+
+    store = _run(tmp_path, shards=1, per_shard=1)
+    ep = EpisodeStore(store.episodes_shard(Shard(0, 1)))
+    a = export_store(ep, tmp_path / "a", "x/a", store.root)
+    assert a["episodes"][0]["episode_id"] == "kitchen_pick_place-ep00"
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    with pytest.raises(StoreError, match="in two shards"):
+        merge_datasets([tmp_path / "a", tmp_path / "b"], tmp_path / "m", "x/m")
+    assert not (tmp_path / "m").exists()
+    # an episode whose arrays have the wrong shape
+    bad = EpisodeStore(tmp_path / "bad.zarr")
+    info, arrays = _episode("s-ep0", "kitchen_pick_place", 10, 0)
+    arrays["action"] = np.zeros((10, 6), np.float32)
+    bad.write(info, arrays)
+    with pytest.raises(StoreError, match="'action' has shape"):
+        export_store(bad, tmp_path / "c", "x/c", store.root)
+    assert not (tmp_path / "c").exists() and not list(tmp_path.glob(".tmp-c-*"))
+
+
+def test_diffusion_policy_trains_on_export(tmp_path: Path) -> None:
+    import torch
+    from lerobot.configs.types import FeatureType
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset, LeRobotDatasetMetadata
+    from lerobot.datasets.utils import dataset_to_policy_features
+    from lerobot.policies.diffusion.configuration_diffusion import DiffusionConfig
+    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+    from lerobot.policies.diffusion.processor_diffusion import make_diffusion_pre_post_processors
+
+    from factory.dataset.lerobot_export import export_store
+
+    store = _run(tmp_path, shards=1, per_shard=2)
+    root = tmp_path / "ds"
+    export_store(EpisodeStore(store.episodes_shard(Shard(0, 1))), root, "x/ds", store.root)
+    meta = LeRobotDatasetMetadata("x/ds", root=root)
+    feats = dataset_to_policy_features(meta.features)
+    inputs = {
+        k: f for k, f in feats.items() if k == "observation.state" or f.type is FeatureType.VISUAL
+    }
+    outputs = {k: f for k, f in feats.items() if f.type is FeatureType.ACTION}
+    cfg = DiffusionConfig(
+        input_features=inputs,
+        output_features=outputs,
+        n_obs_steps=2,
+        horizon=8,
+        n_action_steps=4,
+        down_dims=(32, 64),
+        crop_shape=None,
+        num_train_timesteps=10,
+        device="cpu",
+        pretrained_backbone_weights=None,
+    )
+    policy = DiffusionPolicy(cfg)
+    pre, _ = make_diffusion_pre_post_processors(cfg, dataset_stats=meta.stats)
+    obs = [i / meta.fps for i in cfg.observation_delta_indices]
+    delta = {k: obs for k in inputs} | {
+        "action": [i / meta.fps for i in cfg.action_delta_indices]
+    }
+    ds = LeRobotDataset("x/ds", root=root, delta_timestamps=delta, video_backend="pyav")
+    batch = next(iter(torch.utils.data.DataLoader(ds, batch_size=4, shuffle=True)))
+    assert batch["observation.images.left"].shape == (4, 2, 3, H, W)
+    assert batch["action"].shape == (4, 8, 8)
+    optim = torch.optim.Adam(policy.parameters(), lr=1e-4)
+    loss, _ = policy.forward(pre(batch))
+    loss.backward()
+    optim.step()
+    assert torch.isfinite(loss)
