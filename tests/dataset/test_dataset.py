@@ -11,10 +11,10 @@ import pytest
 
 pytest.importorskip("lerobot")
 
-from factory.demos.episodes import EpisodeStore  # noqa: E402
-from factory.demos.execute import STATE_SPEC  # noqa: E402
-from factory.schema.episode import EpisodeInfo, RobotBase  # noqa: E402
-from factory.store import RunStore, Shard  # noqa: E402
+from factory.demos.episodes import EpisodeStore
+from factory.demos.execute import STATE_SPEC
+from factory.schema.episode import EpisodeInfo, RobotBase
+from factory.store import RunStore, Shard
 
 EXAMPLE_SCENE = (
     Path(__file__).resolve().parents[2] / "factory/data/examples/kitchen_pick_place/scene.json"
@@ -206,9 +206,7 @@ def test_diffusion_policy_trains_on_export(tmp_path: Path) -> None:
     policy = DiffusionPolicy(cfg)
     pre, _ = make_diffusion_pre_post_processors(cfg, dataset_stats=meta.stats)
     obs = [i / meta.fps for i in cfg.observation_delta_indices]
-    delta = {k: obs for k in inputs} | {
-        "action": [i / meta.fps for i in cfg.action_delta_indices]
-    }
+    delta = {k: obs for k in inputs} | {"action": [i / meta.fps for i in cfg.action_delta_indices]}
     ds = LeRobotDataset("x/ds", root=root, delta_timestamps=delta, video_backend="pyav")
     batch = next(iter(torch.utils.data.DataLoader(ds, batch_size=4, shuffle=True)))
     assert batch["observation.images.left"].shape == (4, 2, 3, H, W)
