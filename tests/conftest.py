@@ -297,3 +297,30 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "gpu" in item.keywords:
             item.add_marker(skip)
+
+
+def _make_kitchen(assets: Path, seed: int = 3, scene_id: str | None = None) -> Any:
+    """A kitchen with a dining table, a mug (pick), a bowl (target) and a plate on it."""
+    from factory.scenes.assets import AssetLibrary
+    from factory.scenes.tools import ToolSession
+
+    session = ToolSession(AssetLibrary(assets), physics=False)
+    assert session.init_scene("a kitchen", seed=seed)["ok"]
+    table = session.place_objects("dining table", placement="floor", rule="center")
+    assert table["ok"], table
+    tid = table["placed"][0]
+    for text, role in (("bowl", "place_target"), ("mug", "pick")):
+        res = session.place_objects(text, placement="on_top", target=tid, task_role=role)
+        assert res["ok"], res
+    session.place_objects("plate", placement="on_top", target=tid)
+    scene = session.scene
+    scene.task = None
+    if scene_id is not None:
+        scene.id = scene_id
+    return scene
+
+
+@pytest.fixture(scope="session")
+def make_kitchen():
+    """``make_kitchen(assets_dir, seed=3, scene_id=None) -> Scene`` (procedural assets)."""
+    return _make_kitchen

@@ -35,31 +35,14 @@ from factory.demos.task import check_success, initial_state, task_objects
 from factory.demos.timing import Limits, time_path, time_segment
 from factory.errors import StoreError, TaskError
 from factory.scenes.assets import AssetLibrary
-from factory.scenes.tools import ToolSession
 from factory.schema import Scene, scene_to_json
 from factory.schema.episode import episode_info_from_dict
 
 
-def _kitchen(assets: Path, seed: int = 3) -> Scene:
-    """A kitchen with a dining table, a mug (pick) and a bowl (target) on it."""
-    session = ToolSession(AssetLibrary(assets), physics=False)
-    assert session.init_scene("a kitchen", seed=seed)["ok"]
-    table = session.place_objects("dining table", placement="floor", rule="center")
-    assert table["ok"], table
-    tid = table["placed"][0]
-    for text, role in (("bowl", "place_target"), ("mug", "pick")):
-        res = session.place_objects(text, placement="on_top", target=tid, task_role=role)
-        assert res["ok"], res
-    session.place_objects("plate", placement="on_top", target=tid)
-    scene = session.scene
-    scene.task = None
-    return scene
-
-
 @pytest.fixture(scope="module")
-def kitchen(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scene, Path]:
+def kitchen(tmp_path_factory: pytest.TempPathFactory, make_kitchen) -> tuple[Scene, Path]:
     assets = tmp_path_factory.mktemp("assets")
-    return _kitchen(assets), assets
+    return make_kitchen(assets), assets
 
 
 @pytest.fixture(scope="module")
