@@ -170,3 +170,46 @@ def test_demos_array_job_then_dataset(slurm, tmp_path: Path, make_kitchen, cli, 
     assert [e["episode_id"] for e in meta["episodes"]] == ["kitchen_0-ep000", "kitchen_1-ep000"]
     info = json.loads((run / "dataset" / "merged" / "meta" / "info.json").read_text())
     assert info["total_episodes"] == 2 and info["robot_type"] == "franka_panda"
+
+
+def test_hydra_submitit_launcher(slurm, tmp_path: Path, make_kitchen, cli) -> None:
+    """The same cluster through Hydra's launcher: ``-m ... hydra/launcher=factory_slurm``."""
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    run = tmp_path / "run"
+    for k in range(2):
+        scene = make_kitchen(run / "assets", seed=3 + k, scene_id=f"kitchen_{k}")
+        (run / "scenes" / scene.id).mkdir(parents=True)
+        (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    # No accounting database here: submitit asks sacct, so answer from squeue.
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    sacct = bin_dir / "sacct"
+    sacct.write_text(
+        "#!/bin/bash\n"
+        'ids=$(printf "%s\\n" "$@" | sed -n "s/^-j//p;/^[0-9]/p" | head -1)\n'
+        'for a in "$@"; do case $a in -j*) ids=${a#-j};; esac; done\n'
+        'echo "JobID|State|NodeList"\n'
+        'squeue -h --states=all -j "$ids" -o "%i|%T|%N" 2>/dev/null\n'
+    )
+    sacct.chmod(0o755)
+    env = {**slurm, "PATH": f"{bin_dir}:{os.environ['PATH']}"}
+    out = cli(
+        "-m",
+        "stage=compile",
+        f"run_dir={run}",
+        "shard.count=2",
+        "shard.index=0,1",
+        "hydra/launcher=factory_slurm",
+        "hydra.launcher.mem_gb=0",
+        "hydra.launcher.cpus_per_task=1",
+        "hydra.launcher.timeout_min=10",
+        env=env,
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    shards = json.loads((run / "manifest.json").read_text())["stages"]["compile"]["shards"]
+    assert {k: v["status"] for k, v in shards.items()} == {"0-of-2": "done", "1-of-2": "done"}
+    assert (run / "scenes" / "kitchen_0" / "model.xml").is_file()
+    assert (run / "scenes" / "kitchen_1" / "model.xml").is_file()
+    # the two jobs ran through SLURM (submitit's per-job logs)
+    logs = sorted(p.name for p in (run / "logs" / "multirun").rglob("*_log.out"))
+    assert len(logs) == 2, logs
