@@ -6,8 +6,9 @@ Features of every frame:
 * ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
 * ``action`` (8,) float32: desired arm joints (rad) and the gripper command (m);
 * ``observation.images.<camera>`` video (H, W, 3);
-* ``observation.depth.<camera>`` (H*W,) uint16 millimetres, row-major (exact, in the parquet
-  files; reshape to (H, W));
+* ``observation.depth.<camera>`` (H, W, 3) lossless PNG image packing uint16 millimetres as
+  (high byte, low byte, 0); :func:`unpack_depth_mm` turns lerobot's (3, H, W) float tensor (or
+  the uint8 image) back into exact millimetres;
 * the task string (the episode's instruction).
 
 ``extras/<episode_id>/`` beside the data holds the episode's ``scene.json``, the scene's
@@ -63,12 +64,14 @@ def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
             "names": ["height", "width", "channels"],
         }
         if depth:
-            # Flat (H*W,) rows: lerobot's aggregator writes parquet through pandas, which
-            # cannot hold 2-D array cells; reshape to (H, W) (row-major) when reading.
+            # Millimetres packed into a lossless PNG image (high byte, low byte, 0): exact, and
+            # lerobot's per-dimension statistics stay cheap (a (H*W,) uint16 feature would cost
+            # 16,384 quantile histograms per episode). unpack_depth_mm() reads it back.
             feats[f"observation.depth.{cam}"] = {
-                "dtype": "uint16",
-                "shape": (h * w,),
-                "names": [f"row-major {h}x{w} mm"],
+                "dtype": "image",
+                "shape": (h, w, 3),
+                "names": ["height", "width", "channels"],
+                "info": {"depth_encoding": "mm = 256 * R + G (uint8 channels)"},
             }
     return feats
 
@@ -78,6 +81,27 @@ def depth_mm(depth: np.ndarray) -> np.ndarray:
     if depth.dtype == np.uint16:
         return depth
     return np.clip(np.round(np.asarray(depth, np.float64) * 1000.0), 0, 65535).astype(np.uint16)
+
+
+def pack_depth_mm(mm: np.ndarray) -> np.ndarray:
+    """(H, W) uint16 millimetres -> (H, W, 3) uint8 (high byte, low byte, 0)."""
+    mm = np.asarray(mm, np.uint16)
+    out = np.zeros((*mm.shape, 3), np.uint8)
+    out[..., 0] = mm >> 8
+    out[..., 1] = mm & 0xFF
+    return out
+
+
+def unpack_depth_mm(image: Any) -> np.ndarray:
+    """Exact depth in millimetres (H, W) uint16 from a packed depth image.
+
+    Args:
+        image: (H, W, 3) uint8 as stored, or lerobot's (3, H, W) float tensor/array in [0, 1].
+    """
+    arr = image.numpy() if hasattr(image, "numpy") else np.asarray(image)
+    if arr.dtype != np.uint8:
+        arr = np.round(np.moveaxis(arr, 0, -1) * 255.0).astype(np.uint8)
+    return (arr[..., 0].astype(np.uint16) << 8) | arr[..., 1].astype(np.uint16)
 
 
 def _check_shapes(info: Any, group: Any) -> None:
@@ -202,7 +226,7 @@ def export_store(
                 }
                 for c in info.cameras:
                     frame[f"observation.images.{c}"] = rgb[c][f]
-                    frame[f"observation.depth.{c}"] = dep[c][f].reshape(-1)
+                    frame[f"observation.depth.{c}"] = pack_depth_mm(dep[c][f])
                 ds.add_frame(frame)
             ds.save_episode()
             _write_extras(tmp, info, group, run_dir, copied)

@@ -90,6 +90,8 @@ def _run(tmp_path: Path, shards: int = 2, per_shard: int = 2, finished: bool = T
 def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+    from factory.dataset.lerobot_export import unpack_depth_mm
+
     store = _run(tmp_path)
     out = cli("stage=dataset", f"run_dir={store.root}")
     assert out.returncode == 0, out.stderr[-3000:]
@@ -116,7 +118,7 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
             assert np.array_equal(item["observation.state"].numpy(), state)
             assert np.array_equal(item["action"].numpy(), group["action"][f])
             for cam in CAMS:
-                depth = item[f"observation.depth.{cam}"].numpy().reshape(H, W)
+                depth = unpack_depth_mm(item[f"observation.depth.{cam}"])
                 assert np.array_equal(depth, group[f"depth/{cam}"][f])  # exact millimetres
                 img = (item[f"observation.images.{cam}"].numpy().transpose(1, 2, 0) * 255).round()
                 err = np.abs(img - group[f"rgb/{cam}"][f].astype(float)).mean()
@@ -188,8 +190,11 @@ def test_diffusion_policy_trains_on_export(tmp_path: Path) -> None:
     meta = LeRobotDatasetMetadata("x/ds", root=root)
     feats = dataset_to_policy_features(meta.features)
     inputs = {
-        k: f for k, f in feats.items() if k == "observation.state" or f.type is FeatureType.VISUAL
+        k: f
+        for k, f in feats.items()
+        if k == "observation.state" or k.startswith("observation.images.")
     }
+    assert all(f.type is FeatureType.VISUAL for k, f in inputs.items() if "images" in k)
     outputs = {k: f for k, f in feats.items() if f.type is FeatureType.ACTION}
     cfg = DiffusionConfig(
         input_features=inputs,
