@@ -107,7 +107,12 @@ def unpack_depth_mm(image: Any) -> np.ndarray:
 def _check_shapes(info: Any, group: Any) -> None:
     h, w = info.image_size
     n = info.n_frames
-    expect = {"joint_pos": (n, 7), "gripper": (n, 1), "ee_pose": (n, 7), "action": (n, 8)}
+    expect: dict[str, tuple[int, ...]] = {
+        "joint_pos": (n, 7),
+        "gripper": (n, 1),
+        "ee_pose": (n, 7),
+        "action": (n, 8),
+    }
     for cam in info.cameras:
         expect[f"rgb/{cam}"] = (n, h, w, 3)
         expect[f"depth/{cam}"] = (n, h, w)
