@@ -104,6 +104,17 @@ def unpack_depth_mm(image: Any) -> np.ndarray:
     return (arr[..., 0].astype(np.uint16) << 8) | arr[..., 1].astype(np.uint16)
 
 
+def _publish(tmp: Path, dest: Path) -> None:
+    """Moves a finished dataset from ``tmp`` to ``dest``, replacing an older one."""
+    if dest.exists():
+        old = dest.with_name(f".old-{dest.name}-{os.getpid()}")
+        os.rename(dest, old)
+        os.rename(tmp, dest)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.rename(tmp, dest)
+
+
 def _check_shapes(info: Any, group: Any) -> None:
     h, w = info.image_size
     n = info.n_frames
@@ -172,6 +183,7 @@ def export_store(
     run_dir: Path,
     vcodec: str = "h264",
     version: str = "",
+    extra_meta: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Writes every episode of an episode store into a new LeRobot dataset at ``dest``.
 
@@ -179,7 +191,7 @@ def export_store(
     ``dest`` never holds a half-written dataset.
 
     Returns:
-        the factory metadata written to ``meta/factory.json``.
+        the factory metadata written to ``meta/factory.json`` (with ``extra_meta`` added).
 
     Raises:
         StoreError: an episode has wrong shapes, a scene is missing, or the store is empty.
@@ -256,15 +268,10 @@ def export_store(
         "episodes": episodes,
         "depth_unit": "mm",
         "state_spec": first.state_spec,
+        **(extra_meta or {}),
     }
     (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
-    if dest.exists():
-        old = dest.with_name(f".old-{dest.name}-{os.getpid()}")
-        os.rename(dest, old)
-        os.rename(tmp, dest)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.rename(tmp, dest)
+    _publish(tmp, dest)
     return meta
 
 
@@ -334,11 +341,5 @@ def merge_datasets(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    if dest.exists():
-        old = dest.with_name(f".old-{dest.name}-{os.getpid()}")
-        os.rename(dest, old)
-        os.rename(tmp, dest)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.rename(tmp, dest)
+    _publish(tmp, dest)
     return merged

@@ -83,11 +83,15 @@ def run(ctx: StageContext) -> dict[str, Any]:
             shard_dirs.append(dest)
             continue
         log.info("dataset: exporting shard %d-of-%d (%d episodes)", k, n, len(ids))
-        meta = export_store(
-            episodes, dest, f"{cfg.repo_id}-shard{k}", store.root, cfg.vcodec, __version__
+        export_store(
+            episodes,
+            dest,
+            f"{cfg.repo_id}-shard{k}",
+            store.root,
+            cfg.vcodec,
+            __version__,
+            {"digest": digest},
         )
-        meta["digest"] = digest
-        meta_path.write_text(json.dumps(meta, indent=1))
         exported += 1
         shard_dirs.append(dest)
     merged = merge_datasets(shard_dirs, out / "merged", cfg.repo_id, __version__)

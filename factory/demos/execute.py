@@ -107,7 +107,6 @@ class FrameRenderer:
         extent = model.stat.extent
         self._near = np.float32(model.vis.map.znear * extent)
         self._far = np.float32(model.vis.map.zfar * extent)
-        self.frames = 0
 
     def _metric(self, z: np.ndarray) -> np.ndarray:
         """Reversed-Z depth buffer -> distance along the optical axis (m), as mujoco.Renderer."""
@@ -138,7 +137,6 @@ class FrameRenderer:
             depth = np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
         rgbs = [rgb[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
         depths = [depth[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
-        self.frames += 1
         return rgbs, depths
 
     def close(self) -> None:
@@ -225,7 +223,6 @@ def execute(
     support = model.body(setup.objects.support.id).id
     allowed = np.isin(model.geom_bodyid, [pick, target, support])
     nstate = mujoco.mj_stateSize(model, STATE_SPEC)
-    states = np.zeros((n, total + 1, nstate))
     worst = np.zeros(n)
     recs = [
         Recording(
@@ -252,17 +249,18 @@ def execute(
     ]
     sim_s = render_s = 0.0
 
-    def record(frame: int) -> float:
+    def record(frame: int, states: np.ndarray) -> float:
+        """Records frame ``frame`` of every episode from the batch's states (n, nstate)."""
         t0 = time.perf_counter()
         for i in range(n):
             if frame >= n_frames[i]:
                 continue
             rec = recs[i]
-            mujoco.mj_setState(model, data, states[i, frame], STATE_SPEC)
+            mujoco.mj_setState(model, data, states[i], STATE_SPEC)
             mujoco.mj_forward(model, data)
             worst[i] = max(worst[i], _robot_penetration(model, data, robot_geom, allowed))
             q, width, ee = _robot_signals(model, data, robot)
-            rec.state[frame] = states[i, frame]
+            rec.state[frame] = states[i]
             rec.joint_pos[frame] = q
             rec.gripper[frame, 0] = width
             rec.ee_pose[frame] = ee
@@ -275,14 +273,12 @@ def execute(
                     rec.depth[c][frame] = dp
         return time.perf_counter() - t0
 
-    states[:, 0] = batch.state
-    render_s += record(0)
+    render_s += record(0, batch.state)
     for f in range(total):
         t0 = time.perf_counter()
         batch.rollout(per_frame, control=ctrl[:, f * per_frame : (f + 1) * per_frame], record=())
         sim_s += time.perf_counter() - t0
-        states[:, f + 1] = batch.state
-        render_s += record(f + 1)
+        render_s += record(f + 1, batch.state)
     if renderer is None and own is not None:
         own.close()
     # Success checks from the recorded states.

@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from factory.demos.robot import PANDA, RobotIndex
+from factory.demos.robot import PANDA, RobotIndex, pose_matrix
 
 
 @dataclass(frozen=True)
@@ -365,18 +365,11 @@ class GripperShape:
         data = mujoco.MjData(model)
         data.qpos[robot.finger_qpos] = robot.finger_pos(opening)
         mujoco.mj_kinematics(model, data)
-        site = _pose(data.site_xpos[robot.site], data.site_xmat[robot.site])
+        site = pose_matrix(data.site_xpos[robot.site], data.site_xmat[robot.site])
         inv = np.linalg.inv(site)
         geoms = robot.finger_geoms
-        rel = np.stack([inv @ _pose(data.geom_xpos[g], data.geom_xmat[g]) for g in geoms])
+        rel = np.stack([inv @ pose_matrix(data.geom_xpos[g], data.geom_xmat[g]) for g in geoms])
         return cls(geoms, rel)
-
-
-def _pose(pos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
-    out = np.eye(4)
-    out[:3, :3] = np.asarray(xmat).reshape(3, 3)
-    out[:3, 3] = pos
-    return out
 
 
 def gripper_clear(

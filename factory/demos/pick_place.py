@@ -38,6 +38,8 @@ from factory.demos.robot import (
     RobotIndex,
     RobotPlacement,
     add_robot,
+    pose_matrix,
+    rot_z,
 )
 from factory.demos.task import (
     TaskObjects,
@@ -93,7 +95,6 @@ class SceneSetup:
     model: mujoco.MjModel
     robot: RobotIndex
     rig: CameraRig
-    compose_seconds: float
     cleared: tuple[str, ...] = ()
     """Objects taken out of the scene to free the base spot (with what stood on them)."""
 
@@ -152,27 +153,9 @@ def compose(
     return compiled.spec.compile()
 
 
-def _pose(pos: np.ndarray, mat: np.ndarray) -> np.ndarray:
-    out = np.eye(4)
-    out[:3, :3] = np.asarray(mat).reshape(3, 3)
-    out[:3, 3] = pos
-    return out
-
-
-def _base_pose(p: RobotPlacement) -> np.ndarray:
-    out = np.eye(4)
-    c, s = np.cos(p.yaw), np.sin(p.yaw)
-    out[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
-    out[:3, 3] = p.pos()
-    return out
-
-
 def _top_down(xyz: np.ndarray, yaw: float) -> np.ndarray:
-    out = np.eye(4)
-    c, s = np.cos(yaw), np.sin(yaw)
-    out[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.diag([1.0, -1.0, -1.0])
-    out[:3, 3] = xyz
-    return out
+    """A tool pose (4, 4) at ``xyz`` pointing straight down, turned by ``yaw`` rad."""
+    return pose_matrix(xyz, rot_z(yaw) @ np.diag([1.0, -1.0, -1.0]))
 
 
 def setup_scene(
@@ -194,7 +177,6 @@ def setup_scene(
     Raises:
         TaskError: the scene lacks task objects, or no spot around the support works.
     """
-    t0 = time.perf_counter()
     ws = ws or Workspace()
     rig = rig or CameraRig()
     objects = task_objects(scene)
@@ -220,7 +202,7 @@ def setup_scene(
         if not hits:
             rig = aim_cameras(scene, assets_root, spot, rig)
             model = compose(scene, assets_root, spot, rig)
-            return SceneSetup(scene, objects, spot, model, robot, rig, time.perf_counter() - t0)
+            return SceneSetup(scene, objects, spot, model, robot, rig)
         names = {b for pair in hits for b in pair[:2] if not b.startswith("panda/")}
         if names and all(
             n in scene_ids and n not in keep and _movable(scene.object(n)) for n in names
@@ -243,7 +225,6 @@ def setup_scene(
                 model,
                 robot,
                 rig,
-                time.perf_counter() - t0,
                 tuple(sorted(cleared)),
             )
     raise TaskError(
@@ -316,8 +297,7 @@ def aim_cameras(
         for turn in (0.0, 20.0, -20.0, 40.0, -40.0, 60.0, -60.0):
             for lift, pull in ((0.0, 1.0), (0.25, 1.0), (0.1, 0.75)):
                 a = np.radians(turn)
-                rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-                cand = rot @ (np.asarray(offset) * [1.0, pull, 1.0]) + [0, 0, lift]
+                cand = rot_z(a) @ (np.asarray(offset) * [1.0, pull, 1.0]) + [0, 0, lift]
                 if _clear_view(model, data, placement.to_world(centre + cand), targets):
                     best = tuple(float(v) for v in cand)
                     break
@@ -382,7 +362,7 @@ class EpisodePlanner:
         jnt = int(m.body_jntadr[self.pick_body])
         self.pick_adr = int(m.jnt_qposadr[jnt])
         self.pieces = collision_pieces(m, self.pick_body)
-        self.base = _base_pose(setup.placement)
+        self.base = setup.placement.matrix()
         self.base_inv = np.linalg.inv(self.base)
         self.dt = float(m.opt.timestep)
         mo = self.motion
@@ -394,7 +374,7 @@ class EpisodePlanner:
         return self.ik.solve(self.base_inv @ pose_world, seeds, accept=self.checker.valid)
 
     def _grasps(self, data: mujoco.MjData) -> list[Grasp]:
-        pose = _pose(data.xpos[self.pick_body], data.xmat[self.pick_body])
+        pose = pose_matrix(data.xpos[self.pick_body], data.xmat[self.pick_body])
         cands = antipodal_candidates(
             self.pieces,
             pose[:3, :3],
@@ -452,8 +432,8 @@ class EpisodePlanner:
                 time.perf_counter() - t0,
             )
         counts: Counter[str] = Counter()
-        obj_pose = _pose(data.xpos[self.pick_body], data.xmat[self.pick_body])
-        target_pose = _pose(data.xpos[self.target_body], data.xmat[self.target_body])
+        obj_pose = pose_matrix(data.xpos[self.pick_body], data.xmat[self.pick_body])
+        target_pose = pose_matrix(data.xpos[self.target_body], data.xmat[self.target_body])
         surface = _surface_height(m, self.target_body, target_pose)
         pick_bottom = qpos[self.pick_adr + 2]
         for attempt, g in enumerate(grasps[: self.max_grasps]):
@@ -506,10 +486,8 @@ class EpisodePlanner:
         # Place: the object upright above the target, turned by the first yaw that works.
         plan_place = None
         for turn in (0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4):
-            c, s = np.cos(turn), np.sin(turn)
-            rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
             place_obj = np.eye(4)
-            place_obj[:3, :3] = rot @ obj_pose[:3, :3]
+            place_obj[:3, :3] = rot_z(turn) @ obj_pose[:3, :3]
             place_obj[:2, 3] = self._target_xy
             place_obj[2, 3] = surface + mo.place_drop + (obj_pose[2, 3] - pick_bottom)
             place = place_obj @ np.linalg.inv(pose_obj_in_tool)

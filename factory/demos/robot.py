@@ -18,7 +18,7 @@ import logging
 import math
 import os
 import shutil
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -48,7 +48,6 @@ class PandaLimits:
         j_max: jerk limits (rad/s^3).
         tau_max: torque limits (N m).
         finger_max: opening per finger (m); the hand opens to twice this.
-        finger_speed: finger speed (m/s).
     """
 
     q_min: tuple[float, ...] = (-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973)
@@ -58,7 +57,6 @@ class PandaLimits:
     j_max: tuple[float, ...] = (7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0)
     tau_max: tuple[float, ...] = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
     finger_max: float = 0.04
-    finger_speed: float = 0.05
 
 
 PANDA = PandaLimits()
@@ -69,10 +67,29 @@ HOME_QPOS = np.array([0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785])
 SQUEEZE = 0.01
 """How far past closed a finger target goes when grasping (m): ~2000 N/m x (this + contact)."""
 GRIP_CLOSED = -2 * SQUEEZE
-GRIP_OPEN = 2 * 0.04
+GRIP_OPEN = 2 * PANDA.finger_max
 
 _KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
 _KV = (450.0, 450.0, 350.0, 350.0, 200.0, 200.0, 200.0)
+
+
+def rot_z(yaw: float) -> np.ndarray:
+    """Rotation (3, 3) by ``yaw`` rad about +z."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def yaw_quat(yaw: float) -> np.ndarray:
+    """Quaternion (w, x, y, z) of a rotation by ``yaw`` rad about +z."""
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
+def pose_matrix(pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """4x4 transform from a position (3,) and a rotation (3, 3) or MuJoCo xmat (9,)."""
+    out = np.eye(4)
+    out[:3, :3] = np.asarray(rot).reshape(3, 3)
+    out[:3, 3] = pos
+    return out
 
 
 @dataclass(frozen=True)
@@ -89,19 +106,19 @@ class RobotPlacement:
         return np.array([self.x, self.y, self.z])
 
     def quat(self) -> np.ndarray:
-        return np.array([math.cos(self.yaw / 2), 0.0, 0.0, math.sin(self.yaw / 2)])
+        return yaw_quat(self.yaw)
+
+    def matrix(self) -> np.ndarray:
+        """The base pose (4, 4) in the world frame."""
+        return pose_matrix(self.pos(), rot_z(self.yaw))
 
     def to_world(self, p_base: np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` in the base frame -> world frame."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return np.asarray(p_base) @ rot.T + self.pos()
+        return np.asarray(p_base) @ rot_z(self.yaw).T + self.pos()
 
     def to_base(self, p_world: np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` in the world frame -> base frame."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return (np.asarray(p_world) - self.pos()) @ rot
+        return (np.asarray(p_world) - self.pos()) @ rot_z(self.yaw)
 
 
 CAMERAS: dict[str, str] = {
@@ -126,7 +143,6 @@ class CameraRig:
     right_offset: tuple[float, ...] = (-0.05, -0.75, 0.6)
     fovy: float = 50.0
     wrist_fovy: float = 75.0
-    names: tuple[str, ...] = field(default=("left", "right", "wrist"))
 
 
 ROBOSUITE_VERSION = "1.5.1"
@@ -352,7 +368,6 @@ class RobotIndex:
 
     Attributes:
         qpos: arm joint qpos addresses (7,).
-        dof: arm joint dof addresses (7,).
         finger_qpos: finger joint qpos addresses (2,).
         ctrl_arm: arm actuator indices (7,); ctrl_fingers: finger actuator indices (2,).
         site: the tool site id; hand: the hand body id.
@@ -362,7 +377,6 @@ class RobotIndex:
     """
 
     qpos: np.ndarray
-    dof: np.ndarray
     finger_qpos: np.ndarray
     ctrl_arm: np.ndarray
     ctrl_fingers: np.ndarray
@@ -388,7 +402,6 @@ class RobotIndex:
         ]
         return cls(
             qpos=np.array([jq(j) for j in ARM_JOINTS]),
-            dof=np.array([int(model.jnt_dofadr[model.joint(j).id]) for j in ARM_JOINTS]),
             finger_qpos=np.array([jq(j) for j in FINGER_JOINTS]),
             ctrl_arm=np.array([model.actuator(f"{PREFIX}robot0_act{i + 1}").id for i in range(7)]),
             ctrl_fingers=np.array(

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from factory.demos.robot import HOME_QPOS, RobotIndex, RobotPlacement
+from factory.demos.robot import GRIP_OPEN, HOME_QPOS, RobotIndex, RobotPlacement, rot_z, yaw_quat
 from factory.errors import TaskError
 from factory.schema import Scene, SceneObject
 
@@ -94,7 +94,7 @@ def base_candidates(
         spacing: spacing of spots along an edge (m).
     """
     c, yaw, hw, hl = _support_frame(objects.support)
-    rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+    rot = rot_z(yaw)[:2, :2]
     top = objects.pick.position.z
     out: list[tuple[float, RobotPlacement]] = []
     pick_xy = np.array([objects.pick.position.x, objects.pick.position.y])
@@ -123,10 +123,8 @@ def move_robot(model: mujoco.MjModel, placement: RobotPlacement, base_body: int)
     model.body_pos[base_body] = placement.pos()
     model.body_quat[base_body] = placement.quat()
     dyaw = placement.yaw - old_yaw
-    rz = np.array(
-        [[math.cos(dyaw), -math.sin(dyaw), 0], [math.sin(dyaw), math.cos(dyaw), 0], [0, 0, 1]]
-    )
-    qz = np.array([math.cos(dyaw / 2), 0, 0, math.sin(dyaw / 2)])
+    rz = rot_z(dyaw)
+    qz = yaw_quat(dyaw)
     for cam in ("camera_left", "camera_right"):
         cid = model.camera(cam).id
         model.cam_pos[cid] = rz @ (model.cam_pos[cid] - old_pos) + placement.pos()
@@ -162,7 +160,7 @@ def initial_state(model: mujoco.MjModel, robot: RobotIndex) -> np.ndarray:
     """The scene's initial qpos (nq,) with the robot at home and the hand open."""
     q = np.array(model.qpos0)
     q[robot.qpos] = HOME_QPOS
-    q[robot.finger_qpos] = robot.finger_pos(0.08)
+    q[robot.finger_qpos] = robot.finger_pos(GRIP_OPEN)
     return q
 
 
@@ -185,7 +183,7 @@ def randomize(
         TaskError: no free spot within reach after ``tries`` samples.
     """
     c, yaw, hw, hl = _support_frame(objects.support)
-    rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+    rot = rot_z(yaw)[:2, :2]
     others = [
         (np.array([o.position.x, o.position.y]), _footprint_radius(o))
         for o in scene.objects
@@ -216,9 +214,7 @@ def randomize(
         q[adr : adr + 2] = xy
         q[adr + 2] = obj.position.z
         quat = np.zeros(4)
-        mujoco.mju_mulQuat(
-            quat, np.array([math.cos(turn / 2), 0, 0, math.sin(turn / 2)]), q[adr + 3 : adr + 7]
-        )
+        mujoco.mju_mulQuat(quat, yaw_quat(turn), q[adr + 3 : adr + 7])
         q[adr + 3 : adr + 7] = quat
     return q
 
