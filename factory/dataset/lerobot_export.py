@@ -151,9 +151,16 @@ def _write_extras(
     shutil.copyfile(scene_json, ep / "scene.json")
     model = scene_dir / "model.xml"
     if model.is_file():
-        text = model.read_text()
-        # the run's model.xml points at ../../assets; extras keep the same layout
-        (ep / "model.xml").write_text(text)
+        # the run's model.xml finds meshes in ../../assets; here they are in ../assets
+        import xml.etree.ElementTree as ET
+
+        root = ET.fromstring(model.read_text())
+        compiler = root.find("compiler")
+        if compiler is not None:
+            for key in ("meshdir", "texturedir"):
+                if compiler.get(key):
+                    compiler.set(key, "../assets")
+        (ep / "model.xml").write_text(ET.tostring(root, encoding="unicode"))
         scene = json.loads(scene_json.read_text())
         for obj in scene.get("objects", []):
             aid = (obj.get("asset") or {}).get("asset_id")

@@ -11,8 +11,10 @@ import pytest
 
 pytest.importorskip("lerobot")
 
+from factory.config import CompileConfig
 from factory.demos.episodes import EpisodeStore
 from factory.demos.execute import STATE_SPEC
+from factory.scenes.build import compile_one
 from factory.schema.episode import EpisodeInfo, RobotBase
 from factory.store import RunStore, Shard
 
@@ -77,6 +79,8 @@ def _run(tmp_path: Path, shards: int = 2, per_shard: int = 2, finished: bool = T
     scene_id = "kitchen_pick_place"
     (store.scenes_dir / scene_id).mkdir(parents=True)
     shutil.copyfile(EXAMPLE_SCENE, store.scene_json(scene_id))
+    store.assets_dir.mkdir(parents=True, exist_ok=True)
+    compile_one(store, scene_id, CompileConfig())  # scenes/<id>/model.xml, as the stages leave it
     for k in range(shards):
         ep = EpisodeStore(store.episodes_shard(Shard(k, shards)))
         for j in range(per_shard):
@@ -129,6 +133,9 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
     extra = merged / "extras" / "kitchen_pick_place-ep10"
     assert json.loads((extra / "scene.json").read_text())["id"] == "kitchen_pick_place"
     assert json.loads((extra / "robot.json").read_text())["base"]["yaw"] == 0.5
+    import mujoco
+
+    assert mujoco.MjModel.from_xml_path(str(extra / "model.xml")).nbody > 10  # loads as is
     states = np.load(extra / "states.npz")["state"]
     group = EpisodeStore(store.episodes_shard(Shard(1, 2))).arrays("kitchen_pick_place-ep10")
     assert np.array_equal(states, group["state"][:])
