@@ -232,7 +232,10 @@ def export_store(
     copied: set[str] = set()
     episodes = []
     try:
-        for index, info in enumerate(infos):
+        from tqdm import tqdm
+
+        bar = tqdm(infos, desc=f"dataset {dest.name}", unit="episode", disable=None)
+        for index, info in enumerate(bar):
             group = store.arrays(info.episode_id)
             _check_shapes(info, group)
             joint = np.asarray(group["joint_pos"][:], np.float32)
