@@ -262,12 +262,17 @@ class DatasetConfig:
     Attributes:
         repo_id: the dataset's LeRobot repo id (``<user>/<name>``).
         out: output folder; empty means ``<run_dir>/dataset`` (``shards/``, ``merged/``).
-        vcodec: video codec of the camera streams (``h264``, ``libsvtav1``, ...).
+        vcodec: video codec of the camera streams (``h264``, ``hevc``, ``libsvtav1``); depth is
+            always lossless RGB h264.
+        crf: quality of the camera streams (lower is better and larger; 0-51 for h264).
+        preset: x264/x265 speed preset (``ultrafast`` ... ``veryslow``).
     """
 
     repo_id: str = "factory/demos"
     out: str | None = None
     vcodec: str = "h264"
+    crf: int = 23
+    preset: str = "ultrafast"
 
 
 @dataclass

@@ -1,4 +1,5 @@
-"""A real single-node SLURM cluster: stage=demos as a 2-task array job, then stage=dataset.
+"""A real single-node SLURM cluster: demos + per-shard export as a 2-task array job, then the
+merge (stage=dataset).
 
 The test installs Debian's slurm and munge packages (root or sudo needed, as for
 ``scripts/setup.sh``), starts munged, slurmctld and slurmd with a throw-away configuration,
@@ -133,8 +134,9 @@ def test_demos_array_job_then_dataset(slurm, tmp_path: Path, make_kitchen, cli, 
             "--mem=256M",
             f"--output={out_dir}/%x-%A_%a.out",
             str(REPO / "scripts" / "slurm" / "stage_array.sbatch"),
-            "demos",
+            "all",
             str(run),
+            "all.stages=[demos,dataset]",  # each task records and exports its own shard
             "profile=small",
             "demos.episodes_per_scene=1",
             "demos.width=32",
@@ -161,11 +163,20 @@ def test_demos_array_job_then_dataset(slurm, tmp_path: Path, make_kitchen, cli, 
     manifest = json.loads((run / "manifest.json").read_text())
     shards = manifest["stages"]["demos"]["shards"]
     assert {k: v["status"] for k, v in shards.items()} == {"0-of-2": "done", "1-of-2": "done"}
+    shards = manifest["stages"]["dataset"]["shards"]
+    assert {k: v["result"]["exported"] for k, v in shards.items()} == {"0-of-2": 1, "1-of-2": 1}
     for k in range(2):
         zarr_dir = run / "episodes" / f"shard-{k}.zarr"
         assert [p.name for p in zarr_dir.iterdir() if p.is_dir()] == [f"kitchen_{k}-ep000"]
+        shard_meta = run / "dataset" / "shards" / f"shard-{k}" / "meta" / "factory.json"
+        assert json.loads(shard_meta.read_text())["episodes"][0]["episode_id"] == (
+            f"kitchen_{k}-ep000"
+        )
+    # the merge step finds every shard exported and only merges
     out = cli("stage=dataset", f"run_dir={run}")
     assert out.returncode == 0, out.stderr[-3000:]
+    result = json.loads((run / "manifest.json").read_text())["stages"]["dataset"]["shards"]
+    assert result["0-of-1"]["result"]["exported"] == 0
     meta = json.loads((run / "dataset" / "merged" / "meta" / "factory.json").read_text())
     assert [e["episode_id"] for e in meta["episodes"]] == ["kitchen_0-ep000", "kitchen_1-ep000"]
     info = json.loads((run / "dataset" / "merged" / "meta" / "info.json").read_text())

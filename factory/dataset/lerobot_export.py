@@ -5,11 +5,15 @@ Features of every frame:
 * ``observation.state`` (8,) float32: arm joints (rad) and the gripper opening (m);
 * ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
 * ``action`` (8,) float32: desired arm joints (rad) and the gripper command (m);
-* ``observation.images.<camera>`` video (H, W, 3);
-* ``observation.depth.<camera>`` (H, W, 3) lossless PNG image packing uint16 millimetres as
-  (high byte, low byte, 0); :func:`unpack_depth_mm` turns lerobot's (3, H, W) float tensor (or
-  the uint8 image) back into exact millimetres;
+* ``observation.images.<camera>`` video (H, W, 3), h264;
+* ``observation.depth.<camera>`` video (H, W, 3), lossless RGB h264 packing uint16 millimetres
+  as (high byte, low byte, 0); :func:`unpack_depth_mm` turns lerobot's (3, H, W) float tensor
+  (or the uint8 image) back into exact millimetres;
 * the task string (the episode's instruction).
+
+Frames go through lerobot's ``add_frame``/``save_episode``/``finalize``; the video features are
+encoded while frames are added by :mod:`factory.dataset.video` (lerobot's streaming encoder
+with a codec per feature), so no frame is written as a PNG on the way.
 
 ``extras/<episode_id>/`` beside the data holds the episode's ``scene.json``, the scene's
 ``model.xml`` (with the meshes it uses under ``extras/assets/``), ``robot.json`` (base
@@ -29,12 +33,14 @@ from typing import Any
 
 import numpy as np
 
+from factory.dataset.video import VideoCodec, frame_encoder, lossless_codec, rgb_codec
 from factory.errors import StoreError
 
 log = logging.getLogger(__name__)
 
 FACTORY_META = "meta/factory.json"
-EXPORT_SCHEMA_VERSION = 1
+EXPORT_SCHEMA_VERSION = 2
+DEPTH_ENCODING = "mm = 256 * R + G (uint8 channels of a lossless RGB video)"
 
 
 def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
@@ -64,14 +70,24 @@ def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
             "names": ["height", "width", "channels"],
         }
         if depth:
-            # Millimetres packed into a lossless PNG image (high byte, low byte, 0): exact, and
-            # lerobot's per-dimension statistics stay cheap (a (H*W,) uint16 feature would cost
-            # 16,384 quantile histograms per episode). unpack_depth_mm() reads it back.
+            # Millimetres packed into a lossless RGB video (high byte, low byte, 0): exact, and
+            # as cheap to write and to decode as the camera streams. unpack_depth_mm() reads it.
+            # lerobot cannot describe a gbrp stream itself, so the video info is given here.
             feats[f"observation.depth.{cam}"] = {
-                "dtype": "image",
+                "dtype": "video",
                 "shape": (h, w, 3),
                 "names": ["height", "width", "channels"],
-                "info": {"depth_encoding": "mm = 256 * R + G (uint8 channels)"},
+                "info": {
+                    "video.height": h,
+                    "video.width": w,
+                    "video.codec": "h264",
+                    "video.pix_fmt": "gbrp",
+                    "video.is_depth_map": True,
+                    "video.fps": round(info.fps),
+                    "video.channels": 3,
+                    "has_audio": False,
+                    "depth_encoding": DEPTH_ENCODING,
+                },
             }
     return feats
 
@@ -84,7 +100,7 @@ def depth_mm(depth: np.ndarray) -> np.ndarray:
 
 
 def pack_depth_mm(mm: np.ndarray) -> np.ndarray:
-    """(H, W) uint16 millimetres -> (H, W, 3) uint8 (high byte, low byte, 0)."""
+    """(..., H, W) uint16 millimetres -> (..., H, W, 3) uint8 (high byte, low byte, 0)."""
     mm = np.asarray(mm, np.uint16)
     out = np.zeros((*mm.shape, 3), np.uint8)
     out[..., 0] = mm >> 8
@@ -96,7 +112,7 @@ def unpack_depth_mm(image: Any) -> np.ndarray:
     """Exact depth in millimetres (H, W) uint16 from a packed depth image.
 
     Args:
-        image: (H, W, 3) uint8 as stored, or lerobot's (3, H, W) float tensor/array in [0, 1].
+        image: (H, W, 3) uint8 as encoded, or lerobot's (3, H, W) float tensor/array in [0, 1].
     """
     arr = image.numpy() if hasattr(image, "numpy") else np.asarray(image)
     if arr.dtype != np.uint8:
@@ -188,7 +204,7 @@ def export_store(
     dest: Path,
     repo_id: str,
     run_dir: Path,
-    vcodec: str = "h264",
+    rgb: VideoCodec | None = None,
     version: str = "",
     extra_meta: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
@@ -196,6 +212,10 @@ def export_store(
 
     The dataset is built in a sibling temporary folder and renamed to ``dest`` at the end, so
     ``dest`` never holds a half-written dataset.
+
+    Args:
+        rgb: codec of the camera videos (default :func:`~factory.dataset.video.rgb_codec`);
+            depth is always lossless.
 
     Returns:
         the factory metadata written to ``meta/factory.json`` (with ``extra_meta`` added).
@@ -220,15 +240,27 @@ def export_store(
     tmp = dest.with_name(f".tmp-{dest.name}-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.parent.mkdir(parents=True, exist_ok=True)
+    features = features_for(first)
+    rgb = rgb or rgb_codec()
+    codecs = {
+        key: lossless_codec() if key.startswith("observation.depth.") else rgb
+        for key, ft in features.items()
+        if ft["dtype"] == "video"
+    }
     ds = LeRobotDataset.create(
         repo_id=repo_id,
         fps=round(first.fps),
-        features=features_for(first),
+        features=features,
         root=tmp,
         robot_type="franka_panda",
         use_videos=True,
-        vcodec=vcodec,
+        vcodec="h264",
+        streaming_encoding=True,
     )
+    # lerobot's streaming seam: add_frame feeds it, save_episode collects videos and stats
+    if not hasattr(ds, "_streaming_encoder"):
+        raise StoreError("this lerobot has no streaming encoder: install lerobot 0.4.4")
+    ds._streaming_encoder = frame_encoder(round(first.fps), codecs)
     copied: set[str] = set()
     episodes = []
     try:
@@ -238,22 +270,27 @@ def export_store(
         for index, info in enumerate(bar):
             group = store.arrays(info.episode_id)
             _check_shapes(info, group)
-            joint = np.asarray(group["joint_pos"][:], np.float32)
-            grip = np.asarray(group["gripper"][:], np.float32)
+            state = np.concatenate(
+                [
+                    np.asarray(group["joint_pos"][:], np.float32),
+                    np.asarray(group["gripper"][:], np.float32),
+                ],
+                axis=1,
+            )
             ee = np.asarray(group["ee_pose"][:], np.float32)
             act = np.asarray(group["action"][:], np.float32)
-            rgb = {c: group[f"rgb/{c}"][:] for c in info.cameras}
-            dep = {c: depth_mm(group[f"depth/{c}"][:]) for c in info.cameras}
+            rgb_frames = {c: group[f"rgb/{c}"][:] for c in info.cameras}
+            depth = {c: pack_depth_mm(depth_mm(group[f"depth/{c}"][:])) for c in info.cameras}
             for f in range(info.n_frames):
                 frame: dict[str, Any] = {
-                    "observation.state": np.concatenate([joint[f], grip[f]]),
+                    "observation.state": state[f],
                     "observation.ee_pose": ee[f],
                     "action": act[f],
                     "task": info.instruction,
                 }
                 for c in info.cameras:
-                    frame[f"observation.images.{c}"] = rgb[c][f]
-                    frame[f"observation.depth.{c}"] = pack_depth_mm(dep[c][f])
+                    frame[f"observation.images.{c}"] = rgb_frames[c][f]
+                    frame[f"observation.depth.{c}"] = depth[c][f]
                 ds.add_frame(frame)
             ds.save_episode()
             _write_extras(tmp, info, group, run_dir, copied)
@@ -268,6 +305,7 @@ def export_store(
             )
         ds.finalize()
     except BaseException:
+        ds._streaming_encoder.close()  # joins the encoder threads before the folder goes
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     meta = {
@@ -277,6 +315,8 @@ def export_store(
         "scenes": sorted({i.scene_id for i in infos}),
         "episodes": episodes,
         "depth_unit": "mm",
+        "depth_encoding": DEPTH_ENCODING,
+        "video": {key: codec.__dict__ for key, codec in codecs.items()},
         "state_spec": first.state_spec,
         **(extra_meta or {}),
     }

@@ -1,5 +1,6 @@
 #!/bin/bash
-# Demos as an N-task array, then the merged LeRobot dataset once every task succeeded.
+# Demos as an N-task array (each task records its shard and exports it to LeRobot), then the
+# merged LeRobot dataset once every task succeeded.
 #
 #   bash scripts/slurm/pipeline.sh runs/big 8 [overrides...]
 set -euo pipefail
@@ -7,7 +8,8 @@ RUN_DIR=${1:?usage: pipeline.sh RUN_DIR TASKS [overrides...]}
 TASKS=${2:?usage: pipeline.sh RUN_DIR TASKS [overrides...]}
 shift 2
 HERE=$(cd "$(dirname "$0")" && pwd)
-ARRAY=$(sbatch --parsable --array=0-$((TASKS - 1)) "$HERE/stage_array.sbatch" demos "$RUN_DIR" "$@")
-echo "demos: array job $ARRAY ($TASKS tasks)"
+ARRAY=$(sbatch --parsable --array=0-$((TASKS - 1)) "$HERE/stage_array.sbatch" all "$RUN_DIR" \
+  "all.stages=[demos,dataset]" "$@")
+echo "demos + shard export: array job $ARRAY ($TASKS tasks)"
 MERGE=$(sbatch --parsable --dependency=afterok:"$ARRAY" "$HERE/single.sbatch" dataset "$RUN_DIR")
-echo "dataset: job $MERGE (after $ARRAY)"
+echo "dataset merge: job $MERGE (after $ARRAY)"

@@ -158,6 +158,37 @@ def test_unfinished_or_missing_shard(cli, tmp_path: Path) -> None:
     assert not (store.root / "dataset" / "merged").exists()
 
 
+def test_per_shard_export_then_merge(cli, tmp_path: Path) -> None:
+    """An array task exports only its shard; the merge exports just what is missing."""
+    store = _run(tmp_path)
+    run = f"run_dir={store.root}"
+    out = cli("stage=dataset", run, "shard.index=1", "shard.count=2")
+    assert out.returncode == 0, out.stderr[-3000:]
+    shards = store.root / "dataset" / "shards"
+    assert [p.name for p in shards.iterdir()] == ["shard-1"]
+    assert not (store.root / "dataset" / "merged").exists()
+    out = cli("stage=dataset", run, "shard.index=0", "shard.count=3")
+    assert out.returncode == 2 and "stage=demos ran as 2 shard(s)" in out.stderr
+    out = cli("stage=dataset", run, "dataset.crf=99")
+    assert out.returncode == 2 and "dataset.crf must be in 0..63" in out.stderr
+    out = cli("stage=dataset", run, "dataset.preset=quick")
+    assert out.returncode == 2 and "dataset.preset must be one of ultrafast" in out.stderr
+    out = cli("stage=dataset", run)
+    assert out.returncode == 0, out.stderr[-3000:]
+    result = json.loads((store.root / "manifest.json").read_text())["stages"]["dataset"]
+    assert result["shards"]["0-of-1"]["result"] == {
+        "shards": 2,
+        "exported": 1,
+        "episodes": 4,
+        "path": str(store.root / "dataset" / "merged"),
+    }
+    # another codec setting re-exports both shards
+    out = cli("stage=dataset", run, "dataset.crf=30")
+    assert out.returncode == 0, out.stderr[-3000:]
+    result = json.loads((store.root / "manifest.json").read_text())["stages"]["dataset"]
+    assert result["shards"]["0-of-1"]["result"]["exported"] == 2
+
+
 def test_duplicate_episode_and_bad_shape(tmp_path: Path) -> None:
     from factory.dataset.lerobot_export import export_store, merge_datasets
     from factory.errors import StoreError
