@@ -266,6 +266,11 @@ class DatasetConfig:
             always lossless RGB h264.
         crf: quality of the camera streams (lower is better and larger; 0-51 for h264).
         preset: x264/x265 speed preset (``ultrafast`` ... ``veryslow``).
+        video_file_mb: episodes are appended to one video file per camera until it reaches this
+            size (MB). lerobot re-muxes the whole file for every appended episode, so writing
+            slows down with larger files (its default, 200 MB, made 32 episodes 10 % slower).
+        workers: processes writing one shard (its episodes split into that many parts, joined
+            by lerobot's aggregator); the SLURM array script sets it to the task's CPUs.
     """
 
     repo_id: str = "factory/demos"
@@ -273,6 +278,8 @@ class DatasetConfig:
     vcodec: str = "h264"
     crf: int = 23
     preset: str = "ultrafast"
+    video_file_mb: int = 4
+    workers: int = 1
 
 
 @dataclass

@@ -7,7 +7,13 @@ spent writing.
 Takes a run whose ``stage=demos`` finished (e.g. the one ``scripts/bench_demos.py`` leaves) and
 runs ``stage=dataset`` through the CLI on ``--cores`` cores, cold (no shard dataset yet) and warm
 (the shard datasets deleted again, processes new). The demo time is the demos stage's wall time
-from the run's manifest; the share is writing time / (demo time + writing time).
+from the run's manifest (same cores). Two shares of writing, each time / (demo time + time):
+
+* ``stage``: the whole ``stage=dataset`` process (interpreter start, imports of lerobot and
+  torch, every shard's export and the merge): what a user waits for after the demos;
+* ``export``: the shard exports alone, i.e. what each SLURM array task adds to its demos when
+  it exports its own shard in the same process (``all.stages=[demos,dataset]``); the merge
+  runs once per run.
 """
 
 from __future__ import annotations
@@ -49,19 +55,33 @@ def main() -> None:
             raise SystemExit(f"stage=dataset failed:\n{out.stderr[-3000:]}")
         meta = json.loads((run / "dataset" / "merged" / "meta" / "factory.json").read_text())
         frames = sum(e["n_frames"] for e in meta["episodes"])
+        stage = json.loads((run / "manifest.json").read_text())["stages"]["dataset"]
+        summary = stage["shards"]["0-of-1"]["result"]
+        export_s = summary["export_seconds"]
         results[label] = {
             "wall_s": wall,
             "episodes": len(meta["episodes"]),
             "frames": frames,
             "frames_per_s": frames / wall,
+            "export_s": export_s,
+            "export_frames_per_s": frames / export_s,
+            "merge_s": summary["merge_seconds"],
+            "other_s": wall - export_s - summary["merge_seconds"],
             "demo_seconds": demo_seconds,
             "share_of_total": wall / (demo_seconds + wall),
+            "export_share_of_total": export_s / (demo_seconds + export_s),
+            "bytes": sum(
+                p.stat().st_size for p in (run / "dataset" / "merged").rglob("*") if p.is_file()
+            ),
         }
         r = results[label]
         print(
-            f"{label}: {r['episodes']} episodes, {frames} frames in {wall:.1f} s "
-            f"({r['frames_per_s']:.0f} frames/s); demos took {demo_seconds:.1f} s, so writing is "
-            f"{100 * r['share_of_total']:.1f} % of the total"
+            f"{label}: {r['episodes']} episodes, {frames} frames; demos {demo_seconds:.1f} s.\n"
+            f"  stage=dataset {wall:.1f} s ({r['frames_per_s']:.0f} frames/s): "
+            f"{100 * r['share_of_total']:.1f} % of demos + writing\n"
+            f"  of which shard export {export_s:.1f} s ({r['export_frames_per_s']:.0f} frames/s): "
+            f"{100 * r['export_share_of_total']:.1f} %; merge {r['merge_s']:.1f} s; "
+            f"start-up and imports {r['other_s']:.1f} s"
         )
     path = args.out or ROOT / "benchmarks" / "results" / f"dataset-cpu{args.cores}.json"
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -40,6 +40,7 @@ log = logging.getLogger(__name__)
 
 FACTORY_META = "meta/factory.json"
 EXPORT_SCHEMA_VERSION = 2
+VIDEO_FILE_MB = 4
 DEPTH_ENCODING = "mm = 256 * R + G (uint8 channels of a lossless RGB video)"
 
 
@@ -120,6 +121,15 @@ def unpack_depth_mm(image: Any) -> np.ndarray:
     return (arr[..., 0].astype(np.uint16) << 8) | arr[..., 1].astype(np.uint16)
 
 
+def _link_or_copy(src: str, dst: str) -> None:
+    """Hard-links a file (assets and extras are never changed in place, only replaced by
+    rename, so a link stays what was exported); copies across file systems."""
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)
+
+
 def _publish(tmp: Path, dest: Path) -> None:
     """Moves a finished dataset from ``tmp`` to ``dest``, replacing an older one."""
     if dest.exists():
@@ -181,7 +191,11 @@ def _write_extras(
         for obj in scene.get("objects", []):
             aid = (obj.get("asset") or {}).get("asset_id")
             if aid and aid not in copied_assets and (run_dir / "assets" / aid).is_dir():
-                shutil.copytree(run_dir / "assets" / aid, dest / "extras" / "assets" / aid)
+                shutil.copytree(
+                    run_dir / "assets" / aid,
+                    dest / "extras" / "assets" / aid,
+                    copy_function=_link_or_copy,
+                )
                 copied_assets.add(aid)
     robot = {
         "base": info.robot.__dict__,
@@ -207,8 +221,11 @@ def export_store(
     rgb: VideoCodec | None = None,
     version: str = "",
     extra_meta: dict[str, Any] | None = None,
+    video_file_mb: int = VIDEO_FILE_MB,
+    episode_ids: list[str] | None = None,
 ) -> dict[str, Any]:
-    """Writes every episode of an episode store into a new LeRobot dataset at ``dest``.
+    """Writes every episode of an episode store (or ``episode_ids`` of it, in that order) into
+    a new LeRobot dataset at ``dest``.
 
     The dataset is built in a sibling temporary folder and renamed to ``dest`` at the end, so
     ``dest`` never holds a half-written dataset.
@@ -216,6 +233,9 @@ def export_store(
     Args:
         rgb: codec of the camera videos (default :func:`~factory.dataset.video.rgb_codec`);
             depth is always lossless.
+        video_file_mb: episodes are appended to a video file until it reaches this size.
+            lerobot re-muxes the whole file for each appended episode, so large files make
+            writing quadratic in the episodes per shard (lerobot's default is 200 MB).
 
     Returns:
         the factory metadata written to ``meta/factory.json`` (with ``extra_meta`` added).
@@ -225,7 +245,7 @@ def export_store(
     """
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    ids = store.episode_ids()
+    ids = store.episode_ids() if episode_ids is None else list(episode_ids)
     if not ids:
         raise StoreError(f"{store.path} holds no episodes: run stage=demos first")
     infos = [store.info(e) for e in ids]
@@ -261,6 +281,7 @@ def export_store(
     if not hasattr(ds, "_streaming_encoder"):
         raise StoreError("this lerobot has no streaming encoder: install lerobot 0.4.4")
     ds._streaming_encoder = frame_encoder(round(first.fps), codecs)
+    ds.meta.update_chunk_settings(video_files_size_in_mb=video_file_mb)
     copied: set[str] = set()
     episodes = []
     try:
@@ -326,7 +347,12 @@ def export_store(
 
 
 def merge_datasets(
-    shard_dirs: list[Path], dest: Path, repo_id: str, version: str = ""
+    shard_dirs: list[Path],
+    dest: Path,
+    repo_id: str,
+    version: str = "",
+    video_file_mb: int = VIDEO_FILE_MB,
+    extra_meta: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Merges shard datasets (from :func:`export_store`) into one with lerobot's
     ``aggregate_datasets``; extras are combined and ``meta/factory.json`` re-indexed.
@@ -362,6 +388,7 @@ def merge_datasets(
             aggr_repo_id=repo_id,
             roots=list(shard_dirs),
             aggr_root=tmp,
+            video_files_size_in_mb=video_file_mb,
         )
         episodes = []
         offset = 0
@@ -371,7 +398,9 @@ def merge_datasets(
             offset += len(meta["episodes"])
             extras = d / "extras"
             if extras.is_dir():
-                shutil.copytree(extras, tmp / "extras", dirs_exist_ok=True)
+                shutil.copytree(
+                    extras, tmp / "extras", dirs_exist_ok=True, copy_function=_link_or_copy
+                )
         check = LeRobotDatasetMetadata(repo_id, root=tmp)
         if check.total_episodes != len(episodes):
             raise StoreError(
@@ -384,8 +413,11 @@ def merge_datasets(
             "scenes": sorted({s for m in metas for s in m["scenes"]}),
             "episodes": episodes,
             "depth_unit": "mm",
+            "depth_encoding": DEPTH_ENCODING,
+            "video": metas[0].get("video", {}),
             "state_spec": metas[0]["state_spec"],
             "shards": [d.name for d in shard_dirs],
+            **(extra_meta or {}),
         }
         (tmp / FACTORY_META).write_text(json.dumps(merged, indent=1))
     except BaseException:

@@ -97,7 +97,8 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
     from factory.dataset.lerobot_export import unpack_depth_mm
 
     store = _run(tmp_path)
-    out = cli("stage=dataset", f"run_dir={store.root}")
+    # each shard written by two processes: the round trip below checks the joined parts too
+    out = cli("stage=dataset", f"run_dir={store.root}", "dataset.workers=2")
     assert out.returncode == 0, out.stderr[-3000:]
     merged = store.root / "dataset" / "merged"
     meta = json.loads((merged / "meta" / "factory.json").read_text())
@@ -140,7 +141,7 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
     group = EpisodeStore(store.episodes_shard(Shard(1, 2))).arrays("kitchen_pick_place-ep10")
     assert np.array_equal(states, group["state"][:])
     # re-running redoes nothing but the merge
-    again = cli("stage=dataset", f"run_dir={store.root}")
+    again = cli("stage=dataset", f"run_dir={store.root}", "dataset.workers=2")
     assert again.returncode == 0
     result = json.loads((store.root / "manifest.json").read_text())["stages"]["dataset"]
     assert result["shards"]["0-of-1"]["result"]["exported"] == 0
@@ -162,10 +163,19 @@ def test_per_shard_export_then_merge(cli, tmp_path: Path) -> None:
     """An array task exports only its shard; the merge exports just what is missing."""
     store = _run(tmp_path)
     run = f"run_dir={store.root}"
-    out = cli("stage=dataset", run, "shard.index=1", "shard.count=2")
+    # two processes write the shard's two episodes, joined into one dataset
+    out = cli("stage=dataset", run, "shard.index=1", "shard.count=2", "dataset.workers=2")
     assert out.returncode == 0, out.stderr[-3000:]
+    assert "2 process(es)" in out.stderr
     shards = store.root / "dataset" / "shards"
-    assert [p.name for p in shards.iterdir()] == ["shard-1"]
+    assert [p.name for p in shards.iterdir()] == ["shard-1"]  # no parts left behind
+    meta = json.loads((shards / "shard-1" / "meta" / "factory.json").read_text())
+    assert meta["parts"] == 2 and meta["digest"]
+    assert [e["episode_id"] for e in meta["episodes"]] == [
+        "kitchen_pick_place-ep10",
+        "kitchen_pick_place-ep11",
+    ]
+    assert [e["episode_index"] for e in meta["episodes"]] == [0, 1]
     assert not (store.root / "dataset" / "merged").exists()
     out = cli("stage=dataset", run, "shard.index=0", "shard.count=3")
     assert out.returncode == 2 and "stage=demos ran as 2 shard(s)" in out.stderr
@@ -173,15 +183,15 @@ def test_per_shard_export_then_merge(cli, tmp_path: Path) -> None:
     assert out.returncode == 2 and "dataset.crf must be in 0..63" in out.stderr
     out = cli("stage=dataset", run, "dataset.preset=quick")
     assert out.returncode == 2 and "dataset.preset must be one of ultrafast" in out.stderr
+    out = cli("stage=dataset", run, "dataset.workers=0")
+    assert out.returncode == 2 and "dataset.workers must be >= 1" in out.stderr
     out = cli("stage=dataset", run)
     assert out.returncode == 0, out.stderr[-3000:]
     result = json.loads((store.root / "manifest.json").read_text())["stages"]["dataset"]
-    assert result["shards"]["0-of-1"]["result"] == {
-        "shards": 2,
-        "exported": 1,
-        "episodes": 4,
-        "path": str(store.root / "dataset" / "merged"),
-    }
+    summary = result["shards"]["0-of-1"]["result"]
+    assert summary["exported"] == 1 and summary["shards"] == 2 and summary["episodes"] == 4
+    assert summary["export_frames"] == 24 + 27  # shard 0's two episodes
+    assert summary["export_seconds"] > 0 and summary["merge_seconds"] > 0
     # another codec setting re-exports both shards
     out = cli("stage=dataset", run, "dataset.crf=30")
     assert out.returncode == 0, out.stderr[-3000:]
