@@ -1,7 +1,7 @@
 """Benchmark of dataset writing: frames per second into LeRobot and the share of the demo time
 spent writing.
 
-    python scripts/bench_dataset.py [--run-dir runs/bench_demos] [--cores 1]
+    python scripts/bench_dataset.py [--run-dir runs/bench_demos] [--cores 1] [--workers N]
         [--out benchmarks/results/dataset-cpu1.json]
 
 Takes a run whose ``stage=demos`` finished (e.g. the one ``scripts/bench_demos.py`` leaves) and
@@ -35,6 +35,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--run-dir", type=Path, default=ROOT / "runs" / "bench_demos")
     p.add_argument("--cores", type=int, default=1)
+    p.add_argument("--workers", type=int, default=None, help="dataset.workers (default: cores)")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args()
     run = args.run_dir
@@ -42,7 +43,15 @@ def main() -> None:
     demos = manifest["stages"]["demos"]["shards"]
     demo_seconds = sum(s.get("seconds", 0.0) for s in demos.values())
     env = {**os.environ, "OMP_NUM_THREADS": str(args.cores)}
-    cmd = [sys.executable, "-m", "factory", "stage=dataset", f"run_dir={run}"]
+    workers = args.workers or args.cores
+    cmd = [
+        sys.executable,
+        "-m",
+        "factory",
+        "stage=dataset",
+        f"run_dir={run}",
+        f"dataset.workers={workers}",
+    ]
     if shutil.which("taskset") and args.cores < (os.cpu_count() or 1):
         cmd = ["taskset", "-c", f"0-{args.cores - 1}", *cmd]
     results = {}
@@ -93,8 +102,9 @@ def main() -> None:
                     "platform": platform.platform(),
                     "cpus_total": os.cpu_count(),
                     "cores_used": args.cores,
+                    "workers": workers,
                 },
-                "run_dir": str(run),
+                "run_dir": run.name,
                 "results": results,
             },
             indent=2,

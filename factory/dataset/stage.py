@@ -14,6 +14,7 @@ import hashlib
 import itertools
 import json
 import logging
+import os
 import re
 import time
 from pathlib import Path
@@ -95,7 +96,10 @@ def _export_part(args: tuple[Any, ...]) -> None:
     from factory.dataset.lerobot_export import export_store
     from factory.demos.episodes import EpisodeStore
 
-    store_path, dest, repo_id, run_dir, rgb, version, video_file_mb, ids = args
+    store_path, dest, repo_id, run_dir, rgb, version, video_file_mb, ids, cpu = args
+    if cpu is not None:
+        # one core per part: its encoder threads stay beside their producer
+        os.sched_setaffinity(0, {cpu})
     export_store(
         EpisodeStore(store_path),
         dest,
@@ -169,8 +173,20 @@ def _export_shard(ctx: StageContext, k: int, n: int, out: Path) -> tuple[Path, d
         shutil.rmtree(parts_dir, ignore_errors=True)
         bounds = [round(j * len(ids) / workers) for j in range(workers + 1)]
         parts = [parts_dir / f"part-{j}" for j in range(workers)]
+        cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+        pin = len(cpus) >= workers
         jobs = [
-            (path, parts[j], repo_id, store.root, rgb, __version__, cfg.video_file_mb, ids[a:b])
+            (
+                path,
+                parts[j],
+                repo_id,
+                store.root,
+                rgb,
+                __version__,
+                cfg.video_file_mb,
+                ids[a:b],
+                cpus[j] if pin else None,
+            )
             for j, (a, b) in enumerate(itertools.pairwise(bounds))
         ]
         try:
