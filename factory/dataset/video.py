@@ -165,7 +165,6 @@ def frame_encoder(fps: int, codecs: dict[str, VideoCodec], stats_stride: int = 5
                 thread.start()
                 self._frame_queues[key] = frames
                 self._threads[key] = thread
-                self._stop_events[key] = threading.Event()
                 self._video_paths[key] = path
                 self._fed[key] = 0
             self._episode_active = True

@@ -209,7 +209,7 @@ def setup_scene(
         ):
             blocked.append((spot, names))
     for spot, names in blocked[:3]:
-        cleared = _with_dependents(scene, names)
+        cleared = scene.with_dependents(names)
         trimmed = replace(scene, objects=[o for o in scene.objects if o.id not in cleared])
         model = compose(trimmed, assets_root, spot, rig)
         robot = RobotIndex.of(model)
@@ -241,19 +241,6 @@ def _movable(obj: SceneObject) -> bool:
         and obj.physics.mass <= 25.0
         and max(obj.dimensions.width, obj.dimensions.length) <= 1.0
     )
-
-
-def _with_dependents(scene: Scene, ids: set[str]) -> set[str]:
-    """``ids`` and every object standing on them, transitively."""
-    out = set(ids)
-    grew = True
-    while grew:
-        grew = False
-        for o in scene.objects:
-            if o.id not in out and o.placement.support_id in out:
-                out.add(o.id)
-                grew = True
-    return out
 
 
 def _clear_view(

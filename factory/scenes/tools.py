@@ -43,20 +43,15 @@ def _carry(scene: Scene, root: str, old: Any, new: Any) -> None:
     y0, y1 = _m.radians(old.rotation.z), _m.radians(new.rotation.z)
     c0, s0, c1, s1 = _m.cos(y0), _m.sin(y0), _m.cos(y1), _m.sin(y1)
     dz = new.position.z - old.position.z
-    carried = {root}
-    changed = True
-    while changed:
-        changed = False
-        for o in scene.objects:
-            if o.id not in carried and o.placement.support_id in carried:
-                carried.add(o.id)
-                changed = True
-                dx, dy = o.position.x - old.position.x, o.position.y - old.position.y
-                lx, ly = c0 * dx + s0 * dy, -s0 * dx + c0 * dy
-                o.position.x = new.position.x + c1 * lx - s1 * ly
-                o.position.y = new.position.y + s1 * lx + c1 * ly
-                o.position.z += dz
-                o.rotation.z += _m.degrees(y1 - y0)
+    carried = scene.with_dependents({root}) - {root}
+    for o in scene.objects:
+        if o.id in carried:
+            dx, dy = o.position.x - old.position.x, o.position.y - old.position.y
+            lx, ly = c0 * dx + s0 * dy, -s0 * dx + c0 * dy
+            o.position.x = new.position.x + c1 * lx - s1 * ly
+            o.position.y = new.position.y + s1 * lx + c1 * ly
+            o.position.z += dz
+            o.rotation.z += _m.degrees(y1 - y0)
 
 
 def _safe(fn: Callable[..., dict[str, Any]]) -> Callable[..., dict[str, Any]]:
@@ -235,14 +230,7 @@ class ToolSession:
         """Removes an object and whatever stands on it."""
         state = self._require()
         state.scene.object(object_id)
-        gone = {object_id}
-        changed = True
-        while changed:
-            changed = False
-            for o in state.scene.objects:
-                if o.id not in gone and o.placement.support_id in gone:
-                    gone.add(o.id)
-                    changed = True
+        gone = state.scene.with_dependents({object_id})
         state.scene.objects = [o for o in state.scene.objects if o.id not in gone]
         return {"ok": True, "removed": sorted(gone), "objects": len(state.scene.objects)}
 

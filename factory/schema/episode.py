@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from factory.schema.errors import SchemaError, SchemaVersionError
-from factory.schema.scene import _from_dict, check_id, to_dict
+from factory.schema.errors import SchemaError
+from factory.schema.scene import _check_version, _from_dict, check_id, to_dict
 
 EPISODE_SCHEMA_VERSION = 1
 
@@ -101,14 +101,13 @@ def episode_info_from_dict(data: Any) -> EpisodeInfo:
         SchemaVersionError: missing or unsupported ``schema_version``.
         SchemaError: malformed content.
     """
-    if not isinstance(data, dict):
-        raise SchemaError(f"episode metadata must be an object, got {type(data).__name__}")
-    version = data.get("schema_version")
-    if version != EPISODE_SCHEMA_VERSION:
-        raise SchemaVersionError(
-            f"episode schema_version is {version!r}, this factory reads "
-            f"{EPISODE_SCHEMA_VERSION}: re-record the episodes or use a matching factory"
-        )
+    _check_version(
+        data,
+        "episode metadata",
+        "episode",
+        EPISODE_SCHEMA_VERSION,
+        "re-record the episodes or use a matching factory",
+    )
     info: EpisodeInfo = _from_dict(EpisodeInfo, data, "episode")
     check_id(info.episode_id, "episode id")
     if info.n_frames < 1:

@@ -318,6 +318,18 @@ class Scene:
                 return o
         raise KeyError(object_id)
 
+    def with_dependents(self, ids: set[str]) -> set[str]:
+        """``ids`` and every object standing on them, directly or not."""
+        out = set(ids)
+        grew = True
+        while grew:
+            grew = False
+            for o in self.objects:
+                if o.id not in out and o.placement.support_id in out:
+                    out.add(o.id)
+                    grew = True
+        return out
+
     def bounds_xy(self) -> tuple[float, float, float, float]:
         """``(xmin, ymin, xmax, ymax)`` of all rooms' footprints (m, world frame)."""
         xs0 = [r.position.x for r in self.rooms]
@@ -392,6 +404,23 @@ def _hints(cls: type) -> dict[str, Any]:
     if cls not in _HINTS:
         _HINTS[cls] = typing.get_type_hints(cls)
     return _HINTS[cls]
+
+
+def _check_version(data: Any, document: str, kind: str, expected: int, remedy: str) -> None:
+    """Raises unless ``data`` is a dict whose ``schema_version`` is ``expected``.
+
+    Args:
+        document: what ``data`` is, for the type error (``"scene JSON"``).
+        kind: what the version belongs to (``"scene"``).
+        remedy: what to do about another version.
+    """
+    if not isinstance(data, dict):
+        raise SchemaError(f"{document} must be an object, got {type(data).__name__}")
+    version = data.get("schema_version")
+    if version != expected:
+        raise SchemaVersionError(
+            f"{kind} schema_version is {version!r}, this factory reads {expected}: {remedy}"
+        )
 
 
 def _from_dict(cls: Any, data: Any, where: str) -> Any:
@@ -570,14 +599,13 @@ def scene_from_dict(data: Any) -> Scene:
         SchemaVersionError: missing or unsupported ``schema_version``.
         SchemaError: malformed or inconsistent content.
     """
-    if not isinstance(data, dict):
-        raise SchemaError(f"scene JSON must be an object, got {type(data).__name__}")
-    version = data.get("schema_version")
-    if version != SCHEMA_VERSION:
-        raise SchemaVersionError(
-            f"scene schema_version is {version!r}, this factory reads {SCHEMA_VERSION}: "
-            "regenerate the scene or use a matching factory version"
-        )
+    _check_version(
+        data,
+        "scene JSON",
+        "scene",
+        SCHEMA_VERSION,
+        "regenerate the scene or use a matching factory version",
+    )
     scene: Scene = _from_dict(Scene, data, "scene")
     return validate(scene)
 
