@@ -11,6 +11,7 @@ Bad input (unknown stage, unknown key, bad value, a failing stage) ends with one
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 from pathlib import Path
@@ -173,6 +174,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("factory: interrupted; finished items are kept, re-run to resume", file=sys.stderr)
         return 130
+    except OSError as e:
+        if e.errno not in (errno.ENOSPC, errno.EDQUOT):
+            raise
+        where = f" writing {e.filename}" if e.filename else ""
+        print(
+            f"factory: error: {e.strerror}{where}: free space there, or point run_dir (or "
+            "dataset.out) at another disk, and re-run; finished items are kept and the "
+            "half-written one was removed",
+            file=sys.stderr,
+        )
+        return 2
     finally:
         logging.shutdown()
     return 0

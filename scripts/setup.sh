@@ -3,7 +3,11 @@
 #   1. system libraries for offscreen rendering (Mesa EGL and OSMesa), via apt-get;
 #   2. a virtual environment in .venv with factory and all its dependencies (extras all,dev).
 # A second run with an unchanged pyproject.toml takes seconds.
-# Environment: PYTHON (default python3, >= 3.11), FACTORY_SKIP_APT=1 to skip step 1.
+# Environment: PYTHON (default python3, >= 3.11), FACTORY_SKIP_APT=1 to skip step 1,
+#   FACTORY_CUDA=1/0 to install PyTorch's CUDA libraries or not (default: only where nvidia-smi
+#   lists a GPU; without them torch runs on the CPU and the environment is about 4 GB smaller).
+# Packages are installed with uv (from PyPI, into .venv), whose overrides can drop torch's CUDA
+# requirements (scripts/cpu-overrides.txt); pip cannot.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -35,10 +39,19 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 stamp=.venv/.factory-setup
-want=$(cat pyproject.toml scripts/setup.sh | sha256sum | cut -d' ' -f1)
+cuda=${FACTORY_CUDA:-}
+if [ -z "$cuda" ]; then
+  cuda=0
+  if command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q GPU; then cuda=1; fi
+fi
+want=$( (cat pyproject.toml scripts/setup.sh scripts/cpu-overrides.txt; echo "cuda=$cuda") \
+  | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-  echo "setup: installing factory[all,dev] into .venv (first time: a few minutes)"
-  .venv/bin/python -m pip install --disable-pip-version-check -q -e ".[all,dev]"
+  echo "setup: installing factory[all,dev] into .venv (first time: a few minutes; CUDA libraries: $cuda)"
+  .venv/bin/python -m pip install --disable-pip-version-check -q "uv>=0.5"
+  overrides=()
+  [ "$cuda" = 1 ] || overrides=(--override scripts/cpu-overrides.txt)
+  .venv/bin/uv pip install --python .venv/bin/python -q "${overrides[@]}" -e ".[all,dev]"
   echo "$want" > "$stamp"
 fi
 echo "setup: ready (.venv/bin/python -m factory --help)"

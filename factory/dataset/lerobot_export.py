@@ -24,6 +24,7 @@ and the factory version.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -128,6 +129,23 @@ def _link_or_copy(src: str, dst: str) -> None:
         os.link(src, dst)
     except OSError:
         shutil.copy2(src, dst)
+
+
+def _fresh_tmp(dest: Path) -> Path:
+    """The temporary sibling folder a dataset for ``dest`` is built in.
+
+    One process at a time writes a given ``dest`` (a shard belongs to one array task, the merge
+    to one job), so what a killed earlier writer left (a half-written folder, or the replaced
+    dataset it had not yet deleted) is removed here.
+    """
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    for stale in [
+        *dest.parent.glob(f".tmp-{dest.name}-*"),
+        *dest.parent.glob(f".old-{dest.name}-*"),
+    ]:
+        log.warning("removing %s, left by an interrupted export", stale)
+        shutil.rmtree(stale, ignore_errors=True)
+    return dest.with_name(f".tmp-{dest.name}-{os.getpid()}")
 
 
 def _publish(tmp: Path, dest: Path) -> None:
@@ -257,9 +275,7 @@ def export_store(
                 f"episode {info.episode_id!r} differs from {first.episode_id!r} in image size, "
                 "cameras or fps: one dataset needs one shape"
             )
-    tmp = dest.with_name(f".tmp-{dest.name}-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _fresh_tmp(dest)
     features = features_for(first)
     rgb = rgb or rgb_codec()
     codecs = {
@@ -325,23 +341,29 @@ def export_store(
                 }
             )
         ds.finalize()
+        meta = {
+            "schema_version": EXPORT_SCHEMA_VERSION,
+            "factory_version": version,
+            "task": first.task,
+            "scenes": sorted({i.scene_id for i in infos}),
+            "episodes": episodes,
+            "depth_unit": "mm",
+            "depth_encoding": DEPTH_ENCODING,
+            "video": {key: codec.__dict__ for key, codec in codecs.items()},
+            "state_spec": first.state_spec,
+            **(extra_meta or {}),
+        }
+        (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
     except BaseException:
         ds._streaming_encoder.close()  # joins the encoder threads before the folder goes
+        # lerobot's metadata flushes its episode buffer when garbage-collected, which would
+        # re-create the folder after it is gone: close its writers and empty the buffer now
+        with contextlib.suppress(Exception):
+            ds.finalize()
+        with contextlib.suppress(Exception):
+            ds.meta.metadata_buffer.clear()
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    meta = {
-        "schema_version": EXPORT_SCHEMA_VERSION,
-        "factory_version": version,
-        "task": first.task,
-        "scenes": sorted({i.scene_id for i in infos}),
-        "episodes": episodes,
-        "depth_unit": "mm",
-        "depth_encoding": DEPTH_ENCODING,
-        "video": {key: codec.__dict__ for key, codec in codecs.items()},
-        "state_spec": first.state_spec,
-        **(extra_meta or {}),
-    }
-    (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
     _publish(tmp, dest)
     return meta
 
@@ -380,8 +402,7 @@ def merge_datasets(
                     f"and {d}): shards must not overlap; re-run with one shard layout"
                 )
             seen[ep["episode_id"]] = d
-    tmp = dest.with_name(f".tmp-{dest.name}-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
+    tmp = _fresh_tmp(dest)
     try:
         aggregate_datasets(
             repo_ids=[f"{repo_id}-shard{k}" for k in range(len(shard_dirs))],

@@ -15,6 +15,7 @@ queue that drops frames when full. :class:`FrameEncoder` keeps its interface (le
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import queue
 import shutil
@@ -130,7 +131,7 @@ class _EncoderThread(threading.Thread):
             if container is not None:
                 with contextlib.suppress(Exception):
                     container.close()
-            self.result = ("error", f"{type(exc).__name__}: {exc}")
+            self.result = ("error", exc)
             # keep draining so the producer never blocks on a dead encoder
             while not ended and self.frames.get() is not None:
                 pass
@@ -190,16 +191,22 @@ def frame_encoder(fps: int, codecs: dict[str, VideoCodec], stats_stride: int = 5
                 frames.put(None)
             results: dict[str, tuple[Path, Any]] = {}
             errors = []
+            disk_full: OSError | None = None
             for key, thread in self._threads.items():
                 thread.join()
                 status, data = thread.result or ("error", "encoder thread ended without result")
                 if status != "ok":
-                    errors.append(f"{key}: {data}")
+                    what = data if isinstance(data, str) else f"{type(data).__name__}: {data}"
+                    errors.append(f"{key}: {what}")
+                    if isinstance(data, OSError) and data.errno in (errno.ENOSPC, errno.EDQUOT):
+                        disk_full = data
                 elif thread.count != self._fed[key]:
                     errors.append(f"{key}: encoded {thread.count} of {self._fed[key]} frames")
                 results[key] = (self._video_paths[key], data if status == "ok" else None)
             self._cleanup()
             self._episode_active = False
+            if disk_full is not None:
+                raise disk_full  # the command line names the fix for a full disk
             if errors:
                 raise StoreError("video encoding failed: " + "; ".join(errors))
             return results

@@ -199,6 +199,88 @@ def test_per_shard_export_then_merge(cli, tmp_path: Path) -> None:
     assert result["shards"]["0-of-1"]["result"]["exported"] == 2
 
 
+def _small_disk_or_skip(mnt: Path) -> list[str]:
+    """The command prefix that runs a shell in a private mount namespace (user namespaces: no
+    root needed); skips where the kernel does not allow them."""
+    import subprocess
+
+    prefix = ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c"]
+    probe = f"mount -t tmpfs -o size=64k tmpfs {mnt}"
+    if shutil.which("unshare") is None or subprocess.run([*prefix, probe]).returncode != 0:
+        pytest.skip("no private mount namespace here to make a small file system")
+    return prefix
+
+
+def test_disk_full_then_resume(tmp_path: Path) -> None:
+    """A real full disk (a 0.9 MB tmpfs: room for one of the two shards) stops the export with
+    a clear error; the finished shard stays, nothing half-written does, and a re-run with room
+    exports only the missing shard and merges."""
+    import subprocess
+    import sys
+
+    store = _run(tmp_path)
+    out = tmp_path / "small"
+    out.mkdir()
+    prefix = _small_disk_or_skip(out)
+    cmd = f"{sys.executable} -m factory stage=dataset run_dir={store.root} dataset.out={out}"
+    script = f"""
+        mount -t tmpfs -o size=900k tmpfs {out} || exit 90
+        {cmd} 2> {tmp_path}/first.err; echo "first=$?"
+        ls -A {out} {out}/shards
+        mount -o remount,size=8m {out} || exit 91
+        {cmd} 2> {tmp_path}/second.err; echo "second=$?"
+        ls -A {out} {out}/shards
+        cat {out}/merged/meta/factory.json
+    """
+    run = subprocess.run([*prefix, script], capture_output=True, text=True, timeout=600)
+    first_err = (tmp_path / "first.err").read_text()
+    assert "first=2" in run.stdout, first_err[-3000:]
+    assert "No space left on device" in first_err and "free space there" in first_err
+    assert "Traceback" not in first_err
+    listings = run.stdout.split("second=")
+    assert "shard-0" in listings[0] and "shard-1" not in listings[0] and ".tmp" not in listings[0]
+    assert "merged" not in listings[0]
+    assert listings[1].startswith("0"), (tmp_path / "second.err").read_text()[-3000:]
+    assert "exporting shard 1-of-2" in (tmp_path / "second.err").read_text()
+    assert "exporting shard 0-of-2" not in (tmp_path / "second.err").read_text()
+    merged = json.loads(listings[1][listings[1].index("{") :])
+    assert len(merged["episodes"]) == 4 and ".tmp" not in listings[1]
+
+
+def test_killed_writer_then_rerun(cli, tmp_path: Path) -> None:
+    """SIGKILL in the middle of an export leaves only a hidden temporary folder; the re-run
+    removes it and publishes the whole dataset."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    store = _run(tmp_path, shards=1, per_shard=6)
+    shards = store.root / "dataset" / "shards"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "factory", "stage=dataset", f"run_dir={store.root}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 120
+    while not list(shards.glob(".tmp-shard-0-*/meta")) and time.monotonic() < deadline:
+        assert proc.poll() is None, "the export ended before it could be killed"
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert list(shards.glob(".tmp-shard-0-*")) and not (shards / "shard-0").exists()
+    assert not (store.root / "dataset" / "merged").exists()
+    manifest = json.loads((store.root / "manifest.json").read_text())
+    assert manifest["stages"]["dataset"]["shards"]["0-of-1"]["status"] == "running"
+    rerun = cli("stage=dataset", f"run_dir={store.root}")
+    assert rerun.returncode == 0, rerun.stderr[-3000:]
+    assert "left by an interrupted export" in rerun.stderr
+    assert [p.name for p in shards.iterdir()] == ["shard-0"]
+    merged = json.loads((store.root / "dataset/merged/meta/factory.json").read_text())
+    assert len(merged["episodes"]) == 6
+
+
 def test_duplicate_episode_and_bad_shape(tmp_path: Path) -> None:
     from factory.dataset.lerobot_export import export_store, merge_datasets
     from factory.errors import StoreError

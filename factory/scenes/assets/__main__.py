@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -72,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         lib = AssetLibrary(assets, args.backend, args.library_dir, trellis)
         meta, res = lib.from_text(args.text, seed=args.seed, dims=args.dims)
     except AssetError as e:
+        if not args.assets:
+            shutil.rmtree(assets, ignore_errors=True)
         print(f"assets: error: {e}", file=sys.stderr)
         return 2
     print(
