@@ -4,10 +4,13 @@
 #   2. a virtual environment in .venv with factory and all its dependencies (extras all,dev).
 # A second run with an unchanged pyproject.toml takes seconds.
 # Environment: PYTHON (default python3, >= 3.11), FACTORY_SKIP_APT=1 to skip step 1,
-#   FACTORY_CUDA=1/0 to install PyTorch's CUDA libraries or not (default: only where nvidia-smi
-#   lists a GPU; without them torch runs on the CPU and the environment is about 4 GB smaller).
-# Packages are installed with uv (from PyPI, into .venv), whose overrides can drop torch's CUDA
-# requirements (scripts/cpu-overrides.txt); pip cannot.
+#   FACTORY_CUDA=1/0: install the parts of PyTorch's CUDA stack that a CPU-only machine never
+#   loads, or not (default: only where nvidia-smi lists a GPU; scripts/cpu-overrides.txt).
+# Packages are installed with uv (from PyPI, into .venv): its overrides can drop requirements
+# (pip cannot), and it links files from its cache instead of keeping downloaded archives as pip
+# does, so the disk holds the environment about once (about 10 GB, most of it PyTorch and its
+# CUDA libraries). Its cache is .venv/.uv-cache (same file system, so links work) unless
+# UV_CACHE_DIR says otherwise.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -47,11 +50,12 @@ fi
 want=$( (cat pyproject.toml scripts/setup.sh scripts/cpu-overrides.txt; echo "cuda=$cuda") \
   | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-  echo "setup: installing factory[all,dev] into .venv (first time: a few minutes; CUDA libraries: $cuda)"
+  echo "setup: installing factory[all,dev] into .venv (first time: a few minutes)"
   .venv/bin/python -m pip install --disable-pip-version-check -q "uv>=0.5"
   overrides=()
   [ "$cuda" = 1 ] || overrides=(--override scripts/cpu-overrides.txt)
-  .venv/bin/uv pip install --python .venv/bin/python -q "${overrides[@]}" -e ".[all,dev]"
+  UV_CACHE_DIR=${UV_CACHE_DIR:-.venv/.uv-cache} UV_LINK_MODE=${UV_LINK_MODE:-hardlink} \
+    .venv/bin/uv pip install --python .venv/bin/python -q "${overrides[@]}" -e ".[all,dev]"
   echo "$want" > "$stamp"
 fi
 echo "setup: ready (.venv/bin/python -m factory --help)"
