@@ -10,7 +10,9 @@
 # (pip cannot), and it links files from its cache instead of keeping downloaded archives as pip
 # does, so the disk holds the environment about once (about 10 GB, most of it PyTorch and its
 # CUDA libraries). Its cache is .venv/.uv-cache (same file system, so links work) unless
-# UV_CACHE_DIR says otherwise.
+# UV_CACHE_DIR says otherwise. Modules are compiled to bytecode at install, as pip does: without
+# it every process compiles torch's and lerobot's sources again where PYTHONDONTWRITEBYTECODE is
+# set (importing lerobot's dataset module took 11 s instead of 5 s).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -55,7 +57,8 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   overrides=()
   [ "$cuda" = 1 ] || overrides=(--override scripts/cpu-overrides.txt)
   UV_CACHE_DIR=${UV_CACHE_DIR:-.venv/.uv-cache} UV_LINK_MODE=${UV_LINK_MODE:-hardlink} \
-    .venv/bin/uv pip install --python .venv/bin/python -q "${overrides[@]}" -e ".[all,dev]"
+    .venv/bin/uv pip install --python .venv/bin/python -q --compile-bytecode "${overrides[@]}" \
+    -e ".[all,dev]"
   echo "$want" > "$stamp"
 fi
 echo "setup: ready (.venv/bin/python -m factory --help)"

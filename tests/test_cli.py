@@ -264,15 +264,22 @@ def test_validate_scene_that_does_not_compile(cli, tmp_path: Path, example_scene
 
 @pytest.mark.slow
 def test_small_profile_main_job(cli, tmp_path: Path) -> None:
-    """The README's main job: a generated kitchen, validated, with recorded demonstrations."""
+    """The README's main job: a generated kitchen, validated, with recorded demonstrations,
+    written as a LeRobot dataset."""
     run = tmp_path / "run"
     out = cli("stage=all", "profile=small", f"run_dir={run}")
     assert out.returncode == 0, out.stderr[-3000:]
     manifest = json.loads((run / "manifest.json").read_text())
-    assert all(manifest["stages"][s]["status"] == "done" for s in ("generate", "validate", "demos"))
+    stages = ("generate", "validate", "demos", "dataset")
+    assert all(manifest["stages"][s]["status"] == "done" for s in stages)
     (scene_dir,) = (run / "scenes").iterdir()
     assert scene_dir.name.startswith("kitchen")
     summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
     assert summary["episodes_stored"] == 2, summary
     episodes = sorted(p.name for p in (run / "episodes" / "shard-0.zarr").iterdir() if p.is_dir())
     assert episodes == [f"{scene_dir.name}-ep000", f"{scene_dir.name}-ep001"]
+    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
+
+    meta = LeRobotDatasetMetadata("factory/demos", root=run / "dataset" / "merged")
+    assert meta.total_episodes == 2 and meta.total_frames > 0
+    assert "observation.images.wrist" in meta.video_keys
