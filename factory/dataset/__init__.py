@@ -3,6 +3,7 @@
 Importing this package imports numpy only; lerobot is imported by the functions that write.
 """
 
+from factory.dataset.card import write_card
 from factory.dataset.lerobot_export import (
     export_store,
     features_for,
@@ -21,4 +22,5 @@ __all__ = [
     "pack_depth_mm",
     "rgb_codec",
     "unpack_depth_mm",
+    "write_card",
 ]

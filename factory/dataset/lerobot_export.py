@@ -377,7 +377,8 @@ def merge_datasets(
     extra_meta: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Merges shard datasets (from :func:`export_store`) into one with lerobot's
-    ``aggregate_datasets``; extras are combined and ``meta/factory.json`` re-indexed.
+    ``aggregate_datasets``; extras are combined, ``meta/factory.json`` re-indexed and a dataset
+    card (``README.md``) written.
 
     Built in a temporary folder, checked by loading it, then renamed to ``dest``.
 
@@ -386,6 +387,8 @@ def merge_datasets(
     """
     from lerobot.datasets.aggregate import aggregate_datasets
     from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
+
+    from factory.dataset.card import write_card
 
     metas = []
     for d in shard_dirs:
@@ -441,6 +444,7 @@ def merge_datasets(
             **(extra_meta or {}),
         }
         (tmp / FACTORY_META).write_text(json.dumps(merged, indent=1))
+        write_card(tmp, repo_id, merged)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

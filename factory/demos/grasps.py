@@ -203,9 +203,9 @@ def _union_exit(
                 if found:
                     nxt[i] = a
                     break
-                comp_end, comp_arg = b, k
+                comp_end, comp_arg = b, int(k)
             elif b > comp_end:
-                comp_end, comp_arg = b, k
+                comp_end, comp_arg = b, int(k)
             if not found and t_in[i, k] <= start < comp_end:
                 found = True
         if found:

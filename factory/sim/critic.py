@@ -88,7 +88,7 @@ def physics_critic(
     j_obj = result.object_ids.index(object_id)
     free = FreeBodies.of(model)
     adr = free.qposadr[free.index(object_id)]
-    for i in np.flatnonzero(result.accepted):
+    for i in np.flatnonzero(result.accepted).tolist():
         if result.penetration[i].max() > protocol.penetration_tol:
             continue
         settled = result.settled_qpos[i, adr : adr + 7]

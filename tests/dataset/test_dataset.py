@@ -109,6 +109,17 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
         "kitchen_pick_place-ep11",
     ]
     assert meta["scenes"] == ["kitchen_pick_place"] and meta["factory_version"]
+    from huggingface_hub import DatasetCard
+
+    card = DatasetCard.load(merged / "README.md")
+    assert {"LeRobot", "factory", "mujoco"} <= set(card.data.tags)
+    assert f"by factory {meta['factory_version']}" in card.text
+    assert (
+        "4 (" in card.text
+        and "`kitchen_pick_place`" in card.text
+        and "Seeds:** 0 to 11" in card.text
+    )
+    assert "mm = 256 * R + G" in card.text and '"total_episodes": 4' in card.text
     ds = LeRobotDataset("factory/demos", root=merged, video_backend="pyav")
     assert ds.num_episodes == 4 and ds.fps == 20
     index = 0

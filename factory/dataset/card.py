@@ -1,0 +1,84 @@
+"""The dataset card (``README.md``) of an exported dataset, from lerobot's own template.
+
+It names what a reader of the Hub page needs to use the data without factory: the task, the
+scenes and seeds, the factory version, what each feature holds (units, frames), how depth is
+packed, and what ``extras/`` holds. ``meta/factory.json`` keeps the full per-episode listing.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+CARD_FILE = "README.md"
+TAGS = ["factory", "mujoco", "simulation", "franka-panda", "pick-and-place"]
+MAX_LISTED = 20  # scenes named on the card; all of them are in meta/factory.json
+
+
+def _listing(names: list[str]) -> str:
+    shown = ", ".join(f"`{n}`" for n in names[:MAX_LISTED])
+    more = len(names) - MAX_LISTED
+    return shown + (f" and {more} more (all in `meta/factory.json`)" if more > 0 else "")
+
+
+def card_text(meta: dict[str, Any], info: dict[str, Any]) -> str:
+    """The card's description (markdown) for a dataset.
+
+    Args:
+        meta: the dataset's ``meta/factory.json`` (as :func:`export_store` or
+            :func:`merge_datasets` write it).
+        info: lerobot's ``meta/info.json`` of the same dataset.
+    """
+    episodes = meta["episodes"]
+    seeds = sorted({int(e["seed"]) for e in episodes})
+    cams = sorted(
+        k.rsplit(".", 1)[1] for k in info["features"] if k.startswith("observation.images.")
+    )
+    rgb: dict[str, Any] = next(iter(meta.get("video", {}).values()), {})
+    seed_text = f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]} to {seeds[-1]}"
+    return "\n".join(
+        [
+            f"Franka Panda demonstrations planned and recorded in physically validated MuJoCo "
+            f"scenes by factory {meta['factory_version'] or '(unknown version)'}.",
+            "",
+            f"- **Task:** {meta['task']}",
+            f"- **Episodes:** {len(episodes)} ({info['total_frames']} frames at {info['fps']} fps) "
+            f"from {len(meta['scenes'])} scene(s): {_listing(meta['scenes'])}",
+            f"- **Seeds:** {seed_text} (each episode's scene, seed and length are in "
+            "`meta/factory.json`)",
+            "- **`observation.state`:** 7 arm joint positions (rad) and the gripper opening (m)",
+            "- **`observation.ee_pose`:** tool position (m) and quaternion (w, x, y, z), world "
+            "frame",
+            "- **`action`:** the arm joint targets at the end of the frame (rad) and the gripper "
+            "command (m; 0.08 open, negative squeezes)",
+            f"- **`observation.images.<camera>`** for {', '.join(f'`{c}`' for c in cams)}: RGB "
+            f"video ({rgb.get('codec', 'h264')}, {rgb.get('pix_fmt', 'yuv420p')})",
+            "- **`observation.depth.<camera>`:** depth in millimetres, packed into a lossless RGB "
+            f"video: {meta['depth_encoding']}. `factory.dataset.unpack_depth_mm` reads it back "
+            "exactly.",
+            "- **`extras/<episode_id>/`:** `scene.json` (the scene), `model.xml` (the MuJoCo "
+            "model; meshes in `extras/assets`), `robot.json` (the robot's base) and `states.npz` "
+            "(full MuJoCo states per frame, for exact replay)",
+        ]
+    )
+
+
+def write_card(root: Path, repo_id: str, meta: dict[str, Any]) -> None:
+    """Writes ``<root>/README.md`` with lerobot's dataset-card template.
+
+    Args:
+        root: a finished dataset folder (``meta/info.json`` present).
+        repo_id: the dataset's repository id, for the card's viewer link.
+        meta: its ``meta/factory.json`` content.
+    """
+    from lerobot.datasets.utils import create_lerobot_dataset_card
+
+    info = json.loads((root / "meta" / "info.json").read_text())
+    card = create_lerobot_dataset_card(
+        tags=TAGS,
+        dataset_info=info,
+        repo_id=repo_id,
+        dataset_description=card_text(meta, info),
+    )
+    card.save(str(root / CARD_FILE))
