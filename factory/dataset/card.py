@@ -22,13 +22,14 @@ def _listing(names: list[str]) -> str:
     return shown + (f" and {more} more (all in `meta/factory.json`)" if more > 0 else "")
 
 
-def card_text(meta: dict[str, Any], info: dict[str, Any]) -> str:
+def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str]) -> str:
     """The card's description (markdown) for a dataset.
 
     Args:
         meta: the dataset's ``meta/factory.json`` (as :func:`export_store` or
             :func:`merge_datasets` write it).
         info: lerobot's ``meta/info.json`` of the same dataset.
+        instructions: its language instructions (lerobot's tasks).
     """
     episodes = meta["episodes"]
     seeds = sorted({int(e["seed"]) for e in episodes})
@@ -42,7 +43,13 @@ def card_text(meta: dict[str, Any], info: dict[str, Any]) -> str:
             f"Franka Panda demonstrations planned and recorded in physically validated MuJoCo "
             f"scenes by factory {meta['factory_version'] or '(unknown version)'}.",
             "",
-            f"- **Task:** {meta['task']}",
+            f"- **Task:** `{meta['task']}`; instruction(s): "
+            + "; ".join(f'"{t}"' for t in instructions[:MAX_LISTED])
+            + (
+                f" and {len(instructions) - MAX_LISTED} more"
+                if len(instructions) > MAX_LISTED
+                else ""
+            ),
             f"- **Episodes:** {len(episodes)} ({info['total_frames']} frames at {info['fps']} fps) "
             f"from {len(meta['scenes'])} scene(s): {_listing(meta['scenes'])}",
             f"- **Seeds:** {seed_text} (each episode's scene, seed and length are in "
@@ -72,13 +79,15 @@ def write_card(root: Path, repo_id: str, meta: dict[str, Any]) -> None:
         repo_id: the dataset's repository id, for the card's viewer link.
         meta: its ``meta/factory.json`` content.
     """
+    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
     from lerobot.datasets.utils import create_lerobot_dataset_card
 
+    instructions = [str(t) for t in LeRobotDatasetMetadata(repo_id, root=root).tasks.index]
     info = json.loads((root / "meta" / "info.json").read_text())
     card = create_lerobot_dataset_card(
         tags=TAGS,
         dataset_info=info,
         repo_id=repo_id,
-        dataset_description=card_text(meta, info),
+        dataset_description=card_text(meta, info, instructions),
     )
     card.save(str(root / CARD_FILE))

@@ -119,6 +119,7 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
         and "`kitchen_pick_place`" in card.text
         and "Seeds:** 0 to 11" in card.text
     )
+    assert '`pick_place`; instruction(s): "pick up the mug and put it in the bowl"' in card.text
     assert "mm = 256 * R + G" in card.text and '"total_episodes": 4' in card.text
     ds = LeRobotDataset("factory/demos", root=merged, video_backend="pyav")
     assert ds.num_episodes == 4 and ds.fps == 20
