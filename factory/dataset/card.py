@@ -36,7 +36,10 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
     cams = sorted(
         k.rsplit(".", 1)[1] for k in info["features"] if k.startswith("observation.images.")
     )
-    rgb: dict[str, Any] = next(iter(meta.get("video", {}).values()), {})
+    videos = meta.get("video", {})
+    rgb: dict[str, Any] = next(
+        (v for k, v in videos.items() if k.startswith("observation.images.")), {}
+    )
     seed_text = f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]} to {seeds[-1]}"
     return "\n".join(
         [
