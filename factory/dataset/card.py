@@ -7,19 +7,18 @@ packed, and what ``extras/`` holds. ``meta/factory.json`` keeps the full per-epi
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 CARD_FILE = "README.md"
 TAGS = ["factory", "mujoco", "simulation", "franka-panda", "pick-and-place"]
-MAX_LISTED = 20  # scenes named on the card; all of them are in meta/factory.json
+MAX_LISTED = 20  # scenes or instructions named on the card; all are in meta/ files
 
 
-def _listing(names: list[str]) -> str:
-    shown = ", ".join(f"`{n}`" for n in names[:MAX_LISTED])
-    more = len(names) - MAX_LISTED
-    return shown + (f" and {more} more (all in `meta/factory.json`)" if more > 0 else "")
+def _listing(items: list[str], sep: str = ", ", more_note: str = "") -> str:
+    """The first ``MAX_LISTED`` items joined, and how many more there are."""
+    more = len(items) - MAX_LISTED
+    return sep.join(items[:MAX_LISTED]) + (f" and {more} more{more_note}" if more > 0 else "")
 
 
 def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str]) -> str:
@@ -47,14 +46,12 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
             f"scenes by factory {meta['factory_version'] or '(unknown version)'}.",
             "",
             f"- **Task:** `{meta['task']}`; instruction(s): "
-            + "; ".join(f'"{t}"' for t in instructions[:MAX_LISTED])
-            + (
-                f" and {len(instructions) - MAX_LISTED} more"
-                if len(instructions) > MAX_LISTED
-                else ""
-            ),
+            + _listing([f'"{t}"' for t in instructions], "; "),
             f"- **Episodes:** {len(episodes)} ({info['total_frames']} frames at {info['fps']} fps) "
-            f"from {len(meta['scenes'])} scene(s): {_listing(meta['scenes'])}",
+            f"from {len(meta['scenes'])} scene(s): "
+            + _listing(
+                [f"`{n}`" for n in meta["scenes"]], more_note=" (all in `meta/factory.json`)"
+            ),
             f"- **Seeds:** {seed_text} (each episode's scene, seed and length are in "
             "`meta/factory.json`)",
             "- **`observation.state`:** 7 arm joint positions (rad) and the gripper opening (m)",
@@ -74,23 +71,21 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
     )
 
 
-def write_card(root: Path, repo_id: str, meta: dict[str, Any]) -> None:
+def write_card(root: Path, meta: dict[str, Any], lerobot_meta: Any) -> None:
     """Writes ``<root>/README.md`` with lerobot's dataset-card template.
 
     Args:
-        root: a finished dataset folder (``meta/info.json`` present).
-        repo_id: the dataset's repository id, for the card's viewer link.
+        root: a finished dataset folder.
         meta: its ``meta/factory.json`` content.
+        lerobot_meta: its ``LeRobotDatasetMetadata`` (info, tasks and repository id).
     """
-    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
     from lerobot.datasets.utils import create_lerobot_dataset_card
 
-    instructions = [str(t) for t in LeRobotDatasetMetadata(repo_id, root=root).tasks.index]
-    info = json.loads((root / "meta" / "info.json").read_text())
+    instructions = [str(t) for t in lerobot_meta.tasks.index]
     card = create_lerobot_dataset_card(
         tags=TAGS,
-        dataset_info=info,
-        repo_id=repo_id,
-        dataset_description=card_text(meta, info, instructions),
+        dataset_info=lerobot_meta.info,
+        repo_id=lerobot_meta.repo_id,
+        dataset_description=card_text(meta, lerobot_meta.info, instructions),
     )
     card.save(str(root / CARD_FILE))

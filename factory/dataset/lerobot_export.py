@@ -159,6 +159,30 @@ def _publish(tmp: Path, dest: Path) -> None:
         os.rename(tmp, dest)
 
 
+def _factory_meta(
+    version: str,
+    task: str,
+    scenes: set[str],
+    episodes: list[dict[str, Any]],
+    video: dict[str, Any],
+    state_spec: int,
+    extra: dict[str, Any] | None,
+) -> dict[str, Any]:
+    """The content of ``meta/factory.json`` (``extra`` keys added last)."""
+    return {
+        "schema_version": EXPORT_SCHEMA_VERSION,
+        "factory_version": version,
+        "task": task,
+        "scenes": sorted(scenes),
+        "episodes": episodes,
+        "depth_unit": "mm",
+        "depth_encoding": DEPTH_ENCODING,
+        "video": video,
+        "state_spec": state_spec,
+        **(extra or {}),
+    }
+
+
 def _check_shapes(info: Any, group: Any) -> None:
     h, w = info.image_size
     n = info.n_frames
@@ -180,55 +204,76 @@ def _check_shapes(info: Any, group: Any) -> None:
             )
 
 
-def _write_extras(
-    dest: Path, info: Any, group: Any, run_dir: Path, copied_assets: set[str]
-) -> None:
-    """``extras/<episode_id>/`` (+ the scene's assets under ``extras/assets/``)."""
-    ep = dest / "extras" / info.episode_id
-    ep.mkdir(parents=True, exist_ok=True)
-    scene_dir = run_dir / "scenes" / info.scene_id
-    scene_json = scene_dir / "scene.json"
-    if not scene_json.is_file():
-        raise StoreError(
-            f"episode {info.episode_id!r}: its scene {scene_json} is missing from the run"
-        )
-    shutil.copyfile(scene_json, ep / "scene.json")
-    model = scene_dir / "model.xml"
-    if model.is_file():
-        # the run's model.xml finds meshes in ../../assets; here they are in ../assets
-        import xml.etree.ElementTree as ET
+class _ExtrasWriter:
+    """Writes ``extras/<episode_id>/`` and, once per asset, ``extras/assets/<asset_id>/``.
 
-        root = ET.fromstring(model.read_text())
-        compiler = root.find("compiler")
-        if compiler is not None:
-            for key in ("meshdir", "texturedir"):
-                if compiler.get(key):
-                    compiler.set(key, "../assets")
-        (ep / "model.xml").write_text(ET.tostring(root, encoding="unicode"))
-        scene = json.loads(scene_json.read_text())
-        for obj in scene.get("objects", []):
-            aid = (obj.get("asset") or {}).get("asset_id")
-            if aid and aid not in copied_assets and (run_dir / "assets" / aid).is_dir():
-                shutil.copytree(
-                    run_dir / "assets" / aid,
-                    dest / "extras" / "assets" / aid,
-                    copy_function=_link_or_copy,
-                )
-                copied_assets.add(aid)
-    robot = {
-        "base": info.robot.__dict__,
-        "cameras": info.cameras,
-        "cleared": info.cleared,
-        "pick_id": info.pick_id,
-        "target_id": info.target_id,
-        "support_id": info.support_id,
-        "seed": info.seed,
-        "fps": info.fps,
-        "timestep": info.timestep,
-        "state_spec": info.state_spec,
-    }
-    (ep / "robot.json").write_text(json.dumps(robot, indent=1))
-    np.savez_compressed(ep / "states.npz", state=group["state"][:], time=group["time"][:])
+    A scene's files are read, and its model rewritten, once however many episodes it has.
+    """
+
+    def __init__(self, dest: Path, run_dir: Path) -> None:
+        self.dest = dest
+        self.run_dir = run_dir
+        self._scenes: dict[str, tuple[bytes, str | None]] = {}  # scene.json, model.xml
+        self._assets: set[str] = set()
+
+    def _scene(self, info: Any) -> tuple[bytes, str | None]:
+        if info.scene_id in self._scenes:
+            return self._scenes[info.scene_id]
+        scene_dir = self.run_dir / "scenes" / info.scene_id
+        scene_json = scene_dir / "scene.json"
+        if not scene_json.is_file():
+            raise StoreError(
+                f"episode {info.episode_id!r}: its scene {scene_json} is missing from the run"
+            )
+        scene = scene_json.read_bytes()
+        model = scene_dir / "model.xml"
+        model_text = None
+        if model.is_file():
+            # the run's model.xml finds meshes in ../../assets; here they are in ../assets
+            import xml.etree.ElementTree as ET
+
+            root = ET.fromstring(model.read_text())
+            compiler = root.find("compiler")
+            if compiler is not None:
+                for key in ("meshdir", "texturedir"):
+                    if compiler.get(key):
+                        compiler.set(key, "../assets")
+            model_text = ET.tostring(root, encoding="unicode")
+            assets = self.run_dir / "assets"
+            for obj in json.loads(scene).get("objects", []):
+                aid = (obj.get("asset") or {}).get("asset_id")
+                if aid and aid not in self._assets and (assets / aid).is_dir():
+                    shutil.copytree(
+                        assets / aid,
+                        self.dest / "extras" / "assets" / aid,
+                        copy_function=_link_or_copy,
+                    )
+                    self._assets.add(aid)
+        self._scenes[info.scene_id] = (scene, model_text)
+        return scene, model_text
+
+    def write(self, info: Any, group: Any) -> None:
+        """The extras of one episode (``group``: its zarr arrays)."""
+        scene, model_text = self._scene(info)
+        ep = self.dest / "extras" / info.episode_id
+        ep.mkdir(parents=True, exist_ok=True)
+        (ep / "scene.json").write_bytes(scene)
+        if model_text is not None:
+            (ep / "model.xml").write_text(model_text)
+        robot = {
+            "base": info.robot.__dict__,
+            "cameras": info.cameras,
+            "cleared": info.cleared,
+            "pick_id": info.pick_id,
+            "target_id": info.target_id,
+            "support_id": info.support_id,
+            "seed": info.seed,
+            "fps": info.fps,
+            "timestep": info.timestep,
+            "state_spec": info.state_spec,
+        }
+        (ep / "robot.json").write_text(json.dumps(robot, indent=1))
+        np.savez_compressed(ep / "states.npz", state=group["state"][:], time=group["time"][:])
 
 
 def export_store(
@@ -298,7 +343,7 @@ def export_store(
         raise StoreError("this lerobot has no streaming encoder: install lerobot 0.4.4")
     ds._streaming_encoder = frame_encoder(round(first.fps), codecs)
     ds.meta.update_chunk_settings(video_files_size_in_mb=video_file_mb)
-    copied: set[str] = set()
+    extras = _ExtrasWriter(tmp, run_dir)
     episodes = []
     try:
         from tqdm import tqdm
@@ -330,7 +375,7 @@ def export_store(
                     frame[f"observation.depth.{c}"] = depth[c][f]
                 ds.add_frame(frame)
             ds.save_episode()
-            _write_extras(tmp, info, group, run_dir, copied)
+            extras.write(info, group)
             episodes.append(
                 {
                     "episode_index": index,
@@ -341,18 +386,15 @@ def export_store(
                 }
             )
         ds.finalize()
-        meta = {
-            "schema_version": EXPORT_SCHEMA_VERSION,
-            "factory_version": version,
-            "task": first.task,
-            "scenes": sorted({i.scene_id for i in infos}),
-            "episodes": episodes,
-            "depth_unit": "mm",
-            "depth_encoding": DEPTH_ENCODING,
-            "video": {key: codec.__dict__ for key, codec in codecs.items()},
-            "state_spec": first.state_spec,
-            **(extra_meta or {}),
-        }
+        meta = _factory_meta(
+            version,
+            first.task,
+            {i.scene_id for i in infos},
+            episodes,
+            {key: codec.__dict__ for key, codec in codecs.items()},
+            first.state_spec,
+            extra_meta,
+        )
         (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
     except BaseException:
         ds._streaming_encoder.close()  # joins the encoder threads before the folder goes
@@ -430,21 +472,17 @@ def merge_datasets(
             raise StoreError(
                 f"merged dataset has {check.total_episodes} episodes, expected {len(episodes)}"
             )
-        merged = {
-            "schema_version": EXPORT_SCHEMA_VERSION,
-            "factory_version": version,
-            "task": metas[0]["task"],
-            "scenes": sorted({s for m in metas for s in m["scenes"]}),
-            "episodes": episodes,
-            "depth_unit": "mm",
-            "depth_encoding": DEPTH_ENCODING,
-            "video": metas[0].get("video", {}),
-            "state_spec": metas[0]["state_spec"],
-            "shards": [d.name for d in shard_dirs],
-            **(extra_meta or {}),
-        }
+        merged = _factory_meta(
+            version,
+            metas[0]["task"],
+            {s for m in metas for s in m["scenes"]},
+            episodes,
+            metas[0].get("video", {}),
+            metas[0]["state_spec"],
+            {"shards": [d.name for d in shard_dirs], **(extra_meta or {})},
+        )
         (tmp / FACTORY_META).write_text(json.dumps(merged, indent=1))
-        write_card(tmp, repo_id, merged)
+        write_card(tmp, merged, check)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

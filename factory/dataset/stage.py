@@ -213,6 +213,14 @@ def _export_shard(ctx: StageContext, k: int, n: int, out: Path) -> tuple[Path, d
     return dest, {"exported": 1, "frames": frames, "seconds": round(seconds, 3)}
 
 
+def _import_lerobot() -> None:
+    """Imports lerobot (torch, datasets: seconds, once per process), after the cheap checks."""
+    t0 = time.perf_counter()
+    import lerobot.datasets.lerobot_dataset  # noqa: F401
+
+    log.info("dataset: lerobot imported in %.1f s", time.perf_counter() - t0)
+
+
 def run(ctx: StageContext) -> dict[str, Any]:
     """``stage=dataset``; returns a summary.
 
@@ -227,10 +235,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
     cfg = ctx.cfg.dataset
     check_config(cfg)
     out = Path(cfg.out) if cfg.out else store.root / "dataset"
-    t0 = time.perf_counter()
-    import lerobot.datasets.lerobot_dataset  # noqa: F401  (torch, datasets: seconds, once)
-
-    log.info("dataset: lerobot imported in %.1f s", time.perf_counter() - t0)
     if ctx.shard.count > 1:
         k, n = ctx.shard.index, ctx.shard.count
         demos_n, done = _demos_shards(store.read_manifest())
@@ -244,6 +248,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 f"stage=demos shard {k}-of-{n} has not finished ({done.get(k, 'missing')}): "
                 f"re-run python -m factory stage=demos shard.index={k} shard.count={n}"
             )
+        _import_lerobot()
         dest, done_now = _export_shard(ctx, k, n, out)
         return {
             "shard": k,
@@ -254,6 +259,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
             "export_seconds": done_now["seconds"],
         }
     n = finished_shards(store.read_manifest())
+    _import_lerobot()
     shard_dirs = []
     total = {"exported": 0, "frames": 0, "seconds": 0.0}
     for k in range(n):
