@@ -115,9 +115,10 @@ def compose(overrides: list[str]) -> Any:
 
 def execute(cfg: Any) -> dict[str, Any]:
     """Runs ``cfg.stage`` (the typed config) and returns its summary."""
+    from factory.context import StageContext
     from factory.runner import run_stage, setup_logging
-    from factory.scenes.gl import configure_gl
-    from factory.stages import StageContext, check_stage
+    from factory.sim.gl import configure_gl
+    from factory.stages import check_stage
     from factory.store import RunStore, resolve_shard
 
     check_stage(cfg.stage)

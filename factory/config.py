@@ -36,7 +36,7 @@ class IngestConfig:
 
 @dataclass
 class AssetsConfig:
-    """The asset library (``factory.scenes.assets``).
+    """The asset library (``factory.assets``).
 
     Attributes:
         backend: ``procedural`` (offline generators), ``mesh_library`` or ``trellis``.

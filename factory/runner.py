@@ -7,8 +7,9 @@ import logging
 import time
 from typing import Any
 
-from factory.errors import StoreError
-from factory.stages import CREATES_RUN, StageContext, resolve
+from factory.context import StageContext
+from factory.errors import ConfigError, StoreError
+from factory.stages import CREATES_RUN, check_stage, resolve
 
 log = logging.getLogger("factory")
 
@@ -73,32 +74,13 @@ def run_stage(name: str, ctx: StageContext) -> dict[str, Any]:
     return result
 
 
-def run_items(what: str, items: list[str], fn: Any, progress: bool = True) -> dict[str, Any]:
-    """Applies ``fn(item) -> "done" | "skipped"`` to every item, with a progress bar.
-
-    A :class:`~factory.errors.FactoryError` on one item is logged and the others go on; at the
-    end, any failure raises one error naming how many failed and the first reason. Items done
-    before a failure stay done (their outputs are complete, written atomically).
-
-    Returns:
-        ``{"done": n, "skipped": n, "total": n}``.
-    """
-    from tqdm import tqdm
-
-    from factory.errors import FactoryError, StageFailed
-
-    counts = {"done": 0, "skipped": 0}
-    failures: list[tuple[str, str]] = []
-    for item in tqdm(items, desc=what, unit="item", disable=not progress or None):
-        try:
-            counts[fn(item)] += 1
-        except FactoryError as e:
-            log.error("%s %s failed: %s", what, item, e)
-            failures.append((item, str(e)))
-    if failures:
-        item, reason = failures[0]
-        reason = reason if item in reason else f"{item}: {reason}"
-        raise StageFailed(
-            f"{what}: {len(failures)} of {len(items)} item(s) failed; first: {reason}"
-        )
-    return {**counts, "total": len(items)}
+def run_all(ctx: StageContext) -> dict[str, Any]:
+    """``stage=all``: runs ``all.stages`` in order; stops at the first failure."""
+    for name in ctx.cfg.all.stages:
+        check_stage(name)
+        if name in ("all", "list"):
+            raise ConfigError(f"all.stages may not contain {name!r}")
+    results = {}
+    for name in ctx.cfg.all.stages:
+        results[name] = run_stage(name, ctx)
+    return results

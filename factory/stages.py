@@ -8,12 +8,10 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
-from factory.config import FactoryConfig
+from factory.context import StageContext
 from factory.errors import ConfigError
-from factory.store import RunStore, Shard
 
 STAGES: dict[str, str] = {
     "list": "factory.stages:list_stages",
@@ -26,7 +24,7 @@ STAGES: dict[str, str] = {
     "export": "factory.scenes.build:run_export",
     "demos": "factory.demos.stage:run",
     "dataset": "factory.dataset.stage:run",
-    "all": "factory.stages:run_all",
+    "all": "factory.runner:run_all",
 }
 """Every stage, in pipeline order."""
 
@@ -52,20 +50,6 @@ PROFILES: dict[str, str] = {
     "default": "one workstation",
     "full": "cluster scale (SLURM arrays)",
 }
-
-
-@dataclass
-class StageContext:
-    """What a stage gets: the typed config, the run store and this process's shard."""
-
-    cfg: FactoryConfig
-    store: RunStore | None
-    shard: Shard
-
-    def require_store(self) -> RunStore:
-        if self.store is None:
-            raise ConfigError(f"stage {self.cfg.stage!r} needs a run directory: pass run_dir=PATH")
-        return self.store
 
 
 StageFn = Callable[[StageContext], dict[str, Any]]
@@ -99,17 +83,3 @@ def list_stages(ctx: StageContext) -> dict[str, Any]:
     """``stage=list``: prints the stages and profiles."""
     print(stage_table())
     return {"stages": list(STAGES), "profiles": list(PROFILES)}
-
-
-def run_all(ctx: StageContext) -> dict[str, Any]:
-    """``stage=all``: runs ``all.stages`` in order; stops at the first failure."""
-    from factory.runner import run_stage
-
-    for name in ctx.cfg.all.stages:
-        check_stage(name)
-        if name in ("all", "list"):
-            raise ConfigError(f"all.stages may not contain {name!r}")
-    results = {}
-    for name in ctx.cfg.all.stages:
-        results[name] = run_stage(name, ctx)
-    return results

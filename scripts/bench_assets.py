@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from factory.scenes.assets import CATEGORIES, AssetLibrary, AssetSpec, resolve
+from factory.assets import CATEGORIES, AssetLibrary, AssetSpec, resolve
 
 RESULTS = Path(__file__).resolve().parent.parent / "benchmarks" / "results"
 

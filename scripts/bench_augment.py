@@ -18,17 +18,17 @@ import tempfile
 import time
 from pathlib import Path
 
-from factory.scenes.gl import configure_gl
+from factory.sim.gl import configure_gl
 
 configure_gl("auto")
 
 import numpy as np  # noqa: E402
 from PIL import Image, ImageDraw  # noqa: E402
 
+from factory.assets import AssetLibrary  # noqa: E402
 from factory.augment.levels import AugmentError  # noqa: E402
 from factory.augment.stage import LEVELS, check_physics, variant_seed  # noqa: E402
-from factory.scenes.assets import AssetLibrary  # noqa: E402
-from factory.scenes.generate import AgentConfig, generate_scene  # noqa: E402
+from factory.scenes.brain import AgentConfig, generate_scene  # noqa: E402
 from factory.scenes.render import render_views  # noqa: E402
 from factory.sim.compile import compile_scene  # noqa: E402
 from factory.sim.critic import physics_critic  # noqa: E402

@@ -21,12 +21,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from factory.scenes.gl import configure_gl
+from factory.sim.gl import configure_gl
 
 configure_gl("auto")
 
-from factory.scenes.assets import AssetLibrary  # noqa: E402
-from factory.scenes.generate import AgentConfig, generate_scene  # noqa: E402
+from factory.assets import AssetLibrary  # noqa: E402
+from factory.scenes.brain import AgentConfig, generate_scene  # noqa: E402
 from factory.sim.compile import compile_scene  # noqa: E402
 from factory.sim.metrics import measure_scene  # noqa: E402
 

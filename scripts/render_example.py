@@ -10,7 +10,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from factory.scenes.gl import configure_gl
+from factory.sim.gl import configure_gl
 
 configure_gl("auto")
 

@@ -11,15 +11,15 @@ import tempfile
 import time
 from pathlib import Path
 
-from factory.scenes.gl import configure_gl
+from factory.sim.gl import configure_gl
 
 configure_gl("auto")
 
 import numpy as np  # noqa: E402
 from PIL import Image, ImageDraw  # noqa: E402
 
-from factory.scenes.assets import CATEGORIES, AssetLibrary, AssetSpec  # noqa: E402
-from factory.scenes.assets.preview import render_asset  # noqa: E402
+from factory.assets import CATEGORIES, AssetLibrary, AssetSpec  # noqa: E402
+from factory.assets.preview import render_asset  # noqa: E402
 
 
 def main() -> None:

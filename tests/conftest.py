@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from factory.scenes.gl import configure_gl
+from factory.sim.gl import configure_gl
 
 configure_gl("auto")  # before any test imports mujoco
 
@@ -301,7 +301,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 def _make_kitchen(assets: Path, seed: int = 3, scene_id: str | None = None) -> Any:
     """A kitchen with a dining table, a mug (pick), a bowl (target) and a plate on it."""
-    from factory.scenes.assets import AssetLibrary
+    from factory.assets import AssetLibrary
     from factory.scenes.tools import ToolSession
 
     session = ToolSession(AssetLibrary(assets), physics=False)

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from factory.assets import AssetLibrary
 from factory.errors import FactoryError
-from factory.scenes.assets import AssetLibrary
 from factory.scenes.placement import SceneState, place_floor, place_on, place_wall
 from factory.schema import Scene, SceneObject
 
@@ -157,7 +157,7 @@ def category(
 ) -> Variant:
     """New instances (text variations of the same category) of the selected objects, put back
     on the same support; optionally new floor and wall materials."""
-    from factory.scenes.assets import resolve
+    from factory.assets import resolve
     from factory.scenes.rooms import ROOM_TYPES
 
     rng = np.random.default_rng(seed)
@@ -220,7 +220,7 @@ def layout(
 ) -> Variant:
     """A new room and background around the task objects and their supports (kept: same
     assets, same relations)."""
-    from factory.scenes.generate import AgentConfig, generate_scene
+    from factory.scenes.brain import AgentConfig, generate_scene
 
     keep_objs = task_objects(scene, ids)
     if not keep_objs:

@@ -17,10 +17,10 @@ import logging
 from collections import Counter
 from typing import Any
 
+from factory.assets import AssetLibrary
 from factory.augment.levels import AugmentError, Variant, category, configuration, layout
+from factory.context import StageContext
 from factory.errors import ConfigError, StoreError
-from factory.scenes.assets import AssetLibrary
-from factory.stages import StageContext
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +68,7 @@ def make_variant(
 
 def run(ctx: StageContext) -> dict[str, Any]:
     """Stage entry point."""
-    from factory.runner import run_items
+    from factory.context import run_items
     from factory.scenes.build import compile_one, render_one
     from factory.schema import scene_to_json, validate
     from factory.sim.critic import physics_critic

@@ -20,8 +20,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from factory.context import StageContext
 from factory.errors import ConfigError, StoreError
-from factory.stages import StageContext
 
 log = logging.getLogger(__name__)
 

@@ -82,7 +82,7 @@ class FrameRenderer:
     """
 
     def __init__(self, model: mujoco.MjModel, cfg: RecordConfig) -> None:
-        from factory.scenes.gl import configure_gl
+        from factory.sim.gl import configure_gl
 
         configure_gl("auto")
         self.model = model

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from factory.config import DemosConfig
+from factory.context import StageContext
 from factory.errors import ConfigError, FactoryError, StoreError
-from factory.stages import StageContext
 from factory.store import atomic_write_json
 
 log = logging.getLogger(__name__)

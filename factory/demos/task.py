@@ -31,7 +31,7 @@ class TaskObjects:
 
 
 def _by_text(scene: Scene, text: str, exclude: set[str]) -> SceneObject | None:
-    from factory.scenes.assets.resolver import resolve
+    from factory.assets.resolver import resolve
 
     category = resolve(text).spec.category
     for obj in scene.objects:
@@ -53,7 +53,7 @@ def task_objects(scene: Scene) -> TaskObjects:
     target = next((o for o in scene.objects if o.task_role == "place_target"), None)
     relation = "in"
     if (pick is None or target is None) and scene.task is not None and scene.task.instruction:
-        from factory.scenes.generate import parse_task
+        from factory.scenes.request import parse_task
 
         spec = parse_task(scene.task.instruction)
         if spec is not None:

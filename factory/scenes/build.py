@@ -16,9 +16,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from factory.context import StageContext, run_items
 from factory.errors import ConfigError, StoreError
-from factory.runner import run_items
-from factory.stages import StageContext
 from factory.store import RunStore, atomic_write_bytes, atomic_write_text
 
 log = logging.getLogger(__name__)
@@ -99,7 +98,7 @@ def run_compile(ctx: StageContext) -> dict[str, Any]:
 
 def run_render(ctx: StageContext) -> dict[str, Any]:
     """Stage entry point: render."""
-    from factory.scenes.gl import configure_gl
+    from factory.sim.gl import configure_gl
 
     store = ctx.require_store()
     if ctx.cfg.render.width <= 0 or ctx.cfg.render.height <= 0:

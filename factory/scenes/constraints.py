@@ -42,7 +42,7 @@ def parse_constraint(text: str, scene: Any) -> Constraint:
     ``scene`` resolves "the <thing>" to an object id (first object whose category matches).
     Unknown references leave ``target`` empty (the caller reports it).
     """
-    from factory.scenes.assets import resolve
+    from factory.assets import resolve
 
     low = " " + text.strip().lower()
     for pattern, placement, rule in _PATTERNS:

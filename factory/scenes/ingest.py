@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from factory.context import StageContext, run_items
 from factory.errors import ConfigError, StoreError
-from factory.runner import run_items
 from factory.scenes.sage_assets import import_sage_mesh
 from factory.schema import Scene, SchemaError, load_scene, scene_to_json
 from factory.schema.sage import extract_zip, read_package, sage_to_scene
-from factory.stages import StageContext
 from factory.store import RunStore
 
 log = logging.getLogger(__name__)

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any, Literal
 
-from factory.scenes.gl import configure_gl
+from factory.sim.gl import configure_gl
 
 
 def build_server(session: Any) -> Any:
@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
     configure_gl("auto")
-    from factory.scenes.assets import AssetLibrary
+    from factory.assets import AssetLibrary
     from factory.scenes.tools import ToolSession
 
     session = ToolSession(

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from factory.scenes.assets import AssetLibrary, Resolution
+from factory.assets import AssetLibrary, Resolution
 from factory.scenes.footprint import Footprint, inside, overlaps
 from factory.schema import (
     AssetMeta,
@@ -165,7 +165,7 @@ class SceneState:
 
     def meta_of(self, obj: SceneObject) -> tuple[AssetMeta, Resolution]:
         """An existing object's asset (from the cache) with a resolution naming its category."""
-        from factory.scenes.assets import AssetSpec
+        from factory.assets import AssetSpec
         from factory.schema import load_asset_meta
 
         if obj.id in self.metas:

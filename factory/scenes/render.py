@@ -4,19 +4,19 @@ Cameras are free cameras computed from the scene (no camera is added to the mode
 view looks straight down on the whole floor plan; corner view ``k`` stands in corner ``k`` of
 the scene's footprint (0: min x/min y, then counter-clockwise), near the ceiling, looking at the
 centre of the floor. MuJoCo's offscreen renderer draws them with the model's lights and
-materials, on EGL (GPU or Mesa) or OSMesa (see :mod:`factory.scenes.gl`).
+materials, on EGL (GPU or Mesa) or OSMesa (see :mod:`factory.sim.gl`).
 """
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 from factory.errors import RenderError
-from factory.scenes.gl import configure_gl
 from factory.schema import Scene
+from factory.sim.gl import configure_gl
+from factory.sim.images import contact_sheet, png_bytes
 
 configure_gl("auto")
 
@@ -132,30 +132,6 @@ def mujoco_gl() -> str:
     import os
 
     return os.environ.get("MUJOCO_GL", "")
-
-
-def png_bytes(image: np.ndarray) -> bytes:
-    """PNG encoding of an RGB image."""
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(image).save(buf, format="PNG", optimize=True)
-    return buf.getvalue()
-
-
-def contact_sheet(images: dict[str, np.ndarray], columns: int = 3) -> np.ndarray:
-    """Tiles equally sized images into one (row-major, white gaps)."""
-    ims = list(images.values())
-    h, w, _ = ims[0].shape
-    rows = math.ceil(len(ims) / columns)
-    gap = 4
-    sheet = np.full(
-        (rows * h + (rows - 1) * gap, columns * w + (columns - 1) * gap, 3), 255, np.uint8
-    )
-    for i, im in enumerate(ims):
-        r, c = divmod(i, columns)
-        sheet[r * (h + gap) : r * (h + gap) + h, c * (w + gap) : c * (w + gap) + w] = im
-    return sheet
 
 
 __all__ = ["VIEWS", "ViewCamera", "contact_sheet", "png_bytes", "render_views", "view_cameras"]

@@ -13,8 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from factory.assets import AssetLibrary
 from factory.errors import FactoryError
-from factory.scenes.assets import AssetLibrary
 from factory.scenes.critics import visual_critic
 from factory.scenes.placement import SceneState, place_floor, place_on, place_wall
 from factory.schema import Scene, to_dict, validate
@@ -112,7 +112,7 @@ class ToolSession:
     @_safe
     def init_scene(self, request: str, seed: int = 0) -> dict[str, Any]:
         """Creates an empty room for the request (type, size, materials, door, window)."""
-        from factory.scenes.generate import init_scene
+        from factory.scenes.floorplan import init_scene
 
         if not request or not request.strip():
             raise ValueError("the request is empty: describe the scene")

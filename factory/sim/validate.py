@@ -21,13 +21,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.runner import run_items
+from factory.context import StageContext, run_items
 from factory.schema import Euler, Scene, Vec3, scene_to_json
 from factory.sim.backend import get_backend, resolve_backend_name
 from factory.sim.compile import CompileOptions, compile_scene, model_xml
 from factory.sim.metrics import scene_metrics
 from factory.sim.stability import FreeBodies, StabilityProtocol, StabilityResult, check_stability
-from factory.stages import StageContext
 from factory.store import RunStore, atomic_write_json, atomic_write_text, file_lock, sha256_bytes
 
 log = logging.getLogger(__name__)

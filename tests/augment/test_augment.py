@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
+from factory.assets import AssetLibrary
 from factory.augment.levels import AugmentError, category, configuration, layout
 from factory.augment.stage import check_physics
-from factory.scenes.assets import AssetLibrary
-from factory.scenes.generate import AgentConfig, generate_scene
+from factory.scenes.brain import AgentConfig, generate_scene
 from factory.schema import scene_to_json, validate
 from factory.sim.critic import physics_critic
 from factory.sim.stability import StabilityProtocol

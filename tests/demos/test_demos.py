@@ -14,6 +14,7 @@ import pytest
 pytest.importorskip("robosuite")
 pytest.importorskip("ompl")
 
+from factory.assets import AssetLibrary
 from factory.demos.episodes import EpisodeStore
 from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute
 from factory.demos.grasps import (
@@ -34,7 +35,6 @@ from factory.demos.robot import HOME_QPOS, PANDA, RobotIndex
 from factory.demos.task import check_success, initial_state, task_objects
 from factory.demos.timing import Limits, time_path, time_segment
 from factory.errors import StoreError, TaskError
-from factory.scenes.assets import AssetLibrary
 from factory.schema import Scene, scene_to_json
 from factory.schema.episode import episode_info_from_dict
 
@@ -422,7 +422,7 @@ def test_robot_cache_matches_robosuite(tmp_path: Path, monkeypatch) -> None:
 def test_blocked_table_is_cleared(tmp_path: Path) -> None:
     """A generated kitchen whose dining table is ringed by chairs: the chair in the way of the
     nearest spot is taken out, and the episode plans."""
-    from factory.scenes.generate import generate_scene
+    from factory.scenes.brain import generate_scene
 
     request = "a kitchen where the robot picks up a mug and puts it in the bowl"
     scene, _ = generate_scene(request, AssetLibrary(tmp_path / "assets"), seed=4)

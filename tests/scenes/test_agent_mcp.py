@@ -17,8 +17,8 @@ from typing import Any, ClassVar
 
 import pytest
 
+from factory.assets import AssetLibrary
 from factory.scenes.agent import AgentError, LLMConfig, run_llm_agent, tool_schemas
-from factory.scenes.assets import AssetLibrary
 from factory.scenes.tools import TOOLS, ToolSession
 
 SCRIPT: list[list[tuple[str, str]]] = [

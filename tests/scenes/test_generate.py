@@ -9,8 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from factory.scenes.assets import AssetLibrary
-from factory.scenes.generate import AgentConfig, generate_scene, init_scene, parse_task
+from factory.assets import AssetLibrary
+from factory.scenes.brain import AgentConfig, generate_scene
+from factory.scenes.floorplan import init_scene
+from factory.scenes.request import parse_task
 from factory.scenes.rooms import ROOM_TYPES, room_type_of
 from factory.schema import scene_from_json, scene_to_json, validate
 from factory.sim.metrics import measure_scene
@@ -111,7 +113,7 @@ def test_generate_stage(cli, tmp_path: Path) -> None:
 
 def test_heuristic_agent_over_mcp(tmp_path: Path) -> None:
     """The same brain drives the tools through a real MCP client session."""
-    from factory.scenes.generate import SyncMCPCaller
+    from factory.scenes.mcp_client import SyncMCPCaller
     from factory.scenes.mcp_server import build_server
     from factory.scenes.tools import ToolSession
 
@@ -246,7 +248,7 @@ def test_move_and_remove_tools(tmp_path: Path) -> None:
 
 
 def test_room_counts_in_requests() -> None:
-    from factory.scenes.generate import room_types_in
+    from factory.scenes.request import room_types_in
 
     assert room_types_in("a flat with two bedrooms").count("bedroom") == 2
     assert room_types_in("a 3-bedroom house").count("bedroom") == 3

@@ -1,17 +1,30 @@
-"""Open-vocabulary 3-D assets with physical properties.
+"""Deprecated location of :mod:`factory.assets` (moved in 0.1.0; removed in the next release).
 
-``AssetLibrary(run_dir/"assets").from_text("small blue ceramic bowl")`` resolves the text to a
-category and parameters (:mod:`.resolver`), builds the asset with the configured backend
-(procedural generators by default; a mesh library or a text-to-3D server otherwise) and
-caches it by content hash. Each asset has a watertight visual mesh (coloured parts), exact
-convex collision parts (<= 64 vertices each), support surfaces, interiors, mass, friction,
-license and provenance in ``meta.json``.
+``from factory.scenes.assets import AssetLibrary`` and ``python -m factory.scenes.assets`` keep
+working for one release and warn; use ``factory.assets`` instead.
 """
 
-from factory.scenes.assets.catalog import CATEGORIES, Category
-from factory.scenes.assets.library import BACKENDS, AssetLibrary, TrellisConfig
-from factory.scenes.assets.procedural import AssetError, AssetSpec, generate
-from factory.scenes.assets.resolver import Resolution, resolve
+import warnings
+
+from factory.assets import (
+    BACKENDS,
+    CATEGORIES,
+    AssetError,
+    AssetLibrary,
+    AssetSpec,
+    Category,
+    Resolution,
+    TrellisConfig,
+    generate,
+    resolve,
+)
+
+warnings.warn(
+    "factory.scenes.assets moved to factory.assets; import that instead "
+    "(the old path goes away in the next release)",
+    DeprecationWarning,
+    stacklevel=2,
+)
 
 __all__ = [
     "BACKENDS",

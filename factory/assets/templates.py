@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from factory.scenes.assets.geometry import (
+from factory.assets.geometry import (
     Container,
     Shape,
     Support,

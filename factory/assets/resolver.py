@@ -13,9 +13,9 @@ import difflib
 import re
 from dataclasses import dataclass, field
 
-from factory.scenes.assets.catalog import CATEGORIES
-from factory.scenes.assets.physics import ALIASES, MATERIALS
-from factory.scenes.assets.procedural import AssetError, AssetSpec
+from factory.assets.catalog import CATEGORIES
+from factory.assets.physics import ALIASES, MATERIALS
+from factory.assets.procedural import AssetError, AssetSpec
 
 RGBA = tuple[float, float, float, float]
 
@@ -222,7 +222,7 @@ def resolve(text: str, seed: int = 0, allow_fallback: bool = True) -> Resolution
             raise AssetError(
                 f"could not recognise an object in {text!r}; closest known word: {best!r} "
                 f"(similarity {score:.2f}); try one of the categories "
-                "(python -m factory.scenes.assets --list)"
+                "(python -m factory.assets --list)"
             )
     cat = CATEGORIES[category]
     dims = list(cat.dims)
@@ -253,7 +253,7 @@ def resolve(text: str, seed: int = 0, allow_fallback: bool = True) -> Resolution
         cols = (colors[0], colors[1] if len(colors) > 1 else colors[0])
         notes.append(f"colour: {', '.join(_find_phrases(low, list(COLORS)))}")
     if materials and not colors and not styles:
-        from factory.scenes.assets.physics import material
+        from factory.assets.physics import material
 
         cols = (material(materials[0]).rgba, material(materials[1]).rgba)
     spec = AssetSpec(

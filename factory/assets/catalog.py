@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from factory.scenes.assets import templates as T
+from factory.assets import templates as T
 
 RGBA = tuple[float, float, float, float]
 

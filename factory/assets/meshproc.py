@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from factory.scenes.assets.geometry import MAX_HULL_VERTICES
-from factory.scenes.assets.procedural import AssetError
+from factory.assets.geometry import MAX_HULL_VERTICES
+from factory.assets.procedural import AssetError
 
 log = logging.getLogger(__name__)
 

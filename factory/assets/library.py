@@ -26,13 +26,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from factory.scenes.assets.cache import asset_id_for, build, cached, write_obj
-from factory.scenes.assets.catalog import CATEGORIES
-from factory.scenes.assets.geometry import Support
-from factory.scenes.assets.meshproc import decompose, load_mesh, repair, to_object_frame
-from factory.scenes.assets.physics import material
-from factory.scenes.assets.procedural import AssetError, AssetSpec, generate
-from factory.scenes.assets.resolver import Resolution, resolve
+from factory.assets.cache import asset_id_for, build, cached, write_obj
+from factory.assets.catalog import CATEGORIES
+from factory.assets.geometry import Support
+from factory.assets.meshproc import decompose, load_mesh, repair, to_object_frame
+from factory.assets.physics import material
+from factory.assets.procedural import AssetError, AssetSpec, generate
+from factory.assets.resolver import Resolution, resolve
 from factory.schema import AssetMeta
 
 log = logging.getLogger(__name__)
@@ -97,7 +97,7 @@ class AssetLibrary:
         """The asset for a free-text request (``dims`` in m overrides the text's size)."""
         res = resolve(text, seed=seed)
         if dims is not None:
-            from factory.scenes.assets.procedural import check_dims
+            from factory.assets.procedural import check_dims
 
             res.spec.dims = check_dims(dims)
         if res.approximated:
@@ -166,7 +166,7 @@ class AssetLibrary:
                 collision=collision,
                 license="CC0-1.0",
                 provenance={
-                    "generator": f"factory.scenes.assets.templates/{spec.category}",
+                    "generator": f"factory.assets.templates/{spec.category}",
                     "seed": spec.seed,
                     "text": spec.text,
                 },

@@ -60,7 +60,7 @@ def configure_gl(backend: str = "auto") -> str:
             raise RenderError(
                 f"mujoco was imported before the OpenGL backend was chosen (it uses "
                 f"{in_effect!r}, {chosen!r} is needed): set MUJOCO_GL={chosen} in the "
-                "environment, or call factory.scenes.gl.configure_gl() before importing mujoco"
+                "environment, or call factory.sim.gl.configure_gl() before importing mujoco"
             )
         return in_effect
     os.environ["MUJOCO_GL"] = chosen

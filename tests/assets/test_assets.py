@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from factory.scenes.assets import (
+from factory.assets import (
     CATEGORIES,
     AssetError,
     AssetLibrary,
@@ -25,8 +25,8 @@ from factory.scenes.assets import (
     generate,
     resolve,
 )
-from factory.scenes.assets.cache import cached
-from factory.scenes.assets.geometry import MAX_HULL_VERTICES
+from factory.assets.cache import cached
+from factory.assets.geometry import MAX_HULL_VERTICES
 from factory.schema import AssetRef, Physics, Placement, Room, Scene, SceneObject, Size3, Vec3
 from factory.sim.compile import compile_scene
 from factory.sim.stability import FreeBodies, StabilityProtocol, check_stability
@@ -431,7 +431,7 @@ def test_assets_cli(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "factory.scenes.assets",
+            "factory.assets",
             "small blue ceramic bowl",
             "--out",
             str(out),
@@ -447,14 +447,14 @@ def test_assets_cli(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["category"] == "bowl" and out.stat().st_size > 1000
     listing = subprocess.run(
-        [sys.executable, "-m", "factory.scenes.assets", "--list"],
+        [sys.executable, "-m", "factory.assets", "--list"],
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert listing.returncode == 0 and f"{len(CATEGORIES)} categories" in listing.stdout
     bad = subprocess.run(
-        [sys.executable, "-m", "factory.scenes.assets", "mug", "--dims", "0", "1", "1"],
+        [sys.executable, "-m", "factory.assets", "mug", "--dims", "0", "1", "1"],
         capture_output=True,
         text=True,
         timeout=120,

@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from factory.assets.catalog import CATEGORIES, Category
+from factory.assets.geometry import Container, Shape, Support, assemble
+from factory.assets.physics import material
 from factory.errors import FactoryError
-from factory.scenes.assets.catalog import CATEGORIES, Category
-from factory.scenes.assets.geometry import Container, Shape, Support, assemble
-from factory.scenes.assets.physics import material
 
 MIN_DIM = 0.003
 MAX_DIM = 12.0
@@ -114,8 +114,7 @@ def generate(spec: AssetSpec) -> Generated:
     cat: Category | None = CATEGORIES.get(spec.category)
     if cat is None:
         raise AssetError(
-            f"unknown procedural category {spec.category!r}: see "
-            "python -m factory.scenes.assets --list"
+            f"unknown procedural category {spec.category!r}: see python -m factory.assets --list"
         )
     rng = np.random.default_rng(spec.seed)
     if spec.dims is None:
