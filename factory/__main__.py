@@ -7,6 +7,10 @@ working directory is never changed and nothing is written outside ``run_dir``.
 Bad input (unknown stage, unknown key, bad value, a failing stage) ends with one line
 ``factory: error: ...`` on stderr and exit status 2 (1 for an unexpected crash).
 ``-m``/``--multirun`` hands the command to Hydra's own runner (sweeps, launchers).
+
+The terminal is quiet by default: third-party output goes to the stage's log file under
+``run_dir/logs/`` and every stage ends with a table of what it produced (:mod:`factory.runner`).
+``-v``/``--verbose`` means ``log_level=DEBUG``: everything comes back to the terminal.
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ common keys:
   shard.index=K shard.count=N
                        work on shard K of N (default: SLURM_ARRAY_TASK_ID/COUNT, else 0 of 1)
   force=true           redo finished items
-  log_level=DEBUG      more logging
+  log_level=DEBUG, -v  everything on the terminal (default: factory's lines, progress bars
+                       and a summary table per stage; the rest goes to run_dir/logs/)
 
 examples:
   python -m factory stage=all profile=small run_dir=runs/small
@@ -46,11 +51,25 @@ class UsageError(Exception):
     """A problem with the command line itself."""
 
 
+FREE_FORM = ("train.options",)
+"""Keys whose value is a free-form mapping (any policy type, any field): an override adds keys
+to it, so it is applied with Hydra's ``++`` (add or merge) instead of failing as unknown."""
+
+
+def _free_form(arg: str) -> str:
+    key = arg.split("=", 1)[0]
+    if any(key == k or key.startswith(k + ".") for k in FREE_FORM):
+        return "++" + arg
+    return arg
+
+
 def _parse(argv: list[str]) -> tuple[list[str], str | None]:
-    overrides, cfg_mode = [], None
+    overrides, cfg_mode, verbose = [], None, False
     it = iter(argv)
     for arg in it:
-        if arg == "--cfg":
+        if arg in ("-v", "--verbose"):
+            verbose = True
+        elif arg == "--cfg":
             cfg_mode = next(it, "job")
         elif arg.startswith("--cfg="):
             cfg_mode = arg.split("=", 1)[1]
@@ -62,7 +81,9 @@ def _parse(argv: list[str]) -> tuple[list[str], str | None]:
                 "(see python -m factory --help)"
             )
         else:
-            overrides.append(arg)
+            overrides.append(_free_form(arg))
+    if verbose:  # the last value of a key wins
+        overrides.append("log_level=DEBUG")
     return overrides, cfg_mode
 
 
@@ -142,7 +163,8 @@ def _multirun(argv: list[str]) -> int:
     def _app(cfg: DictConfig) -> None:
         execute(OmegaConf.to_object(cfg))
 
-    sys.argv = [sys.argv[0], *argv]
+    verbose = ("-v", "--verbose")
+    sys.argv = [sys.argv[0], *("log_level=DEBUG" if a in verbose else a for a in argv)]
     _app()
     return 0
 

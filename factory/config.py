@@ -7,6 +7,7 @@ anywhere is an error.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 
 @dataclass
@@ -283,10 +284,150 @@ class DatasetConfig:
 
 
 @dataclass
+class TrainConfig:
+    """``stage=train``: a lerobot policy trained on the run's merged dataset.
+
+    Attributes:
+        name: the policy's name: ``<run_dir>/policy/<name>/`` (checkpoints, ``train.json``,
+            ``train_log.jsonl``); ``stage=eval`` evaluates it by this name.
+        policy: lerobot policy type by name (``diffusion``, ``act``, ... any in lerobot's
+            registry).
+        inputs: ``state`` (joints, gripper, tool pose and the pick and target objects' poses),
+            ``rgb`` (the recorded cameras' images + joints, gripper, tool pose) or ``rgbd``
+            (RGB and depth of every camera + the same; the paper's setting).
+        dataset: the merged LeRobot dataset (empty: ``<run_dir>/dataset/merged``).
+        scenes: the dataset's scenes trained on: empty (all), a number ``N`` (the first ``N``
+            of its scene ids, sorted) or a list of ids; the other scenes' episodes are never
+            sampled and their frames not in the statistics (the scaling experiment trains on
+            1, 2, 4, ... scenes of one dataset).
+        horizon: actions predicted per inference (``horizon``, ACT's ``chunk_size``); 0: the
+            policy's default or ``options``.
+        n_obs_steps: observation frames per inference; 0: the policy's default.
+        n_action_steps: predicted actions executed before the next inference; 0: default.
+        steps: optimizer steps in all (a resumed training continues up to it).
+        batch_size: samples per step.
+        lr: learning rate; 0: the policy's preset.
+        seed: seed of initialisation and sampling.
+        device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
+        num_workers: DataLoader processes (0: in the training process).
+        video_cache: image policies: ``auto`` decodes the videos read into memory once when
+            they take less than half of the available memory (uint8 RGB, uint16 depth: 82 kB
+            a frame of one camera at 128 x 128), ``memory`` always, ``off`` decodes the frames
+            of each sample (lerobot's way: seek and decode, tens of ms a frame).
+        threads: torch CPU threads (0: torch's default, ``OMP_NUM_THREADS``).
+        save_every: steps between checkpoints (and after the last step).
+        log_every: steps between lines of ``train_log.jsonl``.
+        keep_checkpoints: newest checkpoints kept.
+        max_minutes: wall-clock limit of this call's optimizer steps (0: none): past it the
+            training saves a checkpoint and stops early (a re-run continues up to ``steps``),
+            for jobs with a time limit.
+        augment_images: lerobot's image transforms on RGB (colour jitter, sharpness, small
+            affine) and a random 90 % crop where the policy has one (diffusion).
+        options: policy config fields per type, e.g. ``{diffusion: {down_dims: [64, 128]}}``;
+            applied to the type trained, others ignored.
+    """
+
+    name: str = "${train.policy}_${train.inputs}"
+    policy: str = "diffusion"
+    inputs: str = "state"
+    dataset: str | None = None
+    scenes: Any = None
+    horizon: int = 0
+    n_obs_steps: int = 0
+    n_action_steps: int = 0
+    steps: int = 20000
+    batch_size: int = 64
+    lr: float = 0.0
+    seed: int = 0
+    device: str = "auto"
+    num_workers: int = 0
+    video_cache: str = "auto"
+    threads: int = 0
+    save_every: int = 2000
+    log_every: int = 100
+    keep_checkpoints: int = 2
+    max_minutes: float = 0.0
+    augment_images: bool = True
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class EvalConfig:
+    """``stage=eval``: closed-loop rollouts in the simulation env, with success rates.
+
+    Attributes:
+        policy: what acts: a trained policy's name (``policy/<name>/``; empty: the one
+            ``stage=train`` writes, ``train.name``), a path to a lerobot ``pretrained_model``
+            folder, ``replay`` (the dataset's recorded actions from each episode's recorded
+            initial state: do the env and the data agree?) or ``planner`` (the demos' planner
+            on the evaluation configurations: the privileged agent).
+        scenes: ``heldout`` (the run's scenes that are not in the training dataset, the
+            paper's protocol), ``train`` (the dataset's scenes) or a list of scene ids;
+            ``replay`` always replays the dataset's episodes (of these scenes, if a list).
+        episodes_per_scene: initial configurations per scene (the paper: 90).
+        seed: root of the evaluation seeds (a namespace disjoint from the demos' seeds).
+        max_steps: frames per episode before it fails with a time-out (0: 1.5x the longest
+            training episode, else 400); replay and planner run their own length.
+        batch: episodes of a scene simulated together (0: all of a scene's, at most 16).
+        nthread: simulation threads (0: one per core).
+        videos: rollouts written as mp4 under ``eval/<policy>/videos``.
+        env_state: observe ``observation.environment_state`` even if the policy does not use it.
+        interpolate: the env's controller moves the arm target linearly over a frame from the
+            previous action with the demos' velocity lead (false: holds each action).
+        dataset: the training dataset (default: the policy's, or ``<run_dir>/dataset/merged``).
+        device: torch device of a trained policy (``auto``, ``cpu``, ``cuda``).
+    """
+
+    policy: str = ""
+    scenes: Any = "heldout"
+    episodes_per_scene: int = 10
+    seed: int = 0
+    max_steps: int = 0
+    batch: int = 0
+    nthread: int = 0
+    videos: int = 2
+    env_state: bool = False
+    interpolate: bool = True
+    dataset: str | None = None
+    device: str = "auto"
+
+
+@dataclass
+class ReportConfig:
+    """``stage=report``: the run's HTML report, ``<run_dir>/report.html``.
+
+    Attributes:
+        embed: images and GIFs as data URIs inside the page (one file to send around); false:
+            thumbnails and GIFs written under ``<run_dir>/report_files/`` and linked relatively.
+        views: render views shown per scene (``top``, ``corner_0`` .. ``corner_3``).
+        max_scenes: scenes (and augmented variants) shown with thumbnails; the validation
+            table lists every scene.
+        thumb_width: width of the render thumbnails (px).
+        gifs: demonstration GIFs made from the recorded frames of stored episodes.
+        gif_camera: the camera of the demonstration GIFs (empty: each episode's first).
+        gif_fps: frame rate of the GIFs (Hz; frames are subsampled to it).
+        gif_size: longest side of a GIF (px).
+        eval_videos: rollout videos per evaluated policy shown as GIFs.
+    """
+
+    embed: bool = True
+    views: list[str] = field(default_factory=lambda: ["top", "corner_0"])
+    max_scenes: int = 24
+    thumb_width: int = 240
+    gifs: int = 4
+    gif_camera: str = ""
+    gif_fps: float = 10.0
+    gif_size: int = 128
+    eval_videos: int = 2
+
+
+@dataclass
 class AllConfig:
     """``stage=all``: the stages to run, in order."""
 
-    stages: list[str] = field(default_factory=lambda: ["ingest", "compile", "validate", "render"])
+    stages: list[str] = field(
+        default_factory=lambda: ["ingest", "compile", "validate", "render", "report"]
+    )
 
 
 @dataclass
@@ -323,6 +464,9 @@ class FactoryConfig:
     export: ExportConfig = field(default_factory=ExportConfig)
     demos: DemosConfig = field(default_factory=DemosConfig)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    eval: EvalConfig = field(default_factory=EvalConfig)
+    report: ReportConfig = field(default_factory=ReportConfig)
     all: AllConfig = field(default_factory=AllConfig)
 
 

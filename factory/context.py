@@ -43,11 +43,13 @@ def run_items(what: str, items: list[str], fn: Any, progress: bool = True) -> di
     """
     from tqdm import tqdm
 
+    from factory.console import terminal
     from factory.errors import FactoryError, StageFailed
 
     counts = {"done": 0, "skipped": 0}
     failures: list[tuple[str, str]] = []
-    for item in tqdm(items, desc=what, unit="item", disable=not progress or None):
+    bar = tqdm(items, desc=what, unit="item", disable=not progress or None, file=terminal())
+    for item in bar:
         try:
             counts[fn(item)] += 1
         except FactoryError as e:

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from factory.schema.errors import FactoryError, SchemaError, SchemaVersionError, UnsafePathError
+from factory.schema.errors import (
+    FactoryError,
+    PolicyError,
+    SchemaError,
+    SchemaVersionError,
+    UnsafePathError,
+)
 
 
 class ConfigError(FactoryError):
@@ -33,6 +39,7 @@ __all__ = [
     "CompileError",
     "ConfigError",
     "FactoryError",
+    "PolicyError",
     "RenderError",
     "SchemaError",
     "SchemaVersionError",

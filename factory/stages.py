@@ -24,6 +24,9 @@ STAGES: dict[str, str] = {
     "export": "factory.scenes.build:run_export",
     "demos": "factory.demos.stage:run",
     "dataset": "factory.dataset.stage:run",
+    "train": "factory.policy.train_stage:run",
+    "eval": "factory.policy.eval_stage:run",
+    "report": "factory.report.stage:run",
     "all": "factory.runner:run_all",
 }
 """Every stage, in pipeline order."""
@@ -42,6 +45,9 @@ DESCRIPTIONS: dict[str, str] = {
     "export": "write scenes back out (export.format=sage: layout JSON + PLY meshes)",
     "demos": "recorded robot demonstrations (task=pick_place): episodes/shard-<k>.zarr",
     "dataset": "LeRobot v3 dataset from every demos shard, merged: dataset/merged",
+    "train": "a lerobot policy on the merged dataset (train.policy, train.inputs): policy/<name>/",
+    "eval": "closed-loop rollouts (eval.policy=<name>|replay|planner): eval/<policy>/results.json",
+    "report": "the run's HTML report (scenes, variants, demos, dataset, policies): report.html",
     "all": "run the stages listed in all.stages, in order",
 }
 

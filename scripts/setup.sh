@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sets up factory on a fresh Debian/Ubuntu machine, idempotently:
-#   1. system libraries for offscreen rendering (Mesa EGL and OSMesa), via apt-get;
+#   1. system libraries for offscreen rendering (Mesa EGL and OSMesa) and Chromium, via apt-get;
 #   2. a virtual environment in .venv with factory and all its dependencies (extras all,dev).
 # A second run with an unchanged pyproject.toml takes seconds.
 # Environment: PYTHON (default python3, >= 3.11), FACTORY_SKIP_APT=1 to skip step 1,
@@ -22,8 +22,9 @@ if ! "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
   exit 1
 fi
 
-# 1. System packages (headless OpenGL for MuJoCo's renderer).
-SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6 libglu1-mesa)
+# 1. System packages (headless OpenGL for MuJoCo's renderer; Chromium for the report's browser
+#    test, tests/report, driven by playwright without a browser download).
+SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6 libglu1-mesa chromium)
 if [ "${FACTORY_SKIP_APT:-0}" != 1 ] && command -v apt-get >/dev/null 2>&1; then
   missing=()
   for p in "${SYSTEM_PACKAGES[@]}"; do

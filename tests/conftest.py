@@ -6,6 +6,7 @@ import copy
 import json
 import os
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -324,3 +325,26 @@ def _make_kitchen(assets: Path, seed: int = 3, scene_id: str | None = None) -> A
 def make_kitchen():
     """``make_kitchen(assets_dir, seed=3, scene_id=None) -> Scene`` (procedural assets)."""
     return _make_kitchen
+
+
+@dataclass
+class CliRun:
+    """A run made through the command line: its directory and the finished process."""
+
+    run_dir: Path
+    out: Any
+
+
+@pytest.fixture(scope="session")
+def small_run(tmp_path_factory: pytest.TempPathFactory) -> CliRun:
+    """The README's main job, once per session: ``stage=all profile=small`` (a generated kitchen,
+    validated, two recorded demos, the LeRobot dataset, the report; a few minutes on CPU).
+
+    Shared by every test that asks for it: read it, or copy it before changing anything.
+    """
+    pytest.importorskip("robosuite")
+    pytest.importorskip("lerobot")
+    run = tmp_path_factory.mktemp("small") / "run"
+    out = run_cli("stage=all", "profile=small", f"run_dir={run}", env={"OMP_NUM_THREADS": "1"})
+    assert out.returncode == 0, out.stderr[-3000:]
+    return CliRun(run, out)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import zipfile
 from pathlib import Path
@@ -10,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from factory.schema.sage import scene_to_sage
+from factory.stages import STAGES
 
 pytestmark = pytest.mark.slow
 
@@ -283,3 +285,56 @@ def test_small_profile_main_job(cli, tmp_path: Path) -> None:
     meta = LeRobotDatasetMetadata("factory/demos", root=run / "dataset" / "merged")
     assert meta.total_episodes == 2 and meta.total_frames > 0
     assert "observation.images.wrist" in meta.video_keys
+    # quiet terminal: factory's lines only, the summary table last, the rest in the logs
+    outside = _lines_from_outside_factory(out.stdout, out.stderr)
+    assert len(outside) == 0, "\n".join(outside)
+    lines = out.stderr.splitlines()
+    start = max(i for i, ln in enumerate(lines) if ln.startswith("stage=all done in "))
+    table = lines[start + 1 :]
+    assert table and all(ln.startswith("  ") for ln in table), out.stderr[-2000:]
+    assert [ln.split()[0] for ln in table if not ln.startswith("   ")][:4] == list(stages)
+    assert table[-1].split()[0] == "logs" and table[-1].endswith("/logs/")
+    dataset_log = (run / "logs" / "dataset-0-of-1.log").read_text()
+    assert "[libx264" in dataset_log and "INFO root: " in dataset_log  # x264's, lerobot's lines
+
+
+_LOG_LINE = re.compile(r"^\d\d:\d\d:\d\d (?:DEBUG|INFO|WARNING|ERROR|CRITICAL) (\S+): ")
+_TQDM_BAR = re.compile(r"^(?:[a-z]+)(?: [^:|]*)?: +\d+%\|.*\|")
+"""factory's bars are named after their stage (``demos``, ``dataset shard-0``)."""
+_VALIDATE_TABLE = re.compile(r"^(?:scene\s+#objects\b.*|\s*\S+\s+\d+\s+\d+\.\d(?:\s+\d+\.\d)*)$")
+
+
+def _lines_from_outside_factory(stdout: str, stderr: str) -> list[str]:
+    """The terminal lines not factory's: on stderr, factory's are log lines of the ``factory``
+    loggers, progress bars and summary tables (a ``stage ... done in`` title, then rows two
+    spaces in); on stdout, stage=validate's metrics table."""
+    outside = [ln for ln in stdout.splitlines() if not _VALIDATE_TABLE.match(ln)]
+    in_table = False
+    for line in stderr.splitlines():
+        if re.match(r"^stage[ =]\S+ done in [\d.]+ s\b.*:$", line):
+            in_table = True
+            continue
+        if in_table and line.startswith("  "):
+            continue
+        in_table = False
+        log = _LOG_LINE.match(line)
+        if log and (log.group(1) == "factory" or log.group(1).startswith("factory.")):
+            continue
+        bar = _TQDM_BAR.match(line.split("\r")[-1])
+        if bar and line.split("\r")[-1].split()[0].rstrip(":") in STAGES:
+            continue
+        outside.append(line)
+    return outside
+
+
+def test_free_form_keys_take_new_keys_from_the_command_line(cli) -> None:
+    """``train.options={act: {...}}`` adds keys to a free-form mapping (Hydra's ``++``), where a
+    plain override of a structured key would be refused as unknown."""
+    from factory.__main__ import _parse
+
+    args = ["train.options={act: {chunk_size: 4}}", "train.options.x.y=1", "seed=3"]
+    overrides, _ = _parse(args)
+    assert overrides == ["++" + args[0], "++" + args[1], "seed=3"]
+    out = cli("stage=list", "--cfg", "job", args[0])
+    assert out.returncode == 0, out.stderr
+    assert "chunk_size: 4" in out.stdout

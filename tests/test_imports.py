@@ -25,6 +25,8 @@ FLOORS: dict[str, int] = {
     "policy": 7,
     "report": 8,
     "context": 1,
+    "console": 1,
+    "summary": 1,
     "stages": 9,
     "runner": 10,
     "__main__": 11,

@@ -57,6 +57,9 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
             "- **`observation.state`:** 7 arm joint positions (rad) and the gripper opening (m)",
             "- **`observation.ee_pose`:** tool position (m) and quaternion (w, x, y, z), world "
             "frame",
+            "- **`observation.environment_state`:** the pick object's position (m) and "
+            "quaternion (w, x, y, z), then the target's, world frame (privileged state for "
+            "low-dimensional policies)",
             "- **`action`:** the arm joint targets at the end of the frame (rad) and the gripper "
             "command (m; 0.08 open, negative squeezes)",
             f"- **`observation.images.<camera>`** for {', '.join(f'`{c}`' for c in cams)}: RGB "

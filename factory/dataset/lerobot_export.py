@@ -4,6 +4,9 @@ Features of every frame:
 
 * ``observation.state`` (8,) float32: arm joints (rad) and the gripper opening (m);
 * ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
+* ``observation.environment_state`` (14,) float32: the pick object's position (m) and
+  quaternion wxyz, then the target's (the place container or support), world frame (body
+  frames of the two objects); datasets exported before it lack the feature and still load;
 * ``action`` (8,) float32: desired arm joints (rad) and the gripper command (m);
 * ``observation.images.<camera>`` video (H, W, 3), h264;
 * ``observation.depth.<camera>`` video (H, W, 3), lossless RGB h264 packing uint16 millimetres
@@ -40,9 +43,14 @@ from factory.errors import StoreError
 log = logging.getLogger(__name__)
 
 FACTORY_META = "meta/factory.json"
-EXPORT_SCHEMA_VERSION = 2
+EXPORT_SCHEMA_VERSION = 3
+"""Format of ``meta/factory.json`` and the features (3: ``observation.environment_state``)."""
 VIDEO_FILE_MB = 4
 DEPTH_ENCODING = "mm = 256 * R + G (uint8 channels of a lossless RGB video)"
+ENV_STATE_NAMES = [
+    f"{obj}_{c}" for obj in ("pick", "target") for c in ("x", "y", "z", "qw", "qx", "qy", "qz")
+]
+"""Names of ``observation.environment_state`` (world frame; m and unit quaternions)."""
 
 
 def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
@@ -58,6 +66,11 @@ def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
             "dtype": "float32",
             "shape": (7,),
             "names": ["x", "y", "z", "qw", "qx", "qy", "qz"],
+        },
+        "observation.environment_state": {
+            "dtype": "float32",
+            "shape": (14,),
+            "names": ENV_STATE_NAMES,
         },
         "action": {
             "dtype": "float32",
@@ -122,9 +135,53 @@ def unpack_depth_mm(image: Any) -> np.ndarray:
     return (arr[..., 0].astype(np.uint16) << 8) | arr[..., 1].astype(np.uint16)
 
 
+def environment_state(info: Any, group: Any, scene_json: bytes) -> np.ndarray:
+    """``observation.environment_state`` of an episode, (F, 14) float32.
+
+    The recorded ``env_state`` array when the store has it; stores recorded before it get it
+    from the MuJoCo states: a free body's qpos is its world position and quaternion, and the
+    compiled model gives every movable object of the scene (without the cleared ones) a free
+    joint in scene order, ahead of the robot's joints.
+
+    Raises:
+        StoreError: neither the array nor usable states (re-record the episode).
+    """
+    if "env_state" in group:
+        out = np.asarray(group["env_state"][:], np.float32)
+        if out.shape != (info.n_frames, 14):
+            raise StoreError(
+                f"episode {info.episode_id!r}: env_state has shape {out.shape}, expected "
+                f"({info.n_frames}, 14) (re-record the episode)"
+            )
+        return out
+    from factory.schema.scene import scene_from_json
+
+    scene = scene_from_json(scene_json.decode(), f"scene of episode {info.episode_id}")
+    movable = [o.id for o in scene.objects if not o.is_static and o.id not in info.cleared]
+    state = np.asarray(group["state"][:], np.float64)
+    parts = []
+    for oid in (info.pick_id, info.target_id):
+        if oid not in movable or 1 + 7 * (movable.index(oid) + 1) > state.shape[1]:
+            raise StoreError(
+                f"episode {info.episode_id!r} has no env_state and its states do not hold "
+                f"{oid!r} as a free body: re-record it with this factory (stage=demos)"
+            )
+        adr = 1 + 7 * movable.index(oid)  # the state starts with time, then qpos
+        pose = state[:, adr : adr + 7].copy()
+        pose[:, 3:] /= np.linalg.norm(pose[:, 3:], axis=1, keepdims=True)
+        parts.append(pose)
+    return np.concatenate(parts, axis=1).astype(np.float32)
+
+
 def _link_or_copy(src: str, dst: str) -> None:
     """Hard-links a file (assets and extras are never changed in place, only replaced by
-    rename, so a link stays what was exported); copies across file systems."""
+    rename, so a link stays what was exported); copies across file systems. A file already
+    at ``dst`` (the same asset from another part of a parallel export) is kept if it is the
+    same file, else replaced."""
+    if os.path.lexists(dst):
+        if os.path.exists(dst) and os.path.samefile(src, dst):
+            return
+        os.unlink(dst)
     try:
         os.link(src, dst)
     except OSError:
@@ -252,6 +309,10 @@ class _ExtrasWriter:
         self._scenes[info.scene_id] = (scene, model_text)
         return scene, model_text
 
+    def scene_bytes(self, info: Any) -> bytes:
+        """The episode's ``scene.json`` as recorded in the run."""
+        return self._scene(info)[0]
+
     def write(self, info: Any, group: Any) -> None:
         """The extras of one episode (``group``: its zarr arrays)."""
         scene, model_text = self._scene(info)
@@ -348,7 +409,11 @@ def export_store(
     try:
         from tqdm import tqdm
 
-        bar = tqdm(infos, desc=f"dataset {dest.name}", unit="episode", disable=None)
+        from factory.console import terminal
+
+        bar = tqdm(
+            infos, desc=f"dataset {dest.name}", unit="episode", disable=None, file=terminal()
+        )
         for index, info in enumerate(bar):
             group = store.arrays(info.episode_id)
             _check_shapes(info, group)
@@ -360,6 +425,7 @@ def export_store(
                 axis=1,
             )
             ee = np.asarray(group["ee_pose"][:], np.float32)
+            env_state = environment_state(info, group, extras.scene_bytes(info))
             act = np.asarray(group["action"][:], np.float32)
             rgb_frames = {c: group[f"rgb/{c}"][:] for c in info.cameras}
             depth = {c: pack_depth_mm(depth_mm(group[f"depth/{c}"][:])) for c in info.cameras}
@@ -367,6 +433,7 @@ def export_store(
                 frame: dict[str, Any] = {
                     "observation.state": state[f],
                     "observation.ee_pose": ee[f],
+                    "observation.environment_state": env_state[f],
                     "action": act[f],
                     "task": info.instruction,
                 }

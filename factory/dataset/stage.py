@@ -124,7 +124,12 @@ def _export_shard(ctx: StageContext, k: int, n: int, out: Path) -> tuple[Path, d
         the folder, and ``{"exported": 0|1, "frames": int, "seconds": float}`` of this call.
     """
     from factory import __version__
-    from factory.dataset.lerobot_export import FACTORY_META, export_store, merge_datasets
+    from factory.dataset.lerobot_export import (
+        EXPORT_SCHEMA_VERSION,
+        FACTORY_META,
+        export_store,
+        merge_datasets,
+    )
     from factory.dataset.video import rgb_codec
     from factory.demos.episodes import EpisodeStore
     from factory.store import Shard
@@ -140,8 +145,11 @@ def _export_shard(ctx: StageContext, k: int, n: int, out: Path) -> tuple[Path, d
         )
     episodes = EpisodeStore(path)
     ids = episodes.episode_ids()
-    # the episodes and how they are encoded: a new codec setting re-exports
-    key = "\n".join([*ids, json.dumps(rgb.__dict__, sort_keys=True)])
+    # the episodes, how they are encoded and the export's format: a new codec setting or a
+    # newer format (e.g. a new feature) re-exports
+    key = "\n".join(
+        [*ids, json.dumps(rgb.__dict__, sort_keys=True), f"export-v{EXPORT_SCHEMA_VERSION}"]
+    )
     digest = hashlib.sha256(key.encode()).hexdigest()
     dest = out / "shards" / f"shard-{k}"
     meta_path = dest / FACTORY_META

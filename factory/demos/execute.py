@@ -56,7 +56,8 @@ class Recording:
         gripper: (F, 1) opening between the fingers (m); ee_pose: (F, 7) tool site position (m)
         and quaternion (w, x, y, z) in the world frame; action: (F, 8) next arm joint targets
         (rad) and gripper command (m; negative squeezes); rgb: camera -> (F, H, W, 3) uint8;
-        depth: camera -> (F, H, W) uint16 mm or float32 m.
+        depth: camera -> (F, H, W) uint16 mm or float32 m; env_state: (F, 14) pick object
+        and target poses, see :func:`object_poses`.
     """
 
     time: np.ndarray
@@ -67,6 +68,7 @@ class Recording:
     action: np.ndarray
     rgb: dict[str, np.ndarray] = field(default_factory=dict)
     depth: dict[str, np.ndarray] = field(default_factory=dict)
+    env_state: np.ndarray = field(default_factory=lambda: np.zeros((0, 14)))
     outcome: Outcome | None = None
     sim_seconds: float = 0.0
     render_seconds: float = 0.0
@@ -143,9 +145,11 @@ class FrameRenderer:
         self.renderer.close()
 
 
-def _robot_signals(
+def robot_signals(
     model: mujoco.MjModel, data: mujoco.MjData, robot: RobotIndex
 ) -> tuple[np.ndarray, float, np.ndarray]:
+    """Arm joints (7,) rad, gripper opening (m) and tool pose (7,): position (m) + quaternion
+    wxyz, world frame; ``data`` needs current kinematics."""
     q = np.array(data.qpos[robot.qpos])
     fingers = data.qpos[robot.finger_qpos]
     width = float(fingers[0] - fingers[1])
@@ -155,7 +159,7 @@ def _robot_signals(
     return q, width, ee
 
 
-def _robot_penetration(
+def robot_penetration(
     model: mujoco.MjModel, data: mujoco.MjData, robot_geom: np.ndarray, allowed: np.ndarray
 ) -> float:
     """Deepest contact between a robot geom and a scene geom not in ``allowed`` (m)."""
@@ -169,6 +173,12 @@ def _robot_penetration(
             continue
         worst = max(worst, -float(c.dist))
     return worst
+
+
+def object_poses(data: mujoco.MjData, bodies: tuple[int, int]) -> np.ndarray:
+    """The environment state (14,): position (m) and quaternion wxyz of the pick object, then
+    of the target, world frame (their bodies' frames; ``data`` needs current kinematics)."""
+    return np.concatenate([np.concatenate([data.xpos[b], data.xquat[b]]) for b in bodies])
 
 
 def execute(
@@ -232,6 +242,7 @@ def execute(
             gripper=np.zeros((f, 1)),
             ee_pose=np.zeros((f, 7)),
             action=np.zeros((f, 8)),
+            env_state=np.zeros((f, 14)),
             rgb={c: np.zeros((f, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
             if cfg.render
             else {},
@@ -258,12 +269,13 @@ def execute(
             rec = recs[i]
             mujoco.mj_setState(model, data, states[i], STATE_SPEC)
             mujoco.mj_forward(model, data)
-            worst[i] = max(worst[i], _robot_penetration(model, data, robot_geom, allowed))
-            q, width, ee = _robot_signals(model, data, robot)
+            worst[i] = max(worst[i], robot_penetration(model, data, robot_geom, allowed))
+            q, width, ee = robot_signals(model, data, robot)
             rec.state[frame] = states[i]
             rec.joint_pos[frame] = q
             rec.gripper[frame, 0] = width
             rec.ee_pose[frame] = ee
+            rec.env_state[frame] = object_poses(data, (pick, target))
             step = min((frame + 1) * per_frame, lengths[i]) - 1
             rec.action[frame] = plans[i].targets[step]
             if own is not None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -311,6 +312,27 @@ def _surface_height(model: mujoco.MjModel, body: int, pose: np.ndarray) -> float
     return float(pose[2, 3] + 2.0 - t_in[hit].min())
 
 
+def initial_configuration(
+    setup: SceneSetup,
+    rng: np.random.Generator,
+    ws: Workspace | None = None,
+    randomize_objects: bool = True,
+) -> np.ndarray:
+    """An episode's initial qpos (nq,): the robot at home with the hand open and, with
+    ``randomize_objects``, the pick object and the target re-placed by :func:`randomize`
+    (``np.random.default_rng(seed)`` gives the demos' configuration of that seed).
+
+    Raises:
+        TaskError: no free spot for the objects within reach.
+    """
+    qpos = initial_state(setup.model, setup.robot)
+    if randomize_objects:
+        qpos = randomize(
+            setup.model, qpos, setup.scene, setup.objects, setup.placement, ws or Workspace(), rng
+        )
+    return qpos
+
+
 class EpisodePlanner:
     """Plans the episodes of one scene.
 
@@ -394,15 +416,11 @@ class EpisodePlanner:
         """Plans one episode (deterministic in ``seed``)."""
         t0 = time.perf_counter()
         self._rng = np.random.default_rng(seed)
-        m, robot, setup = self.model, self.robot, self.setup
-        qpos = initial_state(m, robot)
-        if randomize_objects:
-            try:
-                qpos = randomize(
-                    m, qpos, setup.scene, setup.objects, setup.placement, self.ws, self._rng
-                )
-            except TaskError as e:
-                return PlanFailure("no_object_pose", str(e), time.perf_counter() - t0)
+        m, setup = self.model, self.setup
+        try:
+            qpos = initial_configuration(setup, self._rng, self.ws, randomize_objects)
+        except TaskError as e:
+            return PlanFailure("no_object_pose", str(e), time.perf_counter() - t0)
         data = mujoco.MjData(m)
         data.qpos[:] = qpos
         mujoco.mj_kinematics(m, data)
@@ -583,13 +601,35 @@ class EpisodePlanner:
         move("retreat", np.stack([q_place, q_retreat]), self.slow, GRIP_OPEN)
         hold("hold", q_retreat, mo.hold, GRIP_OPEN)
         phases["end"] = len(arm)
-        robot = self.robot
-        m = self.model
-        lead = -m.actuator_biasprm[robot.ctrl_arm, 2] / m.actuator_gainprm[robot.ctrl_arm, 0]
-        ctrl = np.zeros((len(arm), m.nu))
-        ctrl[:, robot.ctrl_arm] = np.asarray(arm) + lead * np.asarray(vel)
-        ctrl[:, robot.ctrl_fingers] = np.stack([robot.gripper_ctrl(o) for o in grip])
-        lo, hi = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
-        ctrl = np.clip(ctrl, lo, hi)
+        ctrl = targets_to_ctrl(self.model, self.robot, np.asarray(arm), np.asarray(vel), grip)
         targets = np.concatenate([np.asarray(arm), np.asarray(grip)[:, None]], axis=1)
         return EpisodePlan(qpos, ctrl, targets, phases, width, seconds, 0.0, 0)
+
+
+def targets_to_ctrl(
+    model: mujoco.MjModel,
+    robot: RobotIndex,
+    arm: np.ndarray,
+    vel: np.ndarray,
+    grip: Sequence[float] | np.ndarray,
+) -> np.ndarray:
+    """The controller: joint targets -> actuator controls, per physics step.
+
+    The arm's PD position actuators get the desired joint positions plus a velocity lead
+    (``kv/kp * qd``, so that they track a moving target without lag); the fingers get the
+    targets of the gripper command. Controls are clipped to the actuators' ranges.
+
+    Args:
+        model, robot: the composed model and its robot index.
+        arm: desired arm joint positions (T, 7) rad; vel: their velocities (T, 7) rad/s.
+        grip: gripper commands (T,): total opening (m), negative squeezes.
+
+    Returns:
+        ctrl (T, nu).
+    """
+    lead = -model.actuator_biasprm[robot.ctrl_arm, 2] / model.actuator_gainprm[robot.ctrl_arm, 0]
+    ctrl = np.zeros((len(arm), model.nu))
+    ctrl[:, robot.ctrl_arm] = arm + lead * vel
+    ctrl[:, robot.ctrl_fingers] = np.stack([robot.gripper_ctrl(float(o)) for o in grip])
+    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    return np.clip(ctrl, lo, hi)

@@ -91,33 +91,48 @@ def check_config(dc: DemosConfig, task: str) -> None:
         raise ConfigError("demos.fps must be > 0 and demos.width/height >= 8 px")
 
 
-_SETUPS: dict[str, Any] = {}
+def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[Any, Any]:
+    """A scene of a run composed with the robot as ``stage=demos`` records it, and its planner.
 
+    The base spot, cleared objects and cameras come from
+    :func:`~factory.demos.pick_place.setup_scene` (deterministic per scene); island sleeping
+    follows ``demos.sleep``; the planner's timing, timeout and grasp count follow ``demos``.
 
-def _setup(env: _Env, scene_id: str) -> Any:
-    """The scene's setup and planner, made once per process and scene."""
+    Returns:
+        ``(SceneSetup, EpisodePlanner)``.
+
+    Raises:
+        TaskError: the scene cannot host the task (objects missing, no base spot).
+    """
     import mujoco
 
     from factory.demos.pick_place import EpisodePlanner, MotionConfig, setup_scene
     from factory.demos.planner import PlannerConfig
     from factory.store import RunStore
 
+    store = RunStore(run_dir)
+    scene = store.load_scene(scene_id)
+    setup = setup_scene(scene, store.assets_dir)
+    if not dc.sleep:
+        setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    motion = MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
+    planner = EpisodePlanner(
+        setup,
+        planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
+        motion=motion,
+        max_grasps=dc.max_grasps,
+    )
+    return setup, planner
+
+
+_SETUPS: dict[str, Any] = {}
+
+
+def _setup(env: _Env, scene_id: str) -> Any:
+    """The scene's setup and planner, made once per process and scene."""
     if scene_id not in _SETUPS:
         _SETUPS.clear()
-        store = RunStore(env.run_dir)
-        scene = store.load_scene(scene_id)
-        setup = setup_scene(scene, store.assets_dir)
-        dc = env.demos
-        if not dc.sleep:
-            setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
-        motion = MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
-        planner = EpisodePlanner(
-            setup,
-            planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
-            motion=motion,
-            max_grasps=dc.max_grasps,
-        )
-        _SETUPS[scene_id] = (setup, planner)
+        _SETUPS[scene_id] = scene_planner(env.run_dir, scene_id, env.demos)
     return _SETUPS[scene_id]
 
 
@@ -227,6 +242,7 @@ def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
                     "gripper": rec.gripper.astype(np.float32),
                     "ee_pose": rec.ee_pose.astype(np.float32),
                     "action": rec.action.astype(np.float32),
+                    "env_state": rec.env_state.astype(np.float32),
                 }
                 for cam, im in rec.rgb.items():
                     arrays[f"rgb/{cam}"] = im
@@ -267,6 +283,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     """Runs the demos stage for this shard's scenes; returns the summary."""
     from tqdm import tqdm
 
+    from factory.console import terminal
     from factory.demos.episodes import EpisodeStore
 
     cfg = ctx.cfg
@@ -292,7 +309,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     t_start = time.perf_counter()
     results: list[dict[str, Any]] = []
     total = sum(len(i.slots) for i in items)
-    with tqdm(total=total, desc="demos", unit="episode", disable=None) as bar:
+    with tqdm(total=total, desc="demos", unit="episode", disable=None, file=terminal()) as bar:
         try:
             if workers > 1:
                 with ProcessPoolExecutor(workers) as pool:

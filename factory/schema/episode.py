@@ -22,6 +22,8 @@ EPISODE_ARRAYS: dict[str, str] = {
     "gripper": "(F, 1) float32, opening between the fingers (m)",
     "ee_pose": "(F, 7) float32, tool site position (m) + quaternion wxyz, world frame",
     "action": "(F, 8) float32, next arm joint targets (rad) + gripper command (m)",
+    "env_state": "(F, 14) float32, pick object then target: position (m) + quaternion wxyz, "
+    "world frame (stores written before it lack it; the export computes it from state)",
     "rgb/<camera>": "(F, H, W, 3) uint8",
     "depth/<camera>": "(F, H, W) uint16 mm or float32 m (depth_format)",
 }

@@ -22,3 +22,8 @@ class SchemaVersionError(SchemaError):
 
 class UnsafePathError(SchemaError):
     """An id or archive member would escape its directory (``../x``, absolute paths)."""
+
+
+class PolicyError(FactoryError):
+    """A policy cannot be trained, loaded or evaluated as asked (unknown policy, missing
+    inputs, a checkpoint whose features do not match the data or the env)."""

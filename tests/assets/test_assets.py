@@ -144,6 +144,32 @@ def test_resolver_approximates_and_says_so() -> None:
         resolve("   ")
 
 
+def test_resolver_reads_every_catalogue_phrase_exactly() -> None:
+    from factory.assets.resolver import _VOCAB
+
+    wrong = {p: r.spec.category for p in _VOCAB if (r := resolve(p)).spec.category != _VOCAB[p]}
+    assert not wrong
+    assert all(not resolve(p).approximated for p in _VOCAB)
+
+
+@pytest.mark.parametrize(
+    ("text", "category"),
+    [
+        ("microwve", "microwave"),
+        ("a blu mugg", "mug"),
+        ("bokshelf", "bookshelf"),
+        ("waana", "banana"),
+    ],
+)
+def test_resolver_fuzzy_similarity_is_rapidfuzz_ratio(text: str, category: str) -> None:
+    from rapidfuzz import fuzz
+
+    res = resolve(text)
+    word = text.split()[-1]
+    assert res.spec.category == category and res.approximated
+    assert res.confidence == round(fuzz.ratio(word, res.matched) / 100, 2)
+
+
 @pytest.mark.parametrize("dims", [(-1, 0.2, 0.2), (0.1, 0.0, 0.1), (50, 1, 1), (1, 1)])
 def test_bad_dimensions_write_nothing(tmp_path: Path, dims: tuple) -> None:
     lib = AssetLibrary(tmp_path)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +68,7 @@ def _episode(eid: str, scene_id: str, n: int, seed: int) -> tuple[EpisodeInfo, d
         "gripper": rng.uniform(0, 0.08, size=(n, 1)).astype(np.float32),
         "ee_pose": rng.normal(size=(n, 7)).astype(np.float32),
         "action": rng.normal(size=(n, 8)).astype(np.float32),
+        "env_state": rng.normal(size=(n, 14)).astype(np.float32),
     }
     for cam in CAMS:
         arrays[f"rgb/{cam}"] = rgb[cam]
@@ -134,6 +136,8 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
             state = np.concatenate([group["joint_pos"][f], group["gripper"][f]])
             assert np.array_equal(item["observation.state"].numpy(), state)
             assert np.array_equal(item["action"].numpy(), group["action"][f])
+            env_state = item["observation.environment_state"].numpy()
+            assert np.array_equal(env_state, group["env_state"][f])
             for cam in CAMS:
                 depth = unpack_depth_mm(item[f"observation.depth.{cam}"])
                 assert np.array_equal(depth, group[f"depth/{cam}"][f])  # exact millimetres
@@ -363,3 +367,47 @@ def test_diffusion_policy_trains_on_export(tmp_path: Path) -> None:
     loss.backward()
     optim.step()
     assert torch.isfinite(loss)
+
+
+def test_environment_state_of_stores_recorded_before_it(tmp_path: Path) -> None:
+    """Stores without ``env_state`` get it from the MuJoCo states (free-body qpos in scene
+    order, without cleared objects); an episode whose states cannot hold it is refused."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from factory.dataset.lerobot_export import export_store
+    from factory.errors import StoreError
+    from factory.schema import load_scene
+
+    store = _run(tmp_path, shards=1, per_shard=0)
+    scene = load_scene(EXAMPLE_SCENE)
+    movable = [o.id for o in scene.objects if not o.is_static]
+    pick, target = "mug", "bowl"
+    assert pick in movable and target in movable
+    n = 6
+    info, arrays = _episode("kitchen_pick_place-ep00", "kitchen_pick_place", n, 0)
+    info = replace(info, pick_id=pick, target_id=target, cleared=[movable[0]])
+    del arrays["env_state"]
+    kept = [o for o in movable if o != movable[0]]
+    state = np.zeros((n, 1 + 7 * len(kept) + 9))
+    expect = np.zeros((n, 14))
+    for j, oid in enumerate((pick, target)):
+        adr = 1 + 7 * kept.index(oid)
+        pos = np.arange(3) + 10 * j + np.arange(n)[:, None]
+        quat = np.array([2.0, 0.0, 0.0, 2.0])  # not normalized in qpos: exported unit-length
+        state[:, adr : adr + 3] = pos
+        state[:, adr + 3 : adr + 7] = quat
+        expect[:, 7 * j : 7 * j + 3] = pos
+        expect[:, 7 * j + 3 : 7 * j + 7] = quat / np.linalg.norm(quat)
+    arrays["state"] = state
+    ep = EpisodeStore(store.episodes_shard(Shard(0, 1)))
+    ep.write(info, arrays)
+    export_store(ep, tmp_path / "out", "x/out", store.root)
+    ds = LeRobotDataset("x/out", root=tmp_path / "out", video_backend="pyav")
+    got = np.stack([ds[f]["observation.environment_state"].numpy() for f in range(n)])
+    assert np.allclose(got, expect, atol=1e-6)
+    # a pick object the states cannot hold (a static one) is refused with the fix
+    bad = EpisodeStore(tmp_path / "bad.zarr")
+    static = next(o.id for o in scene.objects if o.is_static)
+    bad.write(replace(info, pick_id=static), arrays)
+    with pytest.raises(StoreError, match="re-record it"):
+        export_store(bad, tmp_path / "c", "x/c", store.root)

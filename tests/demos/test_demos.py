@@ -370,6 +370,11 @@ def test_demos_stage_cli(cli, kitchen, tmp_path: Path) -> None:
     assert info.success and info.scene_id == scene.id and info.n_frames > 50
     g = store.arrays(eid)
     assert g["rgb/left"].shape == (info.n_frames, 32, 32, 3)
+    # the environment state: the mug then the bowl, position + unit quaternion, world frame
+    env_state = g["env_state"][:]
+    assert env_state.shape == (info.n_frames, 14) and env_state.dtype == np.float32
+    assert np.allclose(np.linalg.norm(env_state[:, 3:7], axis=1), 1, atol=1e-5)
+    assert np.linalg.norm(env_state[-1, :2] - env_state[-1, 7:9]) < 0.06  # the mug in the bowl
     # resume: nothing left to do
     again = cli("stage=demos", f"run_dir={run}", "demos.episodes_per_scene=1")
     assert again.returncode == 0

@@ -1,0 +1,404 @@
+"""Trained policies on disk: ``policy/<name>/`` checkpoints in lerobot's format, what each was
+trained on (:class:`TrainInfo`), and loading one to act in the env (:func:`load_policy`).
+
+Layout of ``<run_dir>/policy/<name>/``:
+
+* ``checkpoints/<step:06d>/pretrained_model/``: lerobot's ``save_pretrained`` output
+  (``config.json``, ``model.safetensors``, ``train_config.json``, the pre- and post-processor
+  pipelines with their normalisation statistics) plus ``factory_policy.json`` (the
+  :class:`TrainInfo`, so the folder alone can be loaded and evaluated);
+* ``checkpoints/<step>/training_state/``: optimizer, scheduler, RNG states and the step
+  (lerobot's ``save_training_state``), for resuming;
+* ``checkpoints/last``: a symbolic link to the newest complete checkpoint (lerobot's name);
+* ``train.json``: the :class:`TrainInfo` of the newest checkpoint (``schema_version`` 1);
+* ``train_log.jsonl``: one JSON object per logged step (``step, loss, lr, seconds, ...``).
+
+A checkpoint is written into a temporary folder and renamed into place, and ``last`` is
+replaced atomically after it, so a killed training leaves the previous checkpoint intact.
+
+Importing this module is cheap; :func:`load_policy` imports torch and lerobot.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import logging
+import os
+import shutil
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from factory.errors import PolicyError
+from factory.store import atomic_write_json
+
+log = logging.getLogger(__name__)
+
+TRAIN_SCHEMA_VERSION = 1
+TRAIN_JSON = "train.json"
+TRAIN_LOG = "train_log.jsonl"
+INFO_IN_MODEL = "factory_policy.json"
+"""The :class:`TrainInfo` inside each ``pretrained_model`` folder."""
+CHECKPOINTS = "checkpoints"
+LAST = "last"
+PRETRAINED = "pretrained_model"
+TRAINING_STATE = "training_state"
+
+
+@dataclass
+class TrainInfo:
+    """What a policy was trained on and how it reads observations.
+
+    Attributes:
+        name: the policy's name (``policy/<name>/``).
+        policy_type: lerobot policy type (``diffusion``, ``act``, ...).
+        inputs: ``state``, ``rgb`` or ``rgbd`` (:mod:`factory.policy.inputs`).
+        dataset: path of the merged LeRobot dataset it trained on.
+        scenes: the scene ids trained on (the dataset's, or those of ``train.scenes``).
+        episodes: episodes trained on.
+        steps: optimizer steps done (of this checkpoint).
+        fps: frames per second of the data (Hz); the policy acts at this rate.
+        features: observation key the policy reads (as the env and the dataset name it) ->
+            shape of one observation as the env gives it (images (H, W, 3) uint8, depth
+            (H, W) uint16 mm).
+        policy_features: model input key -> shape as the model sees it after conversion
+            (e.g. ``observation.state`` (17,), images (3, H, W)).
+        depth_max_m: depth clipping range of ``rgbd`` (m).
+        frames: frames trained on.
+        episode_indices: the dataset's episode indices trained on (empty: all of them).
+        config: the ``train.*`` settings of the run.
+    """
+
+    name: str
+    policy_type: str
+    inputs: str
+    dataset: str
+    scenes: list[str]
+    episodes: int
+    steps: int
+    fps: int
+    features: dict[str, list[int]]
+    policy_features: dict[str, list[int]] = field(default_factory=dict)
+    depth_max_m: float = 2.0
+    frames: int = 0
+    config: dict[str, Any] = field(default_factory=dict)
+    episode_indices: list[int] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"schema_version": TRAIN_SCHEMA_VERSION, **asdict(self)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any], where: str) -> TrainInfo:
+        """Reads a ``train.json`` / ``factory_policy.json`` object.
+
+        Raises:
+            PolicyError: another schema version or missing fields.
+        """
+        version = data.get("schema_version")
+        if version != TRAIN_SCHEMA_VERSION:
+            raise PolicyError(
+                f"{where}: schema_version {version!r}, this factory reads "
+                f"{TRAIN_SCHEMA_VERSION}: retrain with stage=train force=true"
+            )
+        known = set(cls.__dataclass_fields__)
+        values = {k: v for k, v in data.items() if k in known}
+        try:
+            info = cls(**values)
+        except TypeError as e:
+            raise PolicyError(f"{where} is incomplete ({e}): retrain with stage=train") from None
+        info.features = {k: [int(x) for x in v] for k, v in info.features.items()}
+        return info
+
+
+def read_info(path: Path) -> TrainInfo:
+    """A :class:`TrainInfo` from a JSON file."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise PolicyError(f"{path} is unreadable ({e}): retrain with stage=train") from None
+    return TrainInfo.from_json(data, str(path))
+
+
+def check_features(
+    info: TrainInfo,
+    obs_keys: Iterable[str],
+    shapes: Mapping[str, Sequence[int]] | None = None,
+) -> None:
+    """Checks that observations with these keys (and shapes) feed the policy.
+
+    Args:
+        info: the policy's training record.
+        obs_keys: keys the env or the dataset provides.
+        shapes: key -> shape of one observation (no batch axis), checked where given.
+
+    Raises:
+        PolicyError: a feature the policy reads is missing or has another shape (a policy
+            trained on another dataset: other cameras, image size or inputs).
+    """
+    keys = set(obs_keys)
+    missing = [k for k in info.features if k not in keys]
+    if missing:
+        raise PolicyError(
+            f"policy {info.name!r} (inputs={info.inputs}, trained on {info.dataset}) reads "
+            f"{', '.join(missing)}, which these observations lack: evaluate it where the "
+            "training data came from, or train a policy on this data (stage=train)"
+        )
+    for k, want in info.features.items():
+        if shapes is not None and k in shapes and list(shapes[k]) != list(want):
+            raise PolicyError(
+                f"policy {info.name!r} reads {k} of shape {tuple(want)}, got "
+                f"{tuple(shapes[k])} (another dataset's setting): train a policy on this data "
+                "(stage=train) or evaluate where it was trained"
+            )
+
+
+# ---- the run directory
+
+
+def policy_dir(run_dir: Path, name: str) -> Path:
+    return Path(run_dir) / "policy" / name
+
+
+def last_checkpoint(out: Path) -> Path | None:
+    """The newest complete checkpoint folder of ``policy/<name>`` (``checkpoints/last``)."""
+    link = out / CHECKPOINTS / LAST
+    if not link.exists():
+        return None
+    target = link.resolve()
+    if not (target / PRETRAINED / "config.json").is_file():
+        return None
+    return target
+
+
+def checkpoint_step(ckpt: Path) -> int:
+    """The step of a checkpoint (its ``training_state/training_step.json``)."""
+    from_file = ckpt / TRAINING_STATE / "training_step.json"
+    try:
+        return int(json.loads(from_file.read_text())["step"])
+    except (OSError, ValueError, KeyError):
+        return int(ckpt.name)
+
+
+def publish_checkpoint(tmp: Path, final: Path) -> None:
+    """Renames a written checkpoint folder into place and points ``last`` at it (atomic)."""
+    if final.exists():
+        shutil.rmtree(final)
+    os.replace(tmp, final)
+    link = final.parent / LAST
+    tmp_link = final.parent / f".{LAST}.tmp"
+    tmp_link.unlink(missing_ok=True)
+    tmp_link.symlink_to(final.name)
+    os.replace(tmp_link, link)
+
+
+def prune_checkpoints(out: Path, keep: int) -> None:
+    """Removes all but the ``keep`` newest checkpoints (never the one ``last`` names) and
+    leftovers of interrupted writes."""
+    root = out / CHECKPOINTS
+    if not root.is_dir():
+        return
+    for p in root.glob(".tmp-*"):
+        shutil.rmtree(p, ignore_errors=True)
+    last = last_checkpoint(out)
+    steps = sorted(p for p in root.iterdir() if p.is_dir() and p.name.isdigit())
+    for p in steps[: max(0, len(steps) - max(1, keep))]:
+        if last is None or p.resolve() != last:
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def write_train_json(out: Path, info: TrainInfo) -> None:
+    atomic_write_json(out / TRAIN_JSON, info.to_json())
+
+
+# ---- loading
+
+
+def resolve_ref(ref: str, run_dir: Path | None) -> Path:
+    """The ``pretrained_model`` folder a reference names.
+
+    Args:
+        ref: a policy name under ``run_dir/policy/`` (its newest checkpoint), or a path to a
+            ``pretrained_model`` folder, a checkpoint folder or a ``policy/<name>`` folder.
+
+    Raises:
+        PolicyError: nothing loadable there.
+    """
+    candidates = []
+    if run_dir is not None and ref and "/" not in ref and ref not in (".", ".."):
+        candidates.append(policy_dir(Path(run_dir), ref))
+    candidates.append(Path(ref))
+    for p in candidates:
+        if (p / "config.json").is_file() and (p / "model.safetensors").is_file():
+            return p
+        if (p / PRETRAINED / "config.json").is_file():
+            return p / PRETRAINED
+        last = last_checkpoint(p)
+        if last is not None:
+            return last / PRETRAINED
+        if (p / CHECKPOINTS).is_dir():
+            raise PolicyError(
+                f"policy {ref!r} has no finished checkpoint in {p / CHECKPOINTS}: run stage=train "
+                "(it resumes) until it saves one"
+            )
+    trained = []
+    if run_dir is not None and (Path(run_dir) / "policy").is_dir():
+        trained = sorted(p.name for p in (Path(run_dir) / "policy").iterdir() if p.is_dir())
+    have = f"trained in this run: {', '.join(trained)}" if trained else "none trained in this run"
+    raise PolicyError(
+        f"no policy {ref!r} ({have}): train one with stage=train train.name={ref}, or give the "
+        "path of a lerobot pretrained_model folder"
+    )
+
+
+@contextlib.contextmanager
+def quiet_stdout() -> Iterator[None]:
+    """lerobot's ``from_pretrained`` prints to stdout; its words go to the log instead."""
+    buf = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(buf):
+            yield
+    finally:
+        for line in buf.getvalue().splitlines():
+            log.debug("lerobot: %s", line)
+
+
+def resolve_device(device: str) -> str:
+    """``auto`` -> ``cuda`` when a CUDA device is present, else ``cpu``; others unchanged.
+
+    Raises:
+        PolicyError: ``cuda`` asked for where there is none.
+    """
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise PolicyError(f"device={device} but torch sees no CUDA device: use device=auto or cpu")
+    return device
+
+
+class LoadedPolicy:
+    """A trained policy ready to act in the env: every conversion the training applied.
+
+    Attributes:
+        info: what it was trained on.
+        path: its ``pretrained_model`` folder.
+        device: the torch device it runs on.
+    """
+
+    def __init__(
+        self,
+        info: TrainInfo,
+        path: Path,
+        policy: Any,
+        preprocessor: Any,
+        postprocessor: Any,
+        device: str,
+    ) -> None:
+        from factory.policy.inputs import spec_from_features
+
+        self.info = info
+        self.path = path
+        self.device = device
+        self.spec = spec_from_features(info.inputs, info.features, info.depth_max_m)
+        self._policy = policy
+        self._pre = preprocessor
+        self._post = postprocessor
+        self._checked = False
+
+    @property
+    def policy(self) -> Any:
+        """The lerobot policy (``PreTrainedPolicy``)."""
+        return self._policy
+
+    def reset(self) -> None:
+        """Starts new episodes: clears the policy's observation and action queues."""
+        self._policy.reset()
+
+    def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Actions for a batch of observations.
+
+        Args:
+            obs: the env's observations, keyed like the dataset's features, each with a
+                leading batch axis ``n`` and the contract's raw dtypes (uint8 (n, H, W, 3)
+                images, uint16 (n, H, W) millimetres of depth, float32 vectors).
+
+        Returns:
+            (n, 8) float32: desired arm joints (rad) + gripper command (m).
+
+        Raises:
+            PolicyError: the observations lack a feature the policy reads or have other shapes.
+        """
+        import torch
+
+        from factory.policy.inputs import convert_observation
+
+        if not self._checked:
+            check_features(self.info, obs, {k: np.shape(v)[1:] for k, v in obs.items()})
+            self._checked = True
+        batch = convert_observation(self.spec, obs)
+        with torch.inference_mode():
+            batch = self._pre(batch)
+            action = self._policy.select_action(batch)
+            action = self._post(action)
+        return np.asarray(action.detach().to("cpu").numpy(), np.float32).reshape(-1, 8)
+
+
+def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedPolicy:
+    """Loads a trained policy with lerobot's ``from_pretrained`` and its processors.
+
+    Args:
+        ref: a policy name under ``run_dir/policy/<name>/`` (its newest checkpoint) or a path
+            (a lerobot ``pretrained_model`` folder written by ``stage=train``, a checkpoint or a
+            ``policy/<name>`` folder).
+        run_dir: the run directory names are looked up in (None: paths only).
+        device: ``auto`` (CUDA when present), ``cpu``, ``cuda``.
+
+    Raises:
+        PolicyError: nothing loadable, not written by ``stage=train``, or unreadable.
+    """
+    path = resolve_ref(ref, run_dir)
+    info_path = path / INFO_IN_MODEL
+    if not info_path.is_file():
+        raise PolicyError(
+            f"{path} has no {INFO_IN_MODEL}: it was not trained by stage=train, so its inputs "
+            "are unknown; train one with stage=train"
+        )
+    info = read_info(info_path)
+    dev = resolve_device(device)
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    try:
+        with quiet_stdout():
+            cfg = PreTrainedConfig.from_pretrained(path)
+            cfg.device = dev
+            policy = get_policy_class(cfg.type).from_pretrained(path, config=cfg)
+            pre, post = make_pre_post_processors(
+                cfg,
+                pretrained_path=str(path),
+                preprocessor_overrides={"device_processor": {"device": dev}},
+            )
+    except (OSError, ValueError, KeyError, RuntimeError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise PolicyError(
+            f"cannot load the policy in {path}: {msg} (retrain with stage=train)"
+        ) from None
+    policy.to(dev)
+    policy.eval()
+    policy.reset()
+    log.info(
+        "loaded policy %s (%s, inputs=%s, %d steps) from %s on %s",
+        info.name,
+        info.policy_type,
+        info.inputs,
+        info.steps,
+        path,
+        dev,
+    )
+    return LoadedPolicy(info, path, policy, pre, post, dev)

@@ -1,0 +1,548 @@
+"""``stage=eval``: closed-loop rollouts of a trained policy, of the recorded actions (replay) or
+of the planner, in the simulation env; success rates with 95 % intervals.
+
+Protocol (the paper's): held-out scenes, the run's scenes that are not in the policy's training
+dataset (``eval.scenes=heldout``), each with ``eval.episodes_per_scene`` initial configurations
+drawn by the demos' sampler from evaluation seeds (:func:`factory.policy.env.eval_seed`,
+disjoint from the demos' seeds). ``replay`` instead runs every recorded episode of the dataset
+from its recorded initial MuJoCo state with its recorded actions.
+
+Writes ``eval/<policy>/``: ``episodes.jsonl`` (one line per finished episode; a re-run skips
+them, so a killed evaluation resumes), ``results.json`` and ``videos/*.mp4``. Bad input (an
+unknown policy, a run without held-out scenes, a checkpoint whose features the env cannot
+give) stops with one line before anything is written.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from factory.context import StageContext
+from factory.errors import ConfigError, PolicyError, StoreError, TaskError
+from factory.store import atomic_write_json
+
+log = logging.getLogger(__name__)
+
+KINDS = ("replay", "planner")
+RUN_SCHEMA_VERSION = 1
+MAX_BATCH = 16
+DEFAULT_MAX_STEPS = 400
+
+
+def check_config(ec: Any) -> None:
+    """Raises :class:`ConfigError` naming a bad ``eval.*`` value."""
+    if ec.episodes_per_scene < 1:
+        raise ConfigError(f"eval.episodes_per_scene must be >= 1, got {ec.episodes_per_scene}")
+    if ec.max_steps < 0 or ec.batch < 0 or ec.nthread < 0 or ec.videos < 0:
+        raise ConfigError("eval.max_steps, eval.batch, eval.nthread and eval.videos must be >= 0")
+    scenes = ec.scenes
+    if isinstance(scenes, str):
+        if scenes not in ("heldout", "train"):
+            raise ConfigError(
+                f"eval.scenes must be heldout, train or a list of scene ids, got {scenes!r}"
+            )
+    elif not (isinstance(scenes, list | tuple) or hasattr(scenes, "__iter__")) or not list(scenes):
+        raise ConfigError("eval.scenes must be heldout, train or a non-empty list of scene ids")
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_.") or "policy"
+
+
+# ---- the dataset
+
+
+def _dataset_meta(root: Path) -> dict[str, Any] | None:
+    path = root / "meta" / "factory.json"
+    if not path.is_file():
+        return None
+    meta: dict[str, Any] = json.loads(path.read_text())
+    return meta
+
+
+def _dataset_actions(root: Path) -> dict[int, np.ndarray]:
+    """The ``action`` rows of every episode of a LeRobot dataset, by episode index."""
+    import pyarrow.parquet as pq
+
+    files = sorted((root / "data").glob("*/*.parquet"))
+    if not files:
+        raise StoreError(f"{root} holds no data files: re-run stage=dataset")
+    out: dict[int, list[np.ndarray]] = {}
+    for f in files:
+        table = pq.read_table(f, columns=["episode_index", "frame_index", "action"])
+        ep = table.column("episode_index").to_numpy()
+        frame = table.column("frame_index").to_numpy()
+        act = np.stack(table.column("action").to_numpy(zero_copy_only=False))
+        for e in np.unique(ep):
+            rows = ep == e
+            out.setdefault(int(e), []).append(np.column_stack([frame[rows], act[rows]]))
+    result = {}
+    for e, parts in out.items():
+        rows = np.concatenate(parts)
+        rows = rows[np.argsort(rows[:, 0], kind="stable")]
+        result[e] = rows[:, 1:].astype(np.float32)
+    return result
+
+
+def _replay_jobs(
+    store: Any, dataset: Path, scenes: list[str] | None
+) -> tuple[list[Any], dict[str, Any]]:
+    """Replay jobs from the dataset (recorded initial states and actions), or from the
+    episode stores when the run has no dataset."""
+    from factory.demos.episodes import EpisodeStore
+    from factory.policy.eval import Job
+
+    jobs: list[Job] = []
+    bases: dict[str, Any] = {}
+    meta = _dataset_meta(dataset)
+    if meta is not None:
+        actions = _dataset_actions(dataset)
+        for ep in meta["episodes"]:
+            if scenes is not None and ep["scene_id"] not in scenes:
+                continue
+            extra = dataset / "extras" / ep["episode_id"]
+            try:
+                state0 = np.load(extra / "states.npz")["state"][0]
+                robot = json.loads((extra / "robot.json").read_text())
+            except (OSError, KeyError, ValueError) as e:
+                raise StoreError(
+                    f"{extra}: the episode's recorded states are unreadable ({e}): re-run "
+                    "stage=dataset"
+                ) from None
+            act = actions.get(int(ep["episode_index"]))
+            if act is None or len(act) != ep["n_frames"]:
+                raise StoreError(
+                    f"{dataset}: episode {ep['episode_id']!r} has no or wrong action rows: "
+                    "re-run stage=dataset"
+                )
+            bases[ep["scene_id"]] = robot["base"]
+            jobs.append(
+                Job(
+                    scene=ep["scene_id"],
+                    seed=int(ep["seed"]),
+                    episode_id=ep["episode_id"],
+                    state=state0,
+                    actions=act[:-1],
+                    max_steps=int(ep["n_frames"]) - 1,
+                )
+            )
+        return jobs, bases
+    stores = sorted((store.root / "episodes").glob("shard-*.zarr"))
+    if not stores:
+        raise StoreError(
+            f"no dataset at {dataset} and no episode stores in {store.root / 'episodes'}: run "
+            "stage=demos (and stage=dataset) first"
+        )
+    for path in stores:
+        es = EpisodeStore(path)
+        for info in es:
+            if scenes is not None and info.scene_id not in scenes:
+                continue
+            g = es.arrays(info.episode_id)
+            bases[info.scene_id] = info.robot.__dict__
+            jobs.append(
+                Job(
+                    scene=info.scene_id,
+                    seed=int(info.seed),
+                    episode_id=info.episode_id,
+                    state=np.asarray(g["state"][0]),
+                    actions=np.asarray(g["action"][:], np.float32)[:-1],
+                    max_steps=info.n_frames - 1,
+                )
+            )
+    return jobs, bases
+
+
+# ---- what acts
+
+
+def _policy_ref(cfg: Any) -> str:
+    ref = str(cfg.eval.policy or "")
+    if not ref:
+        train = getattr(cfg, "train", None)
+        ref = str(getattr(train, "name", "") or "")
+    if not ref:
+        raise PolicyError(
+            "eval.policy is empty: name a trained policy (eval.policy=<name>), a pretrained_model "
+            "folder, replay or planner"
+        )
+    return ref
+
+
+def _check_policy_exists(ref: str, run_dir: Path) -> None:
+    """An unknown policy fails here, with what exists."""
+    if ref in KINDS or (run_dir / "policy" / ref).is_dir() or Path(ref).is_dir():
+        return
+    trained = sorted(p.name for p in (run_dir / "policy").glob("*") if p.is_dir())
+    have = f"trained here: {', '.join(trained)}" if trained else "none trained in this run"
+    raise PolicyError(
+        f"unknown eval.policy {ref!r}: use replay, planner, a trained policy's name ({have}; "
+        "stage=train makes one) or a path to a lerobot pretrained_model folder"
+    )
+
+
+def _load_trained(ref: str, run_dir: Path, device: str) -> Any:
+    try:
+        from factory.policy.checkpoint import load_policy
+    except ImportError as e:  # pragma: no cover - the module is part of the package
+        raise PolicyError(f"trained policies cannot be loaded here ({e})") from None
+    return load_policy(ref, run_dir, device)
+
+
+def _check_features(info: Any, spec: Any) -> None:
+    from factory.policy.checkpoint import check_features
+
+    check_features(info, spec.keys(), {k: s for k, (s, _) in spec.shapes().items()})
+
+
+def _spec_for_policy(info: Any, run_spec: Any, env_state: bool) -> Any:
+    """The env's observations for a trained policy: what it reads, from what the run records.
+
+    Raises:
+        PolicyError: the policy reads a feature the env cannot give (another dataset's
+            cameras or inputs).
+    """
+    from dataclasses import replace
+
+    full = replace(run_spec, env_state=True)
+    _check_features(info, full)
+    needs = set(info.features)
+    cams = tuple(c for c in full.cameras if f"observation.images.{c}" in needs)
+    depth_cams = tuple(c for c in full.cameras if f"observation.depth.{c}" in needs)
+    if depth_cams:
+        cams = tuple(c for c in full.cameras if c in set(cams) | set(depth_cams))
+    return replace(
+        full,
+        cameras=cams,
+        depth=bool(depth_cams),
+        env_state=env_state or "observation.environment_state" in needs,
+    )
+
+
+# ---- the stage
+
+
+def _identity(
+    kind: str, name: str, ref: str, ec: Any, dataset: Path, policy: Any
+) -> dict[str, Any]:
+    """What the episodes of ``eval/<name>/`` belong to: the policy (its checkpoint), the seed
+    root, the step limit, the controller and the dataset."""
+    if policy is not None:
+        ref = f"{Path(policy.path).resolve()} (step {policy.info.steps})"
+    elif Path(ref).is_dir():
+        ref = str(Path(ref).resolve())
+    return {
+        "schema_version": RUN_SCHEMA_VERSION,
+        "policy": name,
+        "kind": kind,
+        "ref": ref,
+        "seed": ec.seed,
+        "max_steps": ec.max_steps,
+        "interpolate": ec.interpolate,
+        "dataset": str(dataset),
+    }
+
+
+def _prepare_out(out: Path, identity: dict[str, Any], force: bool) -> None:
+    """Checks that ``out`` holds episodes of this evaluation (resume) or starts it afresh."""
+    path = out / "run.json"
+    if path.is_file():
+        old = json.loads(path.read_text())
+        if force or old != identity:
+            if not force:
+                diff = sorted(k for k in identity if old.get(k) != identity[k])
+                raise PolicyError(
+                    f"{out} holds episodes of another evaluation (differs in {', '.join(diff)}): "
+                    "pass force=true to start over, or evaluate with the same settings"
+                )
+            log.info("eval: force=true, starting %s afresh", out)
+            for p in ("episodes.jsonl", "results.json"):
+                (out / p).unlink(missing_ok=True)
+            shutil.rmtree(out / "videos", ignore_errors=True)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(path, identity)
+
+
+def run(ctx: StageContext) -> dict[str, Any]:
+    """Runs ``stage=eval``; returns the results' headline and the ``produced`` list."""
+    from tqdm import tqdm
+
+    from factory.console import terminal
+    from factory.policy.env import (
+        RESEED_STRIDE,
+        eval_seed,
+        make_vec_env,
+        obs_spec_of_dataset,
+        obs_spec_of_demos,
+    )
+    from factory.policy.eval import (
+        Job,
+        append_records,
+        drop_torn_records,
+        plan_actions,
+        read_records,
+        record_key,
+        run_batch,
+        scripted_actor,
+        summarize,
+        write_video,
+    )
+    from factory.policy.vector_env import ObsSpec
+
+    t0 = time.perf_counter()
+    cfg = ctx.cfg
+    ec = cfg.eval
+    check_config(ec)
+    if ctx.shard.count > 1:
+        raise ConfigError("stage=eval runs in one process: drop shard.index/shard.count")
+    store = ctx.require_store()
+    run_dir = store.root
+    ref = _policy_ref(cfg)
+    _check_policy_exists(ref, run_dir)
+    kind = ref if ref in KINDS else "trained"
+    policy = None
+    if kind == "trained":
+        policy = _load_trained(ref, run_dir, ec.device)
+        name = _slug(policy.info.name)
+        dataset = Path(ec.dataset or policy.info.dataset)
+        train_scenes = list(policy.info.scenes)
+        training_data: dict[str, Any] | None = {
+            "scenes": train_scenes,
+            "episodes": int(policy.info.episodes),
+            "dataset": str(dataset),
+        }
+    else:
+        name = ref
+        dataset = Path(ec.dataset) if ec.dataset else run_dir / "dataset" / "merged"
+        meta0 = _dataset_meta(dataset)
+        train_scenes = list(meta0["scenes"]) if meta0 else []
+        training_data = None
+        if kind == "replay" and meta0 is not None:
+            training_data = {
+                "scenes": train_scenes,
+                "episodes": len(meta0["episodes"]),
+                "dataset": str(dataset),
+            }
+    meta = _dataset_meta(dataset)
+    run_scenes = store.scene_ids()
+    listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]
+    if listed is not None:
+        missing = [s for s in listed if s not in run_scenes]
+        if missing:
+            raise StoreError(f"eval.scenes: no scene(s) {missing} in {store.scenes_dir}")
+    # the episodes
+    bases: dict[str, Any] = {}
+    if kind == "replay":
+        jobs, bases = _replay_jobs(store, dataset, listed)
+        if not jobs:
+            raise StoreError(f"no recorded episodes to replay in {dataset}: run stage=dataset")
+        scenes = sorted({j.scene for j in jobs})
+    else:
+        if listed is not None:
+            scenes = listed
+        elif ec.scenes == "train":
+            scenes = [s for s in train_scenes if s in run_scenes]
+            if not scenes:
+                raise PolicyError(
+                    f"eval.scenes=train: none of the training scenes {train_scenes[:5]} is in "
+                    f"{store.scenes_dir}"
+                )
+        else:
+            scenes = [s for s in run_scenes if s not in set(train_scenes)]
+            if not scenes:
+                raise PolicyError(
+                    f"no held-out scenes: all {len(run_scenes)} scene(s) of the run are in the "
+                    "training dataset; evaluate on them with eval.scenes=train, or generate more "
+                    "scenes (stage=generate) and evaluate before recording demos in them"
+                )
+        jobs = [
+            Job(scene=s, seed=eval_seed(ec.seed, s, k), index=k)
+            for s in scenes
+            for k in range(ec.episodes_per_scene)
+        ]
+    longest = max((e["n_frames"] for e in meta["episodes"]), default=0) if meta else 0
+    max_steps = ec.max_steps or (int(1.5 * longest) if longest else DEFAULT_MAX_STEPS)
+    # what the env observes
+    if meta is not None:
+        run_spec = obs_spec_of_dataset(dataset, env_state=True)
+    else:
+        run_spec = obs_spec_of_demos(cfg.demos, env_state=True)
+    if policy is not None:
+        spec = _spec_for_policy(policy.info, run_spec, ec.env_state)
+    else:
+        spec = ObsSpec(run_spec.fps, (), run_spec.width, run_spec.height, False, ec.env_state)
+    # resume
+    out = run_dir / "eval" / name
+    identity = _identity(kind, name, ref, ec, dataset, policy)
+    _prepare_out(out, identity, cfg.force)
+    episodes_path = out / "episodes.jsonl"
+    drop_torn_records(episodes_path)
+    done = {record_key(r): r for r in read_records(episodes_path)}
+    videos_dir = out / "videos"
+    have_videos = len(list(videos_dir.glob("*.mp4"))) if videos_dir.is_dir() else 0
+    want_videos = max(0, ec.videos - have_videos)
+    cores = os.cpu_count() or 1
+    nthread = ec.nthread or cores
+    skipped: dict[str, str] = {}
+    all_keys = {j.key for j in jobs}
+    todo_total = sum(1 for j in jobs if j.key not in done)
+    log.info(
+        "eval %s (%s): %d episode(s) in %d scene(s), %d finished before; max %d steps",
+        name,
+        kind,
+        len(jobs),
+        len(scenes),
+        len(jobs) - todo_total,
+        max_steps,
+    )
+    with tqdm(
+        total=len(jobs),
+        initial=len(jobs) - todo_total,
+        desc=f"eval {name}",
+        unit="episode",
+        disable=None,
+        file=terminal(),
+    ) as bar:
+        for scene in scenes:
+            todo = [j for j in jobs if j.scene == scene and j.key not in done]
+            if not todo:
+                continue
+            size = min(ec.batch or MAX_BATCH, len(todo))
+            try:
+                env, planner = make_vec_env(
+                    run_dir,
+                    scene,
+                    size,
+                    spec,
+                    max_steps,
+                    nthread,
+                    ec.interpolate,
+                    cfg.demos,
+                )
+            except TaskError as e:
+                log.warning("eval: scene %s cannot host the task: %s", scene, e)
+                skipped[scene] = str(e)
+                bar.update(len(todo))
+                continue
+            try:
+                if kind == "replay":
+                    _check_base(scene, bases.get(scene), env.setup.placement)
+                else:
+                    for j in todo:
+                        j.seed = _usable_seed(env, j.seed, RESEED_STRIDE)
+                        j.max_steps = max_steps
+                for start in range(0, len(todo), size):
+                    batch = todo[start : start + size]
+                    if kind == "planner":
+                        for j in batch:
+                            res = planner.plan_episode(j.seed)
+                            if hasattr(res, "targets"):
+                                j.actions = plan_actions(res.targets, env.per_frame)
+                                j.max_steps = len(j.actions)
+                            else:
+                                j.failure = f"plan:{res.reason}"
+                    video = [i for i in range(len(batch)) if i < want_videos]
+                    if policy is not None:
+                        actor = _policy_actor(policy)
+                        records, frames = run_batch(env, batch, actor, video, policy.reset)
+                    else:
+                        records, frames = run_batch(env, batch, scripted_actor(batch), video)
+                    for i, fr in frames.items():
+                        if len(fr) > 1:
+                            clip = f"{_slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
+                            write_video(videos_dir / f"{clip}.mp4", fr, spec.fps)
+                            want_videos -= 1
+                    append_records(episodes_path, records)
+                    for r in records:
+                        done[record_key(r)] = r
+                    bar.update(len(batch))
+            finally:
+                env.close()
+    records = [r for k, r in done.items() if k in all_keys]
+    results = summarize(
+        records,
+        name,
+        kind,
+        training_data,
+        time.perf_counter() - t0,
+        {
+            "ref": identity["ref"],
+            "scenes_skipped": skipped,
+            "max_steps": max_steps,
+            "controller": "interpolate" if ec.interpolate else "hold",
+            "seed_root": ec.seed,
+            "seed_rule": "replay: the recorded episodes' seeds"
+            if kind == "replay"
+            else "factory.policy.env.eval_seed(root, scene, k) = 2**32 + sha256 "
+            "(demos' seeds are < 2**32)",
+        },
+    )
+    atomic_write_json(out / "results.json", results)
+    if not records and skipped:
+        raise TaskError(
+            f"no scene of the evaluation can host the task; first: {next(iter(skipped.values()))}"
+        )
+    log.info(
+        "eval %s: success %.1f %% (95 %% CI %.1f-%.1f %%) over %d episodes; failures %s",
+        name,
+        100 * results["success_rate"],
+        100 * results["ci95"][0],
+        100 * results["ci95"][1],
+        results["episodes"],
+        results["failures"] or "none",
+    )
+    n_videos = len(list(videos_dir.glob("*.mp4"))) if videos_dir.is_dir() else 0
+    return {
+        "policy": name,
+        "kind": kind,
+        "success_rate": results["success_rate"],
+        "ci95": results["ci95"],
+        "episodes": results["episodes"],
+        "failures": results["failures"],
+        "produced": [
+            {"what": "eval episodes", "count": results["episodes"], "path": str(out)},
+            {"what": "eval videos", "count": n_videos, "path": str(videos_dir)},
+        ],
+    }
+
+
+def _usable_seed(env: Any, seed: int, stride: int) -> int:
+    """The seed itself, or the first ``seed + k * stride`` whose configuration the sampler
+    can place (the env's own rule)."""
+    for k in range(100):
+        try:
+            env.sample_qpos(seed + k * stride)
+            return seed + k * stride
+        except TaskError:
+            continue
+    raise TaskError(f"scene {env.setup.scene.id!r}: no seed of 100 places the task objects")
+
+
+def _check_base(scene: str, recorded: Any, placement: Any) -> None:
+    """Replay needs the robot where it stood when the episodes were recorded."""
+    if recorded is None:
+        return
+    got = np.array([placement.x, placement.y, placement.z, placement.yaw])
+    want = np.array([recorded["x"], recorded["y"], recorded["z"], recorded["yaw"]])
+    if not np.allclose(got, want, atol=1e-6):
+        raise StoreError(
+            f"scene {scene!r}: the robot's base spot {got.round(3).tolist()} differs from the "
+            f"recorded {want.round(3).tolist()} (the scene changed since the demos): re-record "
+            "them (stage=demos force=true)"
+        )
+
+
+def _policy_actor(policy: Any) -> Any:
+    def act(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
+        return np.asarray(policy.act(obs), np.float32)
+
+    return act

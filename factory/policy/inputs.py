@@ -1,0 +1,339 @@
+"""What a policy reads (``train.inputs``) and the conversions that turn a dataset sample and an
+env observation into the same model input.
+
+Settings (dataset / env keys read):
+
+* ``state``: ``observation.state`` (arm joints + gripper), ``observation.ee_pose`` and
+  ``observation.environment_state`` (pick object and target poses); no images;
+* ``rgb``: ``observation.images.<cam>`` of every recorded camera of left, right, wrist, plus
+  ``observation.state`` and ``observation.ee_pose``;
+* ``rgbd``: the same plus ``observation.depth.<cam>`` (the paper's setting: RGB-D from three
+  cameras and the end-effector pose).
+
+The model sees (lerobot feature names, so lerobot's policies and processors apply unchanged):
+
+* ``observation.state`` (17,): arm joints (7, rad), gripper opening (m), then the tool pose in
+  the robot's base frame: position (3, m) and the first two columns of its rotation matrix
+  (6, the continuous "6D" rotation). The tool pose comes from the joints by forward kinematics
+  of the demos' own Panda model, so it is exact and needs no world frame.
+* ``observation.environment_state`` (18,) (``state`` only): the pick object's and the target's
+  pose in the robot's base frame, each position (3, m) + 6D rotation (6).
+* ``observation.images.<cam>`` (3, H, W) float in [0, 1].
+* ``observation.depth.<cam>`` (3, H, W) float in [0, 1]: depth in metres clipped to
+  ``[0, depth_max_m]`` and divided by it, replicated to three channels (the ResNet encoders of
+  lerobot's policies take three).
+
+Why the base frame: the dataset's poses are in the world frame, and every scene puts the robot
+at another spot and heading. The base pose is recovered per frame from what every observation
+has: the recorded world tool pose composed with the inverse of the tool pose that forward
+kinematics gives in the base frame (the base turns only about +z). Objects seen from the
+robot look alike in every scene, which is what lets a state policy work in held-out scenes.
+
+The dataset path gets (T, ...) tensors from ``LeRobotDataset`` (video frames as (T, 3, H, W)
+floats in [0, 1], depth packed as (high byte, low byte, 0)); the env path gets (n, ...) numpy
+arrays (uint8 (n, H, W, 3) images, uint16 (n, H, W) millimetres). Both go through the same
+functions below.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from factory.errors import PolicyError
+
+INPUTS = ("state", "rgb", "rgbd")
+"""The ``train.inputs`` settings."""
+CAMERAS = ("left", "right", "wrist")
+STATE = "observation.state"
+EE_POSE = "observation.ee_pose"
+ENV_STATE = "observation.environment_state"
+ACTION = "action"
+IMAGE_PREFIX = "observation.images."
+DEPTH_PREFIX = "observation.depth."
+DEPTH_MAX_M = 2.0
+"""Depth beyond this (m) is clipped: the workspace is within about 1.5 m of every camera."""
+ROBOT_DIM = 17
+"""Model ``observation.state``: 7 joints + gripper + tool position (3) + 6D rotation (6)."""
+ENV_DIM = 18
+"""Model ``observation.environment_state``: two poses of position (3) + 6D rotation (6)."""
+REFRESH = "re-run stage=dataset force=true (datasets written before this feature lack it)"
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """What a policy reads and how it is converted.
+
+    Attributes:
+        inputs: ``state``, ``rgb`` or ``rgbd``.
+        cameras: cameras whose images (and depth, for ``rgbd``) are read, in CAMERAS order.
+        image_size: (H, W) of the camera images (px); (0, 0) without images.
+        depth_max_m: depth clipping range (m).
+    """
+
+    inputs: str
+    cameras: tuple[str, ...] = ()
+    image_size: tuple[int, int] = (0, 0)
+    depth_max_m: float = DEPTH_MAX_M
+
+    @property
+    def depth(self) -> bool:
+        return self.inputs == "rgbd"
+
+    def image_keys(self) -> list[str]:
+        return [f"{IMAGE_PREFIX}{c}" for c in self.cameras]
+
+    def depth_keys(self) -> list[str]:
+        return [f"{DEPTH_PREFIX}{c}" for c in self.cameras] if self.depth else []
+
+    def visual_keys(self) -> list[str]:
+        return self.image_keys() + self.depth_keys()
+
+    def raw_features(self) -> dict[str, list[int]]:
+        """Env / dataset observation key -> shape of one observation as the env gives it."""
+        h, w = self.image_size
+        out: dict[str, list[int]] = {STATE: [8], EE_POSE: [7]}
+        if self.inputs == "state":
+            out[ENV_STATE] = [14]
+        for k in self.image_keys():
+            out[k] = [h, w, 3]
+        for k in self.depth_keys():
+            out[k] = [h, w]
+        return out
+
+    def model_features(self) -> dict[str, list[int]]:
+        """Model input key -> shape (lerobot's channel-first images)."""
+        h, w = self.image_size
+        out: dict[str, list[int]] = {STATE: [ROBOT_DIM]}
+        if self.inputs == "state":
+            out[ENV_STATE] = [ENV_DIM]
+        for k in self.visual_keys():
+            out[k] = [3, h, w]
+        return out
+
+    def dataset_keys(self) -> list[str]:
+        """Dataset features read for training (observations and the action)."""
+        return [*self.raw_features(), ACTION]
+
+
+def input_spec(inputs: str, features: Mapping[str, Any]) -> InputSpec:
+    """The inputs of a setting on a dataset with these features (``meta/info.json``).
+
+    Raises:
+        PolicyError: an unknown setting, or the dataset lacks a feature the setting reads.
+    """
+    if inputs not in INPUTS:
+        raise PolicyError(f"unknown train.inputs {inputs!r}: use one of {', '.join(INPUTS)}")
+    need = [STATE, EE_POSE, ACTION]
+    if inputs == "state":
+        need.append(ENV_STATE)
+    missing = [k for k in need if k not in features]
+    if missing:
+        raise PolicyError(
+            f"the dataset lacks {', '.join(missing)} (train.inputs={inputs}): {REFRESH}"
+        )
+    if inputs == "state":
+        return InputSpec("state")
+    cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
+    if not cams:
+        raise PolicyError(
+            f"the dataset has no camera images (train.inputs={inputs}): record demos with "
+            "rendering on (demos.render=true), then stage=dataset, or use train.inputs=state"
+        )
+    if inputs == "rgbd":
+        missing = [f"{DEPTH_PREFIX}{c}" for c in cams if f"{DEPTH_PREFIX}{c}" not in features]
+        if missing:
+            raise PolicyError(
+                f"the dataset lacks {', '.join(missing)} (train.inputs=rgbd): export depth "
+                "with stage=dataset force=true, or use train.inputs=rgb"
+            )
+    shape = features[f"{IMAGE_PREFIX}{cams[0]}"]["shape"]
+    return InputSpec(inputs, cams, (int(shape[0]), int(shape[1])))
+
+
+def spec_from_features(
+    inputs: str, features: Mapping[str, list[int]], depth_max_m: float
+) -> InputSpec:
+    """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape)."""
+    cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
+    size = (0, 0)
+    if cams:
+        shape = features[f"{IMAGE_PREFIX}{cams[0]}"]
+        size = (int(shape[0]), int(shape[1]))
+    return InputSpec(inputs, cams, size, float(depth_max_m))
+
+
+# ---- geometry: poses in the robot's base frame
+
+
+def rot6d(mat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices -> (..., 6): first column, then second column."""
+    return np.concatenate([mat[..., :, 0], mat[..., :, 1]], axis=-1)
+
+
+def quat_to_mat(q: np.ndarray) -> np.ndarray:
+    """(..., 4) quaternions w, x, y, z (normalised here) -> (..., 3, 3) rotation matrices."""
+    q = np.asarray(q, np.float64)
+    q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty((*q.shape[:-1], 3, 3))
+    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    out[..., 0, 1] = 2 * (x * y - w * z)
+    out[..., 0, 2] = 2 * (x * z + w * y)
+    out[..., 1, 0] = 2 * (x * y + w * z)
+    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    out[..., 1, 2] = 2 * (y * z - w * x)
+    out[..., 2, 0] = 2 * (x * z - w * y)
+    out[..., 2, 1] = 2 * (y * z + w * x)
+    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+class _Kinematics:
+    """Forward kinematics of the demos' Panda (base at the origin): tool pose in the base frame."""
+
+    def __init__(self) -> None:
+        import mujoco
+
+        from factory.demos.robot import RobotIndex, robot_model
+
+        self._mujoco = mujoco
+        self.model = robot_model()
+        self.data = mujoco.MjData(self.model)
+        self.index = RobotIndex.of(self.model)
+        self.lock = threading.Lock()
+
+    def tool_poses(self, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 7) arm joints (rad) -> tool positions (N, 3) m, rotations (N, 3, 3), base frame."""
+        n = len(joints)
+        pos = np.empty((n, 3))
+        rot = np.empty((n, 3, 3))
+        m, d, site, qadr = self.model, self.data, self.index.site, self.index.qpos
+        with self.lock:
+            for i in range(n):
+                d.qpos[qadr] = joints[i]
+                self._mujoco.mj_kinematics(m, d)
+                pos[i] = d.site_xpos[site]
+                rot[i] = d.site_xmat[site].reshape(3, 3)
+        return pos, rot
+
+
+@functools.lru_cache(maxsize=1)
+def kinematics() -> _Kinematics:
+    """The process's forward-kinematics model (built once: about a second)."""
+    return _Kinematics()
+
+
+def robot_features(state: np.ndarray) -> np.ndarray:
+    """Model ``observation.state`` (..., 17) from the dataset's ``observation.state`` (..., 8)."""
+    state = np.asarray(state, np.float64)
+    flat = state.reshape(-1, 8)
+    pos, rot = kinematics().tool_poses(flat[:, :7])
+    out = np.concatenate([flat, pos, rot6d(rot)], axis=1)
+    return out.reshape(*state.shape[:-1], ROBOT_DIM).astype(np.float32)
+
+
+def base_poses(state: np.ndarray, ee_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The robot base's world pose per frame from the joints and the world tool pose.
+
+    Args:
+        state: (N, 8) joints + gripper; ee_pose: (N, 7) world tool position + quaternion wxyz.
+
+    Returns:
+        base positions (N, 3) m and headings as rotations about +z (N, 3, 3), world frame.
+    """
+    pos_b, rot_b = kinematics().tool_poses(np.asarray(state, np.float64)[:, :7])
+    rot_w = quat_to_mat(ee_pose[:, 3:7])
+    base_rot = rot_w @ np.swapaxes(rot_b, -1, -2)
+    yaw = np.arctan2(base_rot[:, 1, 0], base_rot[:, 0, 0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    rz = np.zeros((len(yaw), 3, 3))
+    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c, -s, s, c, 1.0
+    base_pos = np.asarray(ee_pose[:, :3], np.float64) - np.einsum("nij,nj->ni", rz, pos_b)
+    return base_pos, rz
+
+
+def env_features(state: np.ndarray, ee_pose: np.ndarray, env_state: np.ndarray) -> np.ndarray:
+    """Model ``observation.environment_state`` (..., 18) from the dataset's state (..., 8),
+    ee_pose (..., 7) and environment_state (..., 14): both objects' poses in the base frame."""
+    lead = np.asarray(state).shape[:-1]
+    s = np.asarray(state, np.float64).reshape(-1, 8)
+    ee = np.asarray(ee_pose, np.float64).reshape(-1, 7)
+    env = np.asarray(env_state, np.float64).reshape(-1, 14)
+    base_pos, base_rot = base_poses(s, ee)
+    inv = np.swapaxes(base_rot, -1, -2)
+    parts = []
+    for k in (0, 7):
+        p = np.einsum("nij,nj->ni", inv, env[:, k : k + 3] - base_pos)
+        r = inv @ quat_to_mat(env[:, k + 3 : k + 7])
+        parts += [p, rot6d(r)]
+    return np.concatenate(parts, axis=1).reshape(*lead, ENV_DIM).astype(np.float32)
+
+
+# ---- images
+
+
+def depth_image(mm: Any, depth_max_m: float) -> Any:
+    """Depth (..., H, W) in millimetres (any real tensor) -> (..., 3, H, W) float32 in [0, 1]:
+    metres clipped to ``[0, depth_max_m]`` and divided by it, on three equal channels."""
+    import torch
+
+    d = (mm.to(torch.float32) / 1000.0).clamp(0.0, depth_max_m) / depth_max_m
+    return d.unsqueeze(-3).expand(*d.shape[:-2], 3, *d.shape[-2:]).contiguous()
+
+
+def unpack_depth_tensor(packed: Any) -> Any:
+    """lerobot's decoded packed depth (..., 3, H, W) floats in [0, 1] -> (..., H, W) float mm
+    (the inverse of :func:`factory.dataset.lerobot_export.pack_depth_mm`)."""
+    import torch
+
+    hi = torch.round(packed[..., 0, :, :] * 255.0)
+    lo = torch.round(packed[..., 1, :, :] * 255.0)
+    return hi * 256.0 + lo
+
+
+# ---- the two paths
+
+
+def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
+    """A ``LeRobotDataset`` sample (tensors, (T, ...) with delta timestamps) -> model inputs,
+    plus ``action`` and the ``*_is_pad`` masks."""
+    import torch
+
+    state = item[STATE].numpy()
+    out: dict[str, Any] = {STATE: torch.from_numpy(robot_features(state))}
+    if spec.inputs == "state":
+        env = env_features(state, item[EE_POSE].numpy(), item[ENV_STATE].numpy())
+        out[ENV_STATE] = torch.from_numpy(env)
+    for k in spec.image_keys():
+        out[k] = item[k].to(torch.float32)
+    for k in spec.depth_keys():
+        out[k] = depth_image(unpack_depth_tensor(item[k]), spec.depth_max_m)
+    for k, v in item.items():
+        if k == ACTION or k.endswith("_is_pad"):
+            out[k] = v
+    return out
+
+
+def convert_observation(spec: InputSpec, obs: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """An env observation (numpy, leading batch axis n, the contract's raw dtypes) -> model
+    inputs (torch, (n, ...)), exactly as :func:`convert_sample` converts a dataset frame."""
+    import torch
+
+    state = np.asarray(obs[STATE], np.float32)
+    out: dict[str, Any] = {STATE: torch.from_numpy(robot_features(state))}
+    if spec.inputs == "state":
+        env = env_features(state, np.asarray(obs[EE_POSE]), np.asarray(obs[ENV_STATE]))
+        out[ENV_STATE] = torch.from_numpy(env)
+    for k in spec.image_keys():
+        img = torch.from_numpy(np.ascontiguousarray(obs[k]))
+        out[k] = img.permute(0, 3, 1, 2).to(torch.float32) / 255.0
+    for k in spec.depth_keys():
+        mm = torch.from_numpy(np.asarray(obs[k], np.int32))
+        out[k] = depth_image(mm, spec.depth_max_m)
+    return out

@@ -1,0 +1,224 @@
+"""LeRobot plugin: factory scenes as a LeRobot env (``--env.type=factory``).
+
+Importing this package registers :class:`FactoryEnv` with LeRobot's ``EnvConfig`` choices
+(``factory``) and the gymnasium id :data:`GYM_ID`, so LeRobot's own evaluation entry point
+runs any LeRobot policy in a scene of a factory run::
+
+    lerobot-eval --env.discover_packages_path=factory.policy.lerobot_plugin \\
+        --env.type=factory --env.run_dir=runs/small --env.scene=<scene_id> \\
+        --policy.path=runs/small/policy/<name>/checkpoints/last/pretrained_model \\
+        --eval.n_episodes=10 --eval.batch_size=2 --policy.device=cpu
+
+(``--env.discover_packages_path`` is lerobot's plugin switch: it imports this package before
+the command line is parsed.) Observations follow LeRobot's raw env convention, which
+``lerobot.envs.utils.preprocess_observation`` turns into the dataset's keys: ``agent_pos`` ->
+``observation.state``, ``environment_state`` -> ``observation.environment_state``,
+``pixels/<cam>`` -> ``observation.images.<cam>``. LeRobot's env pipeline has no depth input,
+so depth policies are evaluated with ``stage=eval`` instead. ``info["is_success"]`` is the
+demos' success check. LeRobot's seed ``s`` (``--seed`` plus the episode number) becomes the
+evaluation seed ``2**32 + s`` of the demos' sampler, disjoint from the demos' own seeds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.envs.configs import EnvConfig
+
+GYM_ID = "factory/PickPlace-v0"
+CAMERAS = ("left", "right", "wrist")
+
+
+@EnvConfig.register_subclass("factory")
+@dataclass
+class FactoryEnv(EnvConfig):
+    """``--env.type=factory``: pick-and-place in a scene of a factory run.
+
+    Attributes:
+        run_dir: the run directory (``scenes/``, ``dataset/merged``).
+        scene: a scene id of the run (default: the run's first scene).
+        dataset: the dataset whose fps, cameras and image size the env matches (default:
+            ``<run_dir>/dataset/merged`` when it exists, else the demos' settings).
+        obs_type: ``pixels_agent_pos`` (cameras + state) or ``agent_pos`` (state only).
+        cameras: comma-separated cameras (default: the dataset's).
+        env_state: also observe ``environment_state`` (object poses).
+        episode_length: frames before an episode times out.
+    """
+
+    task: str | None = "PickPlace-v0"
+    fps: int = 20
+    run_dir: str = ""
+    scene: str | None = None
+    dataset: str | None = None
+    obs_type: str = "pixels_agent_pos"
+    cameras: str | None = None
+    env_state: bool = False
+    episode_length: int = 400
+    observation_height: int = 128
+    observation_width: int = 128
+    features: dict[str, PolicyFeature] = field(default_factory=dict)
+    features_map: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        spec = self.obs_spec()
+        self.fps = round(spec.fps)
+        self.observation_height, self.observation_width = spec.height, spec.width
+        self.features = {
+            "action": PolicyFeature(type=FeatureType.ACTION, shape=(8,)),
+            "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
+        }
+        self.features_map = {"action": "action", "agent_pos": "observation.state"}
+        if spec.env_state:
+            self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(14,))
+            self.features_map["environment_state"] = "observation.environment_state"
+        for cam in spec.cameras:
+            key = f"pixels/{cam}"
+            self.features[key] = PolicyFeature(
+                type=FeatureType.VISUAL, shape=(spec.height, spec.width, 3)
+            )
+            self.features_map[key] = f"observation.images.{cam}"
+
+    def _dataset(self) -> Path | None:
+        if self.dataset:
+            return Path(self.dataset)
+        merged = Path(self.run_dir) / "dataset" / "merged"
+        return merged if self.run_dir and (merged / "meta" / "info.json").is_file() else None
+
+    def obs_spec(self) -> Any:
+        """The :class:`~factory.policy.vector_env.ObsSpec` these settings ask for."""
+        from dataclasses import replace
+
+        from factory.policy.env import demos_config_of, obs_spec_of_dataset, obs_spec_of_demos
+        from factory.policy.vector_env import ObsSpec
+
+        dataset = self._dataset()
+        if dataset is not None:
+            spec = obs_spec_of_dataset(dataset, self.env_state)
+        elif self.run_dir and Path(self.run_dir).is_dir():
+            spec = obs_spec_of_demos(demos_config_of(self.run_dir), self.env_state)
+        else:
+            spec = ObsSpec(
+                cameras=CAMERAS,
+                width=self.observation_width,
+                height=self.observation_height,
+                env_state=self.env_state,
+            )
+        cams = spec.cameras if self.cameras is None else tuple(self.cameras.split(","))
+        if self.obs_type == "agent_pos":
+            cams = ()
+        elif self.obs_type != "pixels_agent_pos":
+            raise ValueError(f"env.obs_type must be pixels_agent_pos or agent_pos: {self.obs_type}")
+        return replace(spec, cameras=cams, depth=False)
+
+    @property
+    def package_name(self) -> str:
+        return __name__
+
+    @property
+    def gym_id(self) -> str:
+        return GYM_ID
+
+    @property
+    def gym_kwargs(self) -> dict[str, Any]:
+        return {
+            "run_dir": self.run_dir,
+            "scene": self.scene,
+            "dataset": None if self._dataset() is None else str(self._dataset()),
+            "cameras": ",".join(self.obs_spec().cameras),
+            "env_state": self.env_state,
+            "max_steps": self.episode_length,
+        }
+
+
+class LeRobotPickPlaceEnv(gym.Env):
+    """:class:`~factory.policy.env.PickPlaceEnv` with LeRobot's raw observation keys
+    (``agent_pos``, ``environment_state``, ``pixels``: {camera: image})."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 (gymnasium's)
+
+    def __init__(
+        self,
+        run_dir: str,
+        scene: str | None = None,
+        dataset: str | None = None,
+        cameras: str = "",
+        env_state: bool = False,
+        max_steps: int = 400,
+        render_mode: str | None = "rgb_array",
+    ) -> None:
+        from factory.policy.env import PickPlaceEnv
+
+        cams = tuple(c for c in cameras.split(",") if c)
+        self.env = PickPlaceEnv(
+            run_dir,
+            scene,
+            cameras=cams,
+            depth=False,
+            env_state=env_state,
+            max_steps=max_steps,
+            dataset=dataset,
+            render_mode=render_mode,
+        )
+        self.cameras = cams
+        self.env_state = env_state
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": self.env.metadata["render_fps"]}
+        inner = self.env.observation_space
+        assert isinstance(inner, gym.spaces.Dict)
+        spaces: dict[str, gym.Space[Any]] = {"agent_pos": inner["observation.state"]}
+        if env_state:
+            spaces["environment_state"] = inner["observation.environment_state"]
+        if cams:
+            spaces["pixels"] = gym.spaces.Dict({c: inner[f"observation.images.{c}"] for c in cams})
+        self.observation_space = gym.spaces.Dict(spaces)
+        self.action_space = self.env.action_space
+        self.task = self.env.task
+        self.task_description = self.env.task_description
+        self._max_episode_steps = max_steps
+
+    def _convert(self, obs: dict[str, np.ndarray]) -> dict[str, Any]:
+        out: dict[str, Any] = {"agent_pos": obs["observation.state"]}
+        if self.env_state:
+            out["environment_state"] = obs["observation.environment_state"]
+        if self.cameras:
+            out["pixels"] = {c: obs[f"observation.images.{c}"] for c in self.cameras}
+        return out
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """``seed`` s below ``2**32`` (lerobot-eval's ``--seed`` + episode number) becomes the
+        evaluation seed ``2**32 + s``, so LeRobot's evaluations never draw the demos' seeds."""
+        from factory.policy.env import EVAL_SEED_OFFSET
+
+        super().reset(seed=seed)
+        if seed is not None and seed < EVAL_SEED_OFFSET:
+            seed = EVAL_SEED_OFFSET + seed
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._convert(obs), info
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(
+            np.asarray(action, np.float32).reshape(8)
+        )
+        return self._convert(obs), reward, terminated, truncated, info
+
+    def render(self) -> np.ndarray:
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+
+if GYM_ID not in gym.registry:
+    gym.register(
+        id=GYM_ID,
+        entry_point=f"{__name__}:LeRobotPickPlaceEnv",
+        order_enforce=False,
+        disable_env_checker=True,
+    )

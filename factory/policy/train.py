@@ -1,0 +1,766 @@
+"""Training a lerobot policy on a merged factory dataset, with lerobot's own pieces.
+
+* the policy config class by type name from lerobot's registry
+  (``PreTrainedConfig.get_choice_class``), its input features set from
+  :mod:`factory.policy.inputs`, ``make_policy`` and ``make_pre_post_processors`` with the
+  statistics of the converted features;
+* ``LeRobotDataset(root=..., delta_timestamps=...)`` from the policy config's
+  ``observation_delta_indices`` / ``action_delta_indices``, decoded with PyAV, with lerobot's
+  ``EpisodeAwareSampler`` where the policy drops episode ends (diffusion);
+* the policy's optimizer and scheduler presets (``make_optimizer_and_scheduler``);
+* lerobot's ``save_checkpoint`` / ``load_training_state`` for ``checkpoints/<step>/``
+  (``pretrained_model`` + ``training_state``), written aside and renamed into place;
+* lerobot's ``ImageTransforms`` on the RGB images when ``train.augment_images`` is on (never on
+  depth), and a random crop to 90 % for policies that have one (diffusion's ``crop_shape``).
+
+One private touch of lerobot: the loaded dataset's ``meta.info["features"]`` loses the video
+features the policy does not read, because ``LeRobotDataset.__getitem__`` decodes every video
+feature of a frame (a state policy would decode six videos per sample for nothing).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import shutil
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from factory.errors import PolicyError
+from factory.policy.checkpoint import (
+    CHECKPOINTS,
+    INFO_IN_MODEL,
+    PRETRAINED,
+    TRAIN_LOG,
+    TrainInfo,
+    checkpoint_step,
+    prune_checkpoints,
+    publish_checkpoint,
+    quiet_stdout,
+    write_train_json,
+)
+from factory.policy.inputs import (
+    ACTION,
+    DEPTH_PREFIX,
+    EE_POSE,
+    ENV_STATE,
+    STATE,
+    InputSpec,
+    convert_sample,
+    depth_image,
+    env_features,
+    robot_features,
+)
+
+log = logging.getLogger(__name__)
+
+DEPTH_STATS_SAMPLES = 64
+"""Frames decoded to measure the statistics of the converted depth images."""
+CROP_RATIO = 0.9
+"""Random crop (training) / centre crop (acting) of image policies with a ``crop_shape``."""
+OFFLINE_DEFAULTS: dict[str, Any] = {"pretrained_backbone_weights": None, "push_to_hub": False}
+"""Policy config fields set unless ``train.options`` says otherwise: no downloads (ACT would
+fetch ImageNet weights), nothing pushed."""
+
+
+# ---- the lerobot policy config
+
+
+def known_policy_types() -> list[str]:
+    """Every policy type lerobot's registry knows."""
+    import lerobot.policies.factory  # noqa: F401  (imports and so registers every config)
+    from lerobot.configs.policies import PreTrainedConfig
+
+    return sorted(PreTrainedConfig.get_known_choices())
+
+
+def policy_config(tc: Any, spec: InputSpec, device: str) -> Any:
+    """The lerobot config of ``train.policy`` for these inputs.
+
+    Settings: ``train.horizon`` (the config's ``horizon``, or ``chunk_size`` for chunking
+    policies such as ACT), ``train.n_obs_steps``, ``train.n_action_steps`` (0: the policy's
+    default), ``train.options.<type>`` (any field of the config), :data:`OFFLINE_DEFAULTS`.
+
+    Raises:
+        PolicyError: an unknown type (the available ones listed), an unknown option, or values
+            the config rejects.
+    """
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.configs.types import FeatureType, NormalizationMode, PolicyFeature
+
+    known = known_policy_types()
+    if tc.policy not in known:
+        raise PolicyError(f"unknown train.policy {tc.policy!r}: lerobot has {', '.join(known)}")
+    cls = PreTrainedConfig.get_choice_class(tc.policy)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs: dict[str, Any] = {k: v for k, v in OFFLINE_DEFAULTS.items() if k in fields}
+    if tc.horizon > 0:
+        key = "horizon" if "horizon" in fields else "chunk_size" if "chunk_size" in fields else ""
+        if not key:
+            raise PolicyError(f"train.horizon: policy {tc.policy} has no horizon or chunk_size")
+        kwargs[key] = tc.horizon
+    for key in ("n_obs_steps", "n_action_steps"):
+        value = getattr(tc, key)
+        if value > 0:
+            if key not in fields:
+                raise PolicyError(f"train.{key}: policy {tc.policy} has no such setting")
+            kwargs[key] = value
+    options = dict((tc.options or {}).get(tc.policy, {}) or {})
+    unknown = sorted(k for k in options if k not in fields)
+    if unknown:
+        raise PolicyError(
+            f"train.options.{tc.policy}: {', '.join(unknown)} not a field of {cls.__name__} "
+            "(see lerobot's configuration_*.py)"
+        )
+    for k, v in options.items():
+        kwargs[k] = tuple(v) if isinstance(v, list) else v
+    kwargs["device"] = device
+    try:
+        cfg = cls(**kwargs)
+    except (ValueError, TypeError, NotImplementedError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise PolicyError(f"train.policy={tc.policy} rejects these settings: {msg}") from None
+    types = {STATE: FeatureType.STATE, ENV_STATE: FeatureType.ENV}
+    cfg.input_features = {
+        k: PolicyFeature(types.get(k, FeatureType.VISUAL), tuple(shape))
+        for k, shape in spec.model_features().items()
+    }
+    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
+    # object poses are normalised like the robot state (lerobot leaves ENV as it is)
+    mapping = dict(cfg.normalization_mapping)
+    mapping.setdefault("ENV", mapping.get("STATE", NormalizationMode.MIN_MAX))
+    cfg.normalization_mapping = mapping
+    h, w = spec.image_size
+    if (
+        tc.augment_images
+        and spec.cameras
+        and getattr(cfg, "crop_shape", "absent") is None
+        and getattr(cfg, "resize_shape", None) is None
+        and "crop_shape" not in options
+    ):
+        cfg.crop_shape = (int(h * CROP_RATIO), int(w * CROP_RATIO))
+    try:
+        cfg.validate_features()
+    except (ValueError, TypeError) as e:
+        raise PolicyError(f"train.policy={tc.policy} cannot use these inputs: {e}") from None
+    return cfg
+
+
+# ---- data
+
+
+class LowDimFrames:
+    """The converted low-dimensional features of every frame, gathered like lerobot gathers
+    them (``LeRobotDataset.__getitem__``: delta indices clamped to the episode, ``*_is_pad``
+    masks), without its per-sample cost.
+
+    ``LeRobotDataset.__getitem__`` spends about 11 ms per sample in Hugging Face ``datasets``
+    (a copy of the features per column query), more than a small state policy's step; here
+    the columns of the loaded ``hf_dataset`` are read once, converted once (the forward
+    kinematics of every frame) and indexed with numpy. ``tests/policy/test_train.py`` checks
+    that both give the same samples.
+    """
+
+    def __init__(
+        self, base: Any, spec: InputSpec, videos: dict[str, np.ndarray] | None = None
+    ) -> None:
+        self.spec = spec
+        self.videos = videos or {}
+        table = base.hf_dataset.data
+        index = np.asarray(table.column("index").to_numpy(), np.int64)
+        if not np.array_equal(index, np.arange(len(index))):
+            raise PolicyError(
+                f"{base.root}: frames are not in index order: re-run stage=dataset force=true"
+            )
+
+        def column(key: str) -> np.ndarray:
+            return np.stack(table.column(key).to_numpy(zero_copy_only=False)).astype(np.float32)
+
+        state = column(STATE)
+        self.values: dict[str, np.ndarray] = {STATE: robot_features(state), ACTION: column(ACTION)}
+        if spec.inputs == "state":
+            self.values[ENV_STATE] = env_features(state, column(EE_POSE), column(ENV_STATE))
+        self.episode = np.asarray(table.column("episode_index").to_numpy(), np.int64)
+        eps = base.meta.episodes
+        self.start = {
+            int(e): int(f)
+            for e, f in zip(eps["episode_index"], eps["dataset_from_index"], strict=True)
+        }
+        self.end = {
+            int(e): int(t)
+            for e, t in zip(eps["episode_index"], eps["dataset_to_index"], strict=True)
+        }
+        self.delta: dict[str, list[int]] = dict(base.delta_indices or {})
+        self.raw_keys = list(spec.raw_features())
+
+    def __len__(self) -> int:
+        return len(self.episode)
+
+    def item(self, idx: int) -> dict[str, Any]:
+        import torch
+
+        ep = int(self.episode[idx])
+        start, end = self.start[ep], self.end[ep]
+        out: dict[str, Any] = {}
+        for key, values in self.values.items():
+            delta = self.delta.get(key)
+            if delta is None:
+                out[key] = torch.from_numpy(values[idx])
+                continue
+            q = idx + np.asarray(delta)
+            out[key] = torch.from_numpy(values[np.clip(q, start, end - 1)])
+        for key, frames in self.videos.items():
+            delta = self.delta.get(key)
+            at = idx if delta is None else np.clip(idx + np.asarray(delta), start, end - 1)
+            pix = torch.from_numpy(np.ascontiguousarray(frames[at]))
+            if key.startswith(DEPTH_PREFIX):
+                out[key] = depth_image(pix.to(torch.int32), self.spec.depth_max_m)
+            else:
+                out[key] = pix.movedim(-1, -3).to(torch.float32) / 255.0
+        for key in [*self.raw_keys, ACTION]:
+            if key in self.delta:
+                q = idx + np.asarray(self.delta[key])
+                out[f"{key}_is_pad"] = torch.from_numpy((q < start) | (q >= end))
+        return out
+
+
+class TrainSet:
+    """A ``LeRobotDataset`` whose samples are converted to the model's inputs (a torch map-style
+    dataset: ``len`` and ``[i]``), with RGB augmentation when given.
+
+    Policies without images, and image policies whose videos were decoded into memory
+    (``train.video_cache``, :mod:`factory.policy.video_frames`), read :class:`LowDimFrames`;
+    other image policies read ``LeRobotDataset.__getitem__`` (video decoding dominates there)
+    and convert the sample.
+    """
+
+    def __init__(
+        self,
+        base: Any,
+        spec: InputSpec,
+        augment: Any = None,
+        videos: dict[str, np.ndarray] | None = None,
+    ) -> None:
+        self.base = base
+        self.spec = spec
+        self.augment = augment
+        self.videos = videos
+        cached = not spec.cameras or videos is not None
+        self.frames = LowDimFrames(base, spec, videos) if cached else None
+
+    def __len__(self) -> int:
+        return len(self.base)
+
+    def __getitem__(self, idx: int) -> dict[str, Any]:
+        if self.frames is not None:
+            out = self.frames.item(idx)
+        else:
+            out = convert_sample(self.spec, self.base[idx])
+        if self.augment is not None:
+            for k in self.spec.image_keys():
+                out[k] = self.augment(out[k])
+        return out
+
+
+def delta_timestamps(cfg: Any, spec: InputSpec, fps: float) -> dict[str, list[float]] | None:
+    """lerobot's delta timestamps (s) of every feature read, from the policy's delta indices."""
+    out: dict[str, list[float]] = {}
+    obs = cfg.observation_delta_indices
+    if obs is not None:
+        for k in spec.raw_features():
+            out[k] = [i / fps for i in obs]
+    act = cfg.action_delta_indices
+    if act is not None:
+        out[ACTION] = [i / fps for i in act]
+    return out or None
+
+
+def open_dataset(
+    root: Path, spec: InputSpec, cfg: Any, augment: bool, video_cache: str = "off"
+) -> tuple[Any, TrainSet]:
+    """The ``LeRobotDataset`` (videos the policy reads only) and its converted view.
+
+    Args:
+        video_cache: ``memory`` decodes the videos the policy reads into memory once
+            (:func:`~factory.policy.video_frames.decode_videos`), ``auto`` does so when they take
+            less than half of the available memory, ``off`` decodes per sample (lerobot).
+    """
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    info = json.loads((root / "meta" / "info.json").read_text())
+    base = LeRobotDataset(
+        "factory/demos",
+        root=root,
+        delta_timestamps=delta_timestamps(cfg, spec, float(info["fps"])),
+        video_backend="pyav",
+    )
+    keep = set(spec.visual_keys())
+    feats = base.meta.info["features"]
+    for k in [k for k, f in feats.items() if f["dtype"] in ("video", "image") and k not in keep]:
+        del feats[k]
+    transforms = None
+    if augment and spec.cameras:
+        from lerobot.datasets.transforms import ImageTransforms, ImageTransformsConfig
+
+        transforms = ImageTransforms(ImageTransformsConfig(enable=True))
+    videos = None
+    keys = spec.visual_keys()
+    if keys and video_cache != "off":
+        from factory.policy.video_frames import available_bytes, decode_videos, frame_bytes
+
+        need = frame_bytes(keys, spec.image_size) * base.num_frames
+        have = available_bytes()
+        if video_cache == "memory" or need < have // 2:
+            t0 = time.perf_counter()
+            videos = decode_videos(base, keys)
+            log.info(
+                "train: %d video streams decoded into memory (%.1f GB) in %.1f s",
+                len(keys),
+                need / 1e9,
+                time.perf_counter() - t0,
+            )
+        else:
+            log.info(
+                "train: decoding video per sample: the frames need %.1f GB, %.1f GB available "
+                "(train.video_cache=memory forces the cache)",
+                need / 1e9,
+                have / 1e9,
+            )
+    return base, TrainSet(base, spec, transforms, videos)
+
+
+def _low_dim(
+    root: Path, keys: list[str], episodes: list[int] | None = None
+) -> dict[str, np.ndarray]:
+    """Columns ``keys`` of every frame (of ``episodes`` only, when given), float32."""
+    import pyarrow.parquet as pq
+
+    files = sorted((root / "data").glob("*/*.parquet"))
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
+    wanted = None if episodes is None else np.asarray(sorted(episodes), np.int64)
+    for f in files:
+        table = pq.read_table(f, columns=[*keys, "episode_index"])
+        keep = None
+        if wanted is not None:
+            ep = np.asarray(table.column("episode_index").to_numpy(), np.int64)
+            keep = np.isin(ep, wanted)
+        for k in keys:
+            col = np.stack(table.column(k).to_numpy(zero_copy_only=False))
+            parts[k].append(col if keep is None else col[keep])
+    return {k: np.concatenate(v).astype(np.float32) for k, v in parts.items()}
+
+
+def model_stats(
+    spec: InputSpec,
+    root: Path,
+    base: Any,
+    trainset: TrainSet,
+    episodes: list[int] | None = None,
+) -> dict[str, Any]:
+    """Normalisation statistics of the model's inputs and the action (lerobot's layout:
+    feature -> {min, max, mean, std, count, q01, ...}).
+
+    The converted robot and environment states and the action are measured over every frame
+    trained on (``episodes``: those episodes only), the RGB images' come from the dataset's own
+    statistics (all its episodes), the depth images' from :data:`DEPTH_STATS_SAMPLES` decoded
+    frames of the episodes trained on.
+    """
+    from lerobot.datasets.compute_stats import get_feature_stats
+
+    keys = [STATE, EE_POSE, ACTION] + ([ENV_STATE] if spec.inputs == "state" else [])
+    rows = _low_dim(root, keys, episodes)
+    stats: dict[str, Any] = {
+        STATE: get_feature_stats(robot_features(rows[STATE]), axis=0, keepdims=False),
+        ACTION: get_feature_stats(rows[ACTION], axis=0, keepdims=False),
+    }
+    if spec.inputs == "state":
+        env = env_features(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
+        stats[ENV_STATE] = get_feature_stats(env, axis=0, keepdims=False)
+    for k in spec.image_keys():
+        stats[k] = {s: np.asarray(v) for s, v in base.meta.stats[k].items()}
+    depth_keys = spec.depth_keys()
+    if depth_keys:
+        import torch
+
+        pool = np.arange(len(base))
+        if episodes is not None:
+            eps = base.meta.episodes
+            pool = np.concatenate(
+                [
+                    np.arange(int(eps["dataset_from_index"][e]), int(eps["dataset_to_index"][e]))
+                    for e in episodes
+                ]
+            )
+        n = len(pool)
+        pick = np.linspace(0, n - 1, min(n, DEPTH_STATS_SAMPLES)).round().astype(int)
+        idx = pool[np.unique(pick)]
+        frames: dict[str, list[Any]] = {k: [] for k in depth_keys}
+        plain = TrainSet(base, spec, None, trainset.videos)
+        for i in idx:
+            item = plain[int(i)]
+            for k in depth_keys:
+                frames[k].append(item[k].reshape(-1, *item[k].shape[-3:]))
+        for k in depth_keys:
+            arr = torch.cat(frames[k]).numpy()
+            st = get_feature_stats(arr, axis=(0, 2, 3), keepdims=True)
+            stats[k] = {s: (v.reshape(3, 1, 1) if s != "count" else v) for s, v in st.items()}
+    return stats
+
+
+# ---- the loop
+
+
+@dataclass
+class TrainResult:
+    """What a call of :func:`train` did.
+
+    Attributes:
+        step: the last step done (== ``train.steps`` when finished).
+        resumed_from: the checkpoint's step it started from (0: from scratch).
+        loss: mean loss of the last logged interval.
+        seconds: wall seconds of this call's optimizer steps.
+        steps_per_s: optimizer steps per second in this call (data loading included).
+        checkpoint: the newest checkpoint folder.
+    """
+
+    step: int
+    resumed_from: int
+    loss: float
+    seconds: float
+    steps_per_s: float
+    checkpoint: str
+
+
+def _read_log(path: Path, upto: int) -> list[dict[str, Any]]:
+    if not path.is_file():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            continue  # a line cut by a kill
+        if int(rec.get("step", 0)) <= upto:
+            out.append(rec)
+    return out
+
+
+def _cycle(loader: Any) -> Iterator[Any]:
+    while True:
+        yield from loader
+
+
+class Trainer:
+    """A lerobot policy, its processors, optimizer, scheduler and data, ready to step.
+
+    Built from ``train.*`` and the inputs (a fresh policy with the statistics of the converted
+    features) or from a checkpoint (its ``pretrained_model`` and ``training_state``: weights,
+    processors with their statistics, optimizer, scheduler, RNG and step).
+
+    Attributes:
+        cfg: the lerobot policy config; policy: the lerobot policy; pre, post: its pre- and
+        post-processor pipelines; pipeline: lerobot's ``TrainPipelineConfig`` (saved with each
+        checkpoint); optimizer, scheduler; base: the ``LeRobotDataset``; trainset: its
+        converted view; step: optimizer steps done; device: the torch device.
+    """
+
+    def __init__(
+        self,
+        tc: Any,
+        spec: InputSpec,
+        root: Path,
+        out: Path,
+        resume: Path | None = None,
+        episodes: list[int] | None = None,
+    ) -> None:
+        import torch
+        from lerobot.configs.default import DatasetConfig
+        from lerobot.configs.policies import PreTrainedConfig
+        from lerobot.configs.train import TrainPipelineConfig
+        from lerobot.optim.factory import make_optimizer_and_scheduler
+        from lerobot.policies.factory import make_policy, make_pre_post_processors
+        from lerobot.utils.random_utils import set_seed
+        from lerobot.utils.train_utils import load_training_state
+
+        from factory.policy.checkpoint import resolve_device
+
+        if tc.threads > 0:
+            torch.set_num_threads(tc.threads)
+        self.tc = tc
+        self.spec = spec
+        self.device = resolve_device(tc.device)
+        set_seed(tc.seed)
+        if resume is not None:
+            pretrained = resume / PRETRAINED
+            cfg = PreTrainedConfig.from_pretrained(pretrained)
+            cfg.device = self.device
+            cfg.pretrained_path = pretrained
+        else:
+            cfg = policy_config(tc, spec, self.device)
+        self.cfg = cfg
+        self.base, self.trainset = open_dataset(
+            root, spec, cfg, tc.augment_images, getattr(tc, "video_cache", "off")
+        )
+        self.episodes = sorted(episodes) if episodes else None
+        with quiet_stdout():
+            self.policy = make_policy(cfg, ds_meta=self.base.meta)
+        if resume is not None:
+            self.pre, self.post = make_pre_post_processors(
+                cfg,
+                pretrained_path=str(cfg.pretrained_path),
+                preprocessor_overrides={"device_processor": {"device": self.device}},
+            )
+        else:
+            stats = model_stats(spec, root, self.base, self.trainset, self.episodes)
+            self.pre, self.post = make_pre_post_processors(cfg, dataset_stats=stats)
+        self.pipeline = TrainPipelineConfig(
+            dataset=DatasetConfig(repo_id="factory/demos", root=str(root), video_backend="pyav"),
+            policy=cfg,
+            output_dir=out,
+            job_name=out.name,
+            seed=tc.seed,
+            num_workers=tc.num_workers,
+            batch_size=tc.batch_size,
+            steps=tc.steps,
+            eval_freq=0,
+            log_freq=tc.log_every,
+            save_freq=tc.save_every,
+        )
+        self.pipeline.optimizer = cfg.get_optimizer_preset()
+        self.pipeline.scheduler = cfg.get_scheduler_preset()
+        if tc.lr > 0:
+            self.pipeline.optimizer.lr = tc.lr
+        self.optimizer, self.scheduler = make_optimizer_and_scheduler(self.pipeline, self.policy)
+        self.step = 0
+        if resume is not None:
+            self.step, self.optimizer, self.scheduler = load_training_state(
+                resume, self.optimizer, self.scheduler
+            )
+        self.params = [p for p in self.policy.parameters() if p.requires_grad]
+        self.grad_clip = float(getattr(self.pipeline.optimizer, "grad_clip_norm", 0.0) or 0.0)
+        self.policy.train()
+
+    def sampler(self) -> Any:
+        """lerobot's ``EpisodeAwareSampler`` over the episodes trained on (without the last
+        frames where the policy drops them), shuffled; None: every frame, shuffled."""
+        from lerobot.datasets.sampler import EpisodeAwareSampler
+
+        drop_last = getattr(self.cfg, "drop_n_last_frames", 0) or 0
+        if not drop_last and self.episodes is None:
+            return None
+        meta = self.base.meta
+        sampler = EpisodeAwareSampler(
+            meta.episodes["dataset_from_index"],
+            meta.episodes["dataset_to_index"],
+            episode_indices_to_use=self.episodes,
+            drop_n_last_frames=drop_last,
+            shuffle=True,
+        )
+        if not sampler.indices:
+            raise PolicyError(
+                f"every episode is shorter than the {drop_last} last frames policy "
+                f"{self.cfg.type} drops: record longer episodes or lower the horizon"
+            )
+        return sampler
+
+    def loader(self) -> Iterator[Any]:
+        """Endless batches of ``train.batch_size`` samples (:meth:`sampler`)."""
+        import torch
+
+        sampler = self.sampler()
+        workers = self.tc.num_workers
+        loader: Any = torch.utils.data.DataLoader(
+            self.trainset,  # type: ignore[arg-type]
+            batch_size=self.tc.batch_size,
+            shuffle=sampler is None,
+            sampler=sampler,
+            num_workers=workers,
+            pin_memory=self.device.startswith("cuda"),
+            drop_last=False,
+            prefetch_factor=2 if workers > 0 else None,
+            persistent_workers=workers > 0,
+        )
+        return _cycle(loader)
+
+    def optimize(self, batch: dict[str, Any]) -> float:
+        """One optimizer step on a batch as the loader gives it; returns the loss.
+
+        Raises:
+            PolicyError: the loss is not finite.
+        """
+        import torch
+
+        batch = self.pre(batch)
+        loss, _ = self.policy.forward(batch)
+        if not torch.isfinite(loss):
+            raise PolicyError(
+                f"the loss became {loss.item()} at step {self.step + 1}: lower train.lr and "
+                "retrain (force=true)"
+            )
+        loss.backward()
+        if self.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(self.params, self.grad_clip)
+        self.optimizer.step()
+        self.optimizer.zero_grad(set_to_none=True)
+        if self.scheduler is not None:
+            self.scheduler.step()
+        if hasattr(self.policy, "update"):
+            self.policy.update()
+        self.step += 1
+        return float(loss.item())
+
+    def parameters(self) -> int:
+        return sum(p.numel() for p in self.params)
+
+    def save(self, ckpt_root: Path, info: TrainInfo) -> Path:
+        """Writes ``checkpoints/<step>/`` aside, renames it into place, points ``last`` at it."""
+        from lerobot.utils.train_utils import get_step_identifier, save_checkpoint
+
+        from factory.store import atomic_write_json
+
+        ident = get_step_identifier(self.step, self.tc.steps)
+        tmp = ckpt_root / f".tmp-{ident}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        save_checkpoint(
+            tmp,
+            self.step,
+            self.pipeline,
+            self.policy,
+            self.optimizer,
+            self.scheduler,
+            self.pre,
+            self.post,
+        )
+        info.steps = self.step
+        atomic_write_json(tmp / PRETRAINED / INFO_IN_MODEL, info.to_json())
+        final = ckpt_root / ident
+        publish_checkpoint(tmp, final)
+        return final
+
+
+def train(
+    tc: Any,
+    spec: InputSpec,
+    root: Path,
+    out: Path,
+    info: TrainInfo,
+    resume: Path | None,
+    progress: bool = True,
+) -> TrainResult:
+    """Trains (or resumes) the policy of ``policy/<name>`` up to ``train.steps`` steps.
+
+    Args:
+        tc: ``train.*`` (:class:`factory.config.TrainConfig`).
+        spec: the inputs (checked against the dataset).
+        root: the merged dataset.
+        out: ``policy/<name>``.
+        info: the training record (``steps`` is updated at every checkpoint).
+        resume: the checkpoint to continue from, or None.
+        progress: show a progress bar with the loss.
+    """
+    from tqdm import tqdm
+
+    from factory.console import terminal
+    from factory.store import atomic_write_text
+
+    trainer = Trainer(tc, spec, root, out, resume, info.episode_indices or None)
+    step = resumed_from = trainer.step
+    log_path = out / TRAIN_LOG
+    history = _read_log(log_path, step)
+    if log_path.exists():  # drop lines past the checkpoint of a killed run
+        atomic_write_text(log_path, "".join(json.dumps(r) + "\n" for r in history))
+    seconds_before = float(history[-1]["seconds"]) if history else 0.0
+    batches = trainer.loader()
+    log.info(
+        "train %s: %s on %s, inputs=%s %s, %d frames in %d episodes, %d parameters, batch %d, %s",
+        info.name,
+        trainer.cfg.type,
+        trainer.device,
+        spec.inputs,
+        dict(spec.model_features()),
+        info.frames or trainer.base.num_frames,
+        info.episodes or trainer.base.num_episodes,
+        trainer.parameters(),
+        tc.batch_size,
+        f"resuming from step {step}" if resume is not None else "from scratch",
+    )
+    ckpt_root = out / CHECKPOINTS
+    ckpt_root.mkdir(parents=True, exist_ok=True)
+    newest = str(resume) if resume is not None else ""
+    losses: list[float] = []
+    last_loss = float("nan")
+    limit = 60.0 * float(getattr(tc, "max_minutes", 0.0) or 0.0)
+    t0 = time.perf_counter()
+    with (
+        tqdm(
+            total=tc.steps,
+            initial=step,
+            desc=f"train {info.name}",
+            unit="step",
+            file=terminal(),
+            disable=None if progress else True,
+        ) as bar,
+        log_path.open("a") as log_file,
+    ):
+        while step < tc.steps:
+            losses.append(trainer.optimize(next(batches)))
+            step = trainer.step
+            bar.update(1)
+            late = limit > 0 and time.perf_counter() - t0 > limit
+            if step % tc.log_every == 0 or step == tc.steps or late:
+                last_loss = float(np.mean(losses))
+                losses.clear()
+                elapsed = time.perf_counter() - t0
+                rec = {
+                    "step": step,
+                    "loss": round(last_loss, 6),
+                    "lr": trainer.optimizer.param_groups[0]["lr"],
+                    "seconds": round(seconds_before + elapsed, 3),
+                    "steps_per_s": round((step - resumed_from) / max(elapsed, 1e-9), 3),
+                }
+                log_file.write(json.dumps(rec) + "\n")
+                log_file.flush()
+                bar.set_postfix(loss=f"{last_loss:.4f}")
+                log.debug("train %s: %s", info.name, rec)
+            if step % tc.save_every == 0 or step == tc.steps or late:
+                newest = str(trainer.save(ckpt_root, info))
+                write_train_json(out, info)
+                prune_checkpoints(out, tc.keep_checkpoints)
+            if late and step < tc.steps:
+                log.info(
+                    "train %s: train.max_minutes=%g reached at step %d of %d; a re-run goes on",
+                    info.name,
+                    tc.max_minutes,
+                    step,
+                    tc.steps,
+                )
+                break
+    seconds = time.perf_counter() - t0
+    done = step - resumed_from
+    return TrainResult(
+        step=step,
+        resumed_from=resumed_from,
+        loss=last_loss,
+        seconds=round(seconds, 3),
+        steps_per_s=round(done / seconds, 3) if done and seconds > 0 else 0.0,
+        checkpoint=newest,
+    )
+
+
+def checkpoint_of(out: Path) -> tuple[Path | None, int]:
+    """The newest checkpoint of ``policy/<name>`` and its step (None, 0 without one)."""
+    from factory.policy.checkpoint import last_checkpoint
+
+    ckpt = last_checkpoint(out)
+    return (ckpt, checkpoint_step(ckpt)) if ckpt is not None else (None, 0)
+
+
+def dataset_root(run_dir: Path, configured: str | None) -> Path:
+    """``train.dataset`` or ``<run_dir>/dataset/merged``."""
+    return Path(configured) if configured else Path(run_dir) / "dataset" / "merged"

@@ -1,0 +1,197 @@
+"""Benchmark of policy learning: training steps per second and closed-loop rollouts per minute,
+with the memory they use.
+
+* training: :class:`factory.policy.train.Trainer` on a merged dataset (``--inputs`` state, rgb
+  or rgbd; ``--device`` cpu or cuda), the cold part (dataset, statistics, model; the first
+  step) and ``--steps`` warm steps timed apart; peak resident memory of the process and, on
+  CUDA, peak allocated GPU memory;
+* rollouts: the policy so trained, saved as a lerobot checkpoint, acting in ``stage=eval``
+  (a subprocess of the real command line) for ``--episodes`` episodes per scene of fixed length
+  ``--max-steps`` frames in the dataset's scenes (``eval.scenes=train``) with ``--nthread``
+  simulation threads: episodes per minute, frames per second, the subprocess's peak memory.
+
+    python scripts/bench_policy.py --run-dir runs/small --inputs state --device cpu --threads 2
+
+Prints and saves JSON to ``benchmarks/results/policy-<inputs>-<device>-<tag>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _gpu_name() -> str:
+    try:
+        import torch
+
+        return torch.cuda.get_device_name(0) if torch.cuda.is_available() else ""
+    except Exception:
+        return ""
+
+
+def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str, Any], Path]:
+    import torch
+
+    from factory.config import TrainConfig
+    from factory.policy.checkpoint import PRETRAINED
+    from factory.policy.inputs import input_spec
+    from factory.policy.train import Trainer
+    from factory.policy.train_stage import train_info
+
+    options = json.loads(a.options) if a.options else {}
+    tc = TrainConfig(
+        name="bench",
+        inputs=a.inputs,
+        dataset=str(root),
+        steps=a.steps + 1,
+        batch_size=a.batch_size,
+        device=a.device,
+        threads=a.threads,
+        num_workers=a.workers,
+        options=options,
+    )
+    features = json.loads((root / "meta" / "info.json").read_text())["features"]
+    spec = input_spec(a.inputs, features)
+    t0 = time.perf_counter()
+    trainer = Trainer(tc, spec, root, tmp / "bench")
+    batches = trainer.loader()
+    trainer.optimize(next(batches))
+    if trainer.device.startswith("cuda"):
+        torch.cuda.synchronize()
+    cold = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    for _ in range(a.steps):
+        trainer.optimize(next(batches))
+    if trainer.device.startswith("cuda"):
+        torch.cuda.synchronize()
+    warm = time.perf_counter() - t1
+    info = train_info(tc, spec, root)
+    ckpt = trainer.save(tmp / "bench" / "checkpoints", info)
+    out = {
+        "inputs": a.inputs,
+        "policy": trainer.cfg.type,
+        "device": trainer.device,
+        "threads": torch.get_num_threads(),
+        "num_workers": a.workers,
+        "batch_size": a.batch_size,
+        "parameters": trainer.parameters(),
+        "cold_seconds": round(cold, 2),
+        "warm_steps": a.steps,
+        "warm_seconds": round(warm, 2),
+        "steps_per_s": round(a.steps / warm, 2),
+        "samples_per_s": round(a.steps * a.batch_size / warm, 1),
+        "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        "peak_gpu_mb": round(torch.cuda.max_memory_allocated() / 2**20, 1)
+        if trainer.device.startswith("cuda")
+        else 0.0,
+    }
+    return out, ckpt / PRETRAINED
+
+
+def bench_rollouts(a: argparse.Namespace, model: Path) -> dict[str, Any]:
+    env = {**os.environ, "OMP_NUM_THREADS": str(max(1, a.threads))}
+    args = [
+        sys.executable,
+        "-m",
+        "factory",
+        "stage=eval",
+        f"run_dir={a.run_dir}",
+        f"eval.policy={model}",
+        "eval.scenes=train",
+        f"eval.episodes_per_scene={a.episodes}",
+        f"eval.max_steps={a.max_steps}",
+        f"eval.nthread={a.nthread}",
+        f"eval.device={a.device}",
+        "eval.videos=0",
+        "force=true",
+    ]
+    t0 = time.perf_counter()
+    done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=REPO)
+    seconds = time.perf_counter() - t0
+    if done.returncode != 0:
+        sys.exit(f"stage=eval failed:\n{done.stderr[-3000:]}")
+    newest = max(Path(a.run_dir, "eval").glob("*/results.json"), key=lambda p: p.stat().st_mtime)
+    res = json.loads(newest.read_text())
+    frames = sum(int(r.get("steps", 0)) for r in _records(newest.parent))
+    return {
+        "episodes": res["episodes"],
+        "max_steps": a.max_steps,
+        "nthread": a.nthread,
+        "eval_seconds": res["seconds"],
+        "wall_seconds_with_start": round(seconds, 2),
+        "episodes_per_min": round(60 * res["episodes"] / res["seconds"], 2),
+        "frames_per_s": round(frames / res["seconds"], 1),
+        "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1),
+    }
+
+
+def _records(folder: Path) -> list[dict[str, Any]]:
+    path = folder / "episodes.jsonl"
+    return [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--run-dir", required=True, type=Path)
+    p.add_argument("--dataset", type=Path, default=None, help="default <run>/dataset/merged")
+    p.add_argument("--inputs", default="state", choices=["state", "rgb", "rgbd"])
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--steps", type=int, default=50, help="warm training steps timed")
+    p.add_argument("--batch-size", type=int, default=64)
+    p.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    p.add_argument("--workers", type=int, default=0, help="DataLoader processes")
+    p.add_argument("--options", default="", help='policy options JSON, {"diffusion": {...}}')
+    p.add_argument("--episodes", type=int, default=4, help="rollouts per scene")
+    p.add_argument("--max-steps", type=int, default=200, help="frames per rollout")
+    p.add_argument("--nthread", type=int, default=0, help="simulation threads of the rollouts")
+    p.add_argument("--no-rollouts", action="store_true")
+    p.add_argument("--tag", default="run")
+    p.add_argument("--out", type=Path, default=None)
+    a = p.parse_args()
+    a.run_dir = a.run_dir.resolve()
+    root = (a.dataset or a.run_dir / "dataset" / "merged").resolve()
+    tmp = Path(tempfile.mkdtemp(prefix="bench_policy_"))
+    try:
+        train, model = bench_train(a, root, tmp)
+        print(json.dumps(train, indent=1))
+        rollouts = None if a.no_rollouts else bench_rollouts(a, model)
+        if rollouts:
+            print(json.dumps(rollouts, indent=1))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    result = {
+        "schema_version": 1,
+        "benchmark": "policy",
+        "tag": a.tag,
+        "machine": {
+            "host": platform.node(),
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "gpu": _gpu_name(),
+        },
+        "dataset": str(root),
+        "train": train,
+        "rollouts": rollouts,
+    }
+    device = "cuda" if train["device"].startswith("cuda") else "cpu"
+    out = a.out or REPO / "benchmarks" / "results" / f"policy-{a.inputs}-{device}-{a.tag}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,171 @@
+"""Inputs of a policy: the settings, the base-frame geometry and the depth conversion, the
+same for a dataset sample and an env observation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from factory.errors import PolicyError
+from factory.policy.inputs import (
+    ENV_STATE,
+    INPUTS,
+    InputSpec,
+    input_spec,
+    quat_to_mat,
+    rot6d,
+)
+
+
+def _features(cams: tuple[str, ...] = ("left", "wrist"), depth: bool = True, env: bool = True):
+    feats = {
+        "observation.state": {"dtype": "float32", "shape": [8]},
+        "observation.ee_pose": {"dtype": "float32", "shape": [7]},
+        "action": {"dtype": "float32", "shape": [8]},
+    }
+    if env:
+        feats[ENV_STATE] = {"dtype": "float32", "shape": [14]}
+    for c in cams:
+        feats[f"observation.images.{c}"] = {"dtype": "video", "shape": [32, 48, 3]}
+        if depth:
+            feats[f"observation.depth.{c}"] = {"dtype": "video", "shape": [32, 48, 3]}
+    return feats
+
+
+def test_settings_read_what_they_name() -> None:
+    state = input_spec("state", _features())
+    assert state.raw_features() == {
+        "observation.state": [8],
+        "observation.ee_pose": [7],
+        ENV_STATE: [14],
+    }
+    assert state.model_features() == {"observation.state": [17], ENV_STATE: [18]}
+    rgb = input_spec("rgb", _features())
+    assert rgb.cameras == ("left", "wrist") and rgb.image_size == (32, 48)
+    assert ENV_STATE not in rgb.raw_features() and not rgb.depth_keys()
+    assert rgb.raw_features()["observation.images.left"] == [32, 48, 3]
+    rgbd = input_spec("rgbd", _features())
+    assert rgbd.raw_features()["observation.depth.wrist"] == [32, 48]
+    assert rgbd.model_features()["observation.depth.wrist"] == [3, 32, 48]
+    assert set(INPUTS) == {"state", "rgb", "rgbd"}
+
+
+@pytest.mark.parametrize(
+    ("inputs", "feats", "words"),
+    [
+        ("state", _features(env=False), "observation.environment_state"),
+        ("rgbd", _features(depth=False), "observation.depth.left"),
+        ("rgb", _features(cams=()), "no camera images"),
+        ("pointcloud", _features(), "unknown train.inputs"),
+    ],
+)
+def test_missing_features_are_one_line_errors(inputs: str, feats: dict, words: str) -> None:
+    with pytest.raises(PolicyError) as e:
+        input_spec(inputs, feats)
+    msg = str(e.value)
+    assert words in msg and "\n" not in msg
+    if inputs == "state":
+        assert "stage=dataset force=true" in msg
+
+
+def _yaw_rot(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _mat_to_quat(m: np.ndarray) -> np.ndarray:
+    import mujoco
+
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, m.reshape(9))
+    return q
+
+
+def test_poses_in_the_base_frame_do_not_depend_on_where_the_robot_stands() -> None:
+    """The same arm and objects seen from the base give the same features wherever the robot
+    stands in the world and whichever way it faces."""
+    pytest.importorskip("robosuite")
+    from factory.policy.inputs import base_poses, env_features, kinematics, robot_features
+
+    joints = np.array(
+        [[0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785], [0.3, 0.1, -0.2, -2.0, 0.1, 2.2, 0.5]]
+    )
+    state = np.concatenate([joints, [[0.08], [0.02]]], axis=1).astype(np.float32)
+    pos_b, rot_b = kinematics().tool_poses(joints)
+    # two objects in the base frame
+    obj_pos = np.array([[0.55, 0.1, 0.02], [0.45, -0.2, 0.0]])
+    obj_rot = [_yaw_rot(0.7), _yaw_rot(-1.2)]
+    feats = []
+    for base_xyz, yaw in (((0.0, 0.0, 0.0), 0.0), ((3.1, -2.4, 0.9), 2.5)):
+        rz, t = _yaw_rot(yaw), np.asarray(base_xyz)
+        ee = np.array(
+            [np.concatenate([rz @ pos_b[i] + t, _mat_to_quat(rz @ rot_b[i])]) for i in range(2)]
+        )
+        env = np.concatenate(
+            [np.concatenate([rz @ obj_pos[k] + t, _mat_to_quat(rz @ obj_rot[k])]) for k in range(2)]
+        )
+        env = np.stack([env, env]).astype(np.float32)
+        got_pos, got_rot = base_poses(state, ee.astype(np.float32))
+        assert np.allclose(got_pos, t, atol=1e-5) and np.allclose(got_rot, rz, atol=1e-5)
+        feats.append(env_features(state, ee.astype(np.float32), env))
+    assert np.allclose(feats[0], feats[1], atol=2e-5)
+    assert np.allclose(feats[0][0, :3], obj_pos[0], atol=1e-5)
+    assert np.allclose(feats[0][0, 3:9], rot6d(obj_rot[0]), atol=1e-5)
+    robot = robot_features(state)
+    assert robot.shape == (2, 17) and np.allclose(robot[:, 8:11], pos_b, atol=1e-5)
+
+
+def test_quaternions_and_rotations_agree_with_mujoco() -> None:
+    import mujoco
+
+    q = np.array([0.3, -0.2, 0.9, 0.1])
+    m = np.empty(9)
+    mujoco.mju_quat2Mat(m, q / np.linalg.norm(q))
+    assert np.allclose(quat_to_mat(q), m.reshape(3, 3))
+
+
+def test_depth_is_converted_identically_from_the_dataset_and_from_the_env() -> None:
+    """The dataset's packed depth video (decoded to floats in [0, 1]) and the env's uint16
+    millimetres become the same image."""
+    pytest.importorskip("robosuite")
+    import torch
+
+    from factory.dataset.lerobot_export import pack_depth_mm, unpack_depth_mm
+    from factory.policy.inputs import convert_observation, convert_sample
+
+    rng = np.random.default_rng(1)
+    mm = rng.integers(0, 6000, size=(2, 32, 48)).astype(np.uint16)
+    mm[0, 0, :3] = [0, 1999, 65535]
+    packed = pack_depth_mm(mm)  # (2, H, W, 3) uint8, what the video stores exactly
+    decoded = torch.from_numpy(packed).permute(0, 3, 1, 2).float() / 255.0  # lerobot's view
+    assert np.array_equal(unpack_depth_mm(decoded[0]), mm[0])
+    spec = InputSpec("rgbd", ("left",), (32, 48))
+    img = rng.integers(0, 256, size=(2, 32, 48, 3)).astype(np.uint8)
+    state = np.tile(np.array([0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785, 0.08], np.float32), (2, 1))
+    ee = np.tile(np.array([0.4, 0.0, 0.4, 0, 1, 0, 0], np.float32), (2, 1))
+    sample = {
+        "observation.state": torch.from_numpy(state),
+        "observation.ee_pose": torch.from_numpy(ee),
+        "observation.images.left": torch.from_numpy(img).permute(0, 3, 1, 2).float() / 255.0,
+        "observation.depth.left": decoded,
+        "action": torch.zeros(2, 8),
+        "action_is_pad": torch.zeros(2, dtype=torch.bool),
+    }
+    from_data = convert_sample(spec, sample)
+    obs = {
+        "observation.state": state,
+        "observation.ee_pose": ee,
+        "observation.images.left": img,
+        "observation.depth.left": mm,
+    }
+    from_env = convert_observation(spec, obs)
+    assert set(from_env) | {"action", "action_is_pad"} == set(from_data)
+    for k, v in from_env.items():
+        assert v.shape == from_data[k].shape, k
+        assert torch.allclose(v, from_data[k], atol=1e-6), k
+    depth = from_env["observation.depth.left"]
+    assert depth.shape == (2, 3, 32, 48) and float(depth.min()) >= 0 and float(depth.max()) <= 1
+    assert math.isclose(float(depth[0, 0, 0, 1]), 1.999 / 2.0, rel_tol=1e-6)
+    assert float(depth[0, 2, 0, 2]) == 1.0  # beyond the range: clipped

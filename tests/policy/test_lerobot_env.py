@@ -1,0 +1,153 @@
+"""LeRobot's own env factory and evaluation loop drive a factory scene (``--env.type=factory``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("robosuite")
+pytest.importorskip("lerobot")
+
+
+def test_lerobot_make_env_and_eval_policy(policy_run: Path, tmp_path: Path) -> None:
+    import torch
+    from lerobot.envs.configs import EnvConfig
+    from lerobot.envs.factory import make_env, make_env_pre_post_processors
+    from lerobot.envs.utils import env_to_policy_features
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.pretrained import PreTrainedPolicy
+    from lerobot.processor.converters import (
+        policy_action_to_transition,
+        transition_to_policy_action,
+    )
+    from lerobot.processor.pipeline import PolicyProcessorPipeline
+    from lerobot.scripts.lerobot_eval import eval_policy
+
+    import factory.policy.lerobot_plugin as plugin
+
+    # what lerobot-eval's --env.type=factory resolves to once the plugin is imported
+    cls = EnvConfig.get_choice_class("factory")
+    assert cls is plugin.FactoryEnv
+    cfg = cls(run_dir=str(policy_run), scene="kitchen_a", env_state=True, episode_length=4)
+    feats = env_to_policy_features(cfg)
+    assert feats["observation.state"].shape == (8,)
+    assert feats["observation.environment_state"].shape == (14,)
+    assert feats["observation.images.left"].shape == (3, 32, 32)  # the dataset's cameras
+    assert feats["observation.images.wrist"].shape == (3, 32, 32)
+
+    class HoldPolicy(PreTrainedPolicy):
+        """Holds the arm where it is with the hand open: a trivial LeRobot policy."""
+
+        config_class = ACTConfig
+        name = "factory_test_hold"
+
+        def __init__(self, config: ACTConfig) -> None:
+            super().__init__(config)
+            self.seen: set[str] = set()
+
+        def get_optim_params(self) -> dict:
+            return {}
+
+        def reset(self) -> None:
+            pass
+
+        def forward(self, batch: dict) -> tuple:
+            raise NotImplementedError
+
+        def predict_action_chunk(self, batch: dict) -> torch.Tensor:
+            return self.select_action(batch)[:, None]
+
+        def select_action(self, batch: dict) -> torch.Tensor:
+            self.seen |= set(batch)
+            return batch["observation.state"].clone()
+
+    envs = make_env(cfg, n_envs=2)
+    vec = envs["factory"][0]
+    try:
+        policy = HoldPolicy(ACTConfig(device="cpu"))
+        env_pre, env_post = make_env_pre_post_processors(cfg, policy.config)
+        pre = PolicyProcessorPipeline(steps=[])
+        post = PolicyProcessorPipeline(
+            steps=[],
+            to_transition=policy_action_to_transition,
+            to_output=transition_to_policy_action,
+        )
+        info = eval_policy(
+            vec,
+            policy,
+            env_pre,
+            env_post,
+            pre,
+            post,
+            n_episodes=2,
+            max_episodes_rendered=1,
+            videos_dir=tmp_path / "videos",
+            start_seed=2**32,
+        )
+    finally:
+        vec.close()
+    assert {
+        "observation.state",
+        "observation.environment_state",
+        "observation.images.left",
+        "observation.images.wrist",
+        "task",
+    } <= policy.seen
+    # holding still never lifts the mug: both episodes time out without success
+    assert info["aggregated"]["pc_success"] == 0.0
+    assert len(info["per_episode"]) == 2
+    assert list((tmp_path / "videos").glob("*.mp4"))
+
+
+@pytest.mark.slow
+def test_lerobot_eval_command(policy_run: Path, tmp_path: Path) -> None:
+    """The documented ``lerobot-eval --env.type=factory`` command with a saved LeRobot policy
+    (ACT from the dataset's statistics, untrained: it only has to run)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    import torch
+    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+
+    import factory.policy.lerobot_plugin as plugin
+
+    torch.manual_seed(0)
+    env_cfg = plugin.FactoryEnv(run_dir=str(policy_run), obs_type="agent_pos", env_state=True)
+    cfg = ACTConfig(device="cpu", pretrained_backbone_weights=None)
+    policy = make_policy(cfg, env_cfg=env_cfg)
+    stats = LeRobotDatasetMetadata("x", root=policy_run / "dataset" / "merged").stats
+    pre, post = make_pre_post_processors(cfg, dataset_stats=stats)
+    model = tmp_path / "pretrained_model"
+    for part in (policy, pre, post):
+        part.save_pretrained(model)
+    out_dir = tmp_path / "out"
+    bin_dir = Path(sys.executable).parent
+    res = subprocess.run(
+        [
+            str(bin_dir / "lerobot-eval"),
+            "--env.discover_packages_path=factory.policy.lerobot_plugin",
+            "--env.type=factory",
+            f"--env.run_dir={policy_run}",
+            "--env.scene=kitchen_a",
+            "--env.obs_type=agent_pos",
+            "--env.env_state=true",
+            "--env.episode_length=5",
+            f"--policy.path={model}",
+            "--policy.device=cpu",
+            "--eval.n_episodes=2",
+            "--eval.batch_size=2",
+            f"--output_dir={out_dir}",
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=600,
+    )
+    assert res.returncode == 0, res.stderr[-3000:]
+    info = json.loads((out_dir / "eval_info.json").read_text())
+    assert info["overall"]["n_episodes"] == 2

@@ -1,0 +1,428 @@
+"""``stage=train``: lerobot policies trained on a real exported dataset, checkpoints in lerobot's
+format, resuming, loading to act on env observations, and one-line errors on bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("lerobot")
+pytest.importorskip("robosuite")
+
+from factory.config import FactoryConfig, TrainConfig
+from factory.context import StageContext
+from factory.errors import PolicyError
+from factory.store import RunStore, Shard
+
+REPO = Path(__file__).resolve().parents[2]
+TINY: dict[str, Any] = {
+    "diffusion": {
+        "horizon": 8,
+        "n_action_steps": 4,
+        "down_dims": [16, 32],
+        "diffusion_step_embed_dim": 16,
+        "num_inference_steps": 3,
+        "spatial_softmax_num_keypoints": 4,
+    },
+    "act": {
+        "chunk_size": 8,
+        "n_action_steps": 4,
+        "dim_model": 32,
+        "n_heads": 2,
+        "dim_feedforward": 64,
+        "n_encoder_layers": 1,
+        "n_decoder_layers": 1,
+        "n_vae_encoder_layers": 1,
+        "latent_dim": 4,
+    },
+}
+
+
+def _ctx(run: Path, dataset: Path, force: bool = False, **train: Any) -> StageContext:
+    values: dict[str, Any] = {
+        "name": "st",
+        "dataset": str(dataset),
+        "steps": 4,
+        "batch_size": 4,
+        "save_every": 2,
+        "log_every": 2,
+        "threads": 1,
+        "options": TINY,
+        **train,
+    }
+    cfg = FactoryConfig(stage="train", run_dir=str(run), force=force, train=TrainConfig(**values))
+    run.mkdir(parents=True, exist_ok=True)
+    return StageContext(cfg, RunStore(run), Shard(0, 1))
+
+
+def _train(run: Path, dataset: Path, force: bool = False, **train: Any) -> dict[str, Any]:
+    from factory.policy.train_stage import run as train_stage
+
+    return train_stage(_ctx(run, dataset, force, **train))
+
+
+def _hydra(value: Any) -> str:
+    """A Hydra override value (YAML flow style) of a dict / list / scalar."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {_hydra(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(_hydra(v) for v in value) + "]"
+    return str(value)
+
+
+def _listing(root: Path) -> list[tuple[str, int]]:
+    return sorted((str(p.relative_to(root)), p.stat().st_mtime_ns) for p in root.rglob("*"))
+
+
+def _frames(dataset: Path, n: int, keys: list[str]) -> dict[str, np.ndarray]:
+    """Env-style observations (n, ...) from the dataset's first frames: vectors from the
+    parquet files, images and depth decoded from the videos to the env's raw dtypes."""
+    import pyarrow.parquet as pq
+
+    from factory.dataset.lerobot_export import unpack_depth_mm
+
+    (path,) = sorted((dataset / "data").glob("*/*.parquet"))[:1]
+    table = pq.read_table(path).to_pydict()
+    obs: dict[str, np.ndarray] = {}
+    visual = [k for k in keys if k.startswith(("observation.images.", "observation.depth."))]
+    if visual:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+        ds = LeRobotDataset("factory/demos", root=dataset, video_backend="pyav")
+        items = [ds[i] for i in range(n)]
+        for k in visual:
+            if k.startswith("observation.images."):
+                obs[k] = np.stack(
+                    [
+                        np.round(it[k].permute(1, 2, 0).numpy() * 255).astype(np.uint8)
+                        for it in items
+                    ]
+                )
+            else:
+                obs[k] = np.stack([unpack_depth_mm(it[k]) for it in items])
+    for k in keys:
+        if k not in obs:
+            obs[k] = np.asarray(table[k][:n], np.float32)
+    return obs
+
+
+@pytest.fixture(scope="module")
+def state_run(policy_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run dir with policy ``st`` (diffusion, state inputs) trained 4 steps on the shared
+    small dataset, checkpoints at steps 2 and 4."""
+    run = tmp_path_factory.mktemp("train") / "run"
+    result = _train(run, policy_run / "dataset" / "merged")
+    assert result["steps"] == 4 and result["resumed_from"] == 0
+    return run
+
+
+def test_checkpoints_are_lerobot_pretrained_models(state_run: Path, policy_run: Path) -> None:
+    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+
+    out = state_run / "policy" / "st"
+    ckpts = out / "checkpoints"
+    assert sorted(p.name for p in ckpts.iterdir()) == ["000002", "000004", "last"]
+    assert (ckpts / "last").resolve() == (ckpts / "000004").resolve()
+    model = ckpts / "000004" / "pretrained_model"
+    for f in ("config.json", "model.safetensors", "train_config.json", "factory_policy.json"):
+        assert (model / f).is_file(), f
+    assert list(model.glob("policy_preprocessor*.json")) and list(model.glob("*normalizer*"))
+    state = ckpts / "000004" / "training_state"
+    assert json.loads((state / "training_step.json").read_text()) == {"step": 4}
+    assert (state / "optimizer_state.safetensors").is_file()
+    policy = DiffusionPolicy.from_pretrained(model)
+    assert tuple(policy.config.input_features["observation.state"].shape) == (17,)
+    assert tuple(policy.config.input_features["observation.environment_state"].shape) == (18,)
+    info = json.loads((out / "train.json").read_text())
+    assert info["schema_version"] == 1 and info["steps"] == 4
+    assert info["policy_type"] == "diffusion" and info["inputs"] == "state"
+    assert info["dataset"] == str((policy_run / "dataset" / "merged").resolve())
+    assert info["scenes"] == ["kitchen_a"] and info["episodes"] == 3 and info["fps"] == 20
+    assert info["features"] == {
+        "observation.state": [8],
+        "observation.ee_pose": [7],
+        "observation.environment_state": [14],
+    }
+    log = [json.loads(line) for line in (out / "train_log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in log] == [2, 4]
+    assert all(np.isfinite(r["loss"]) and r["lr"] > 0 and r["seconds"] > 0 for r in log)
+
+
+def test_resume_continues_the_step_count(state_run: Path, policy_run: Path) -> None:
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(state_run, dataset, steps=6)
+    assert result["resumed_from"] == 4 and result["steps"] == 6
+    out = state_run / "policy" / "st"
+    log = [json.loads(line) for line in (out / "train_log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in log] == [2, 4, 6]
+    assert log[2]["seconds"] > log[1]["seconds"]
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["000004", "000006", "last"]
+    again = _train(state_run, dataset, steps=6)
+    assert again.get("skipped") and again["steps"] == 6
+
+
+def test_fast_low_dim_samples_equal_lerobots_own(policy_run: Path) -> None:
+    """The state policy's samples (gathered from preloaded columns) are exactly what
+    ``LeRobotDataset.__getitem__`` with the same delta timestamps gives, converted."""
+    import torch
+
+    from factory.policy.inputs import convert_sample, input_spec
+    from factory.policy.train import open_dataset, policy_config
+
+    dataset = policy_run / "dataset" / "merged"
+    feats = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    spec = input_spec("state", feats)
+    cfg = policy_config(TrainConfig(options=TINY), spec, "cpu")
+    base, trainset = open_dataset(dataset, spec, cfg, augment=False)
+    assert trainset.frames is not None and not base.meta.video_keys  # nothing decoded
+    ends = base.meta.episodes["dataset_to_index"]
+    for idx in [0, 1, int(ends[0]) - 2, int(ends[0]) - 1, int(ends[0]), len(base) - 1]:
+        fast = trainset[idx]
+        slow = convert_sample(spec, base[idx])
+        assert set(fast) == set(slow), idx
+        for k, v in slow.items():
+            assert fast[k].shape == v.shape and fast[k].dtype == v.dtype, (idx, k)
+            assert torch.allclose(fast[k].float(), v.float(), atol=1e-5), (idx, k)
+    assert bool(trainset[len(base) - 1]["action_is_pad"][-1])
+
+
+def test_video_cache_samples_equal_lerobots_own(policy_run: Path) -> None:
+    """An RGB-D policy's samples read from the videos decoded into memory are what
+    ``LeRobotDataset.__getitem__`` decodes per sample (same delta timestamps), converted:
+    images within 1/255, depth exact."""
+    import torch
+
+    from factory.policy.inputs import convert_sample, input_spec
+    from factory.policy.train import open_dataset, policy_config
+
+    dataset = policy_run / "dataset" / "merged"
+    feats = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    spec = input_spec("rgbd", feats)
+    cfg = policy_config(TrainConfig(inputs="rgbd", options=TINY), spec, "cpu")
+    base, cached = open_dataset(dataset, spec, cfg, augment=False, video_cache="memory")
+    assert cached.frames is not None and cached.videos is not None
+    assert set(cached.videos) == set(spec.visual_keys())
+    assert cached.videos["observation.depth.left"].dtype == np.uint16
+    _, plain = open_dataset(dataset, spec, cfg, augment=False, video_cache="off")
+    assert plain.frames is None
+    ends = base.meta.episodes["dataset_to_index"]
+    for idx in [0, int(ends[0]) - 1, int(ends[0]), len(base) - 1]:
+        fast = cached[idx]
+        slow = convert_sample(spec, base[idx])
+        assert set(fast) == set(slow), idx
+        for k, v in slow.items():
+            assert fast[k].shape == v.shape and fast[k].dtype == v.dtype, (idx, k)
+            tol = 1.0 / 255 + 1e-6 if k.startswith("observation.images.") else 1e-6
+            assert torch.allclose(fast[k].float(), v.float(), atol=tol), (idx, k)
+
+
+def test_loaded_policy_acts_on_env_observations(state_run: Path, policy_run: Path) -> None:
+    from factory.policy.checkpoint import check_features, load_policy
+
+    policy = load_policy("st", state_run, device="cpu")
+    assert policy.info.steps == 6 or policy.info.steps == 4
+    obs = _frames(policy_run / "dataset" / "merged", 3, list(policy.info.features))
+    policy.reset()
+    for _ in range(3):
+        actions = policy.act(obs)
+        assert actions.shape == (3, 8) and actions.dtype == np.float32
+        assert np.isfinite(actions).all()
+    # by path: the pretrained_model folder alone
+    again = load_policy(str(policy.path), None, device="cpu")
+    assert again.info.name == "st"
+    # an env without the environment state, or with other shapes: one-line errors
+    with pytest.raises(PolicyError, match=r"observation\.environment_state"):
+        check_features(policy.info, ["observation.state", "observation.ee_pose"])
+    bad = dict(obs, **{"observation.environment_state": np.zeros((3, 13), np.float32)})
+    fresh = load_policy("st", state_run, device="cpu")
+    with pytest.raises(PolicyError, match="shape") as e:
+        fresh.act(bad)
+    assert "\n" not in str(e.value)
+
+
+def test_rgbd_policy_trains_and_acts(policy_run: Path, tmp_path: Path) -> None:
+    """RGB-D of both recorded cameras + the robot state: depth decoded from the packed video,
+    images augmented, and the same conversion on the env's uint8 / uint16 observations."""
+    from factory.policy.checkpoint import load_policy
+
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(tmp_path, dataset, name="rgbd", inputs="rgbd", steps=2, batch_size=2)
+    assert result["steps"] == 2
+    policy = load_policy("rgbd", tmp_path, device="cpu")
+    assert policy.info.features["observation.depth.left"] == [32, 32]
+    assert policy.info.features["observation.images.wrist"] == [32, 32, 3]
+    assert policy.policy.config.crop_shape == (28, 28)  # the random crop of augment_images
+    obs = _frames(dataset, 2, list(policy.info.features))
+    assert obs["observation.depth.left"].dtype == np.uint16
+    actions = policy.act(obs)
+    assert actions.shape == (2, 8) and np.isfinite(actions).all()
+
+
+def test_act_policy_by_name(policy_run: Path, tmp_path: Path) -> None:
+    from lerobot.policies.act.modeling_act import ACTPolicy
+
+    from factory.policy.checkpoint import load_policy
+
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(tmp_path, dataset, name="act", policy="act", steps=2)
+    assert result["steps"] == 2 and result["type"] == "act"
+    policy = load_policy("act", tmp_path, device="cpu")
+    assert isinstance(policy.policy, ACTPolicy)
+    actions = policy.act(_frames(dataset, 2, list(policy.info.features)))
+    assert actions.shape == (2, 8) and np.isfinite(actions).all()
+
+
+def test_bad_inputs_are_one_line_errors_and_write_nothing(
+    state_run: Path, policy_run: Path, tmp_path: Path
+) -> None:
+    dataset = policy_run / "dataset" / "merged"
+    run = tmp_path / "run"
+    # an unknown policy type: the available ones listed
+    with pytest.raises(PolicyError) as e:
+        _train(run, dataset, name="x", policy="difusion")
+    assert "diffusion" in str(e.value) and "act" in str(e.value) and "\n" not in str(e.value)
+    # an option the policy does not have
+    with pytest.raises(PolicyError, match="down_dimz"):
+        _train(run, dataset, name="x", options={"diffusion": {"down_dimz": [8]}})
+    # a dataset without the environment state (exported before it existed)
+    old = tmp_path / "old"
+    (old / "meta").mkdir(parents=True)
+    info = json.loads((dataset / "meta" / "info.json").read_text())
+    del info["features"]["observation.environment_state"]
+    (old / "meta" / "info.json").write_text(json.dumps(info))
+    with pytest.raises(PolicyError, match="stage=dataset force=true"):
+        _train(run, old, name="x")
+    # no dataset at all
+    with pytest.raises(PolicyError, match="stage=dataset"):
+        _train(run, tmp_path / "none", name="x")
+    assert not (run / "policy").exists()
+    # policy/st holds checkpoints of another dataset: refused, nothing touched
+    other = tmp_path / "other"
+    shutil.copytree(dataset, other)
+    before = _listing(state_run / "policy")
+    with pytest.raises(PolicyError, match="dataset") as e:
+        _train(state_run, other, steps=8)
+    assert "force=true" in str(e.value) and "\n" not in str(e.value)
+    assert _listing(state_run / "policy") == before
+
+
+@pytest.mark.slow
+def test_killed_training_resumes_from_its_last_checkpoint(policy_run: Path, tmp_path: Path) -> None:
+    """A real SIGKILL of the command line mid-training, then a re-run that continues from the
+    newest checkpoint instead of step 0."""
+    run = tmp_path / "run"
+    run.mkdir()
+    args = [
+        sys.executable,
+        "-m",
+        "factory",
+        "stage=train",
+        f"run_dir={run}",
+        f"train.dataset={policy_run / 'dataset' / 'merged'}",
+        "train.name=k",
+        "train.steps=400",
+        "train.batch_size=4",
+        "train.save_every=5",
+        "train.log_every=5",
+        f"+train.options={_hydra(TINY)}",
+    ]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen(args, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    last = run / "policy" / "k" / "checkpoints" / "last"
+    deadline = time.time() + 300
+    while time.time() < deadline and proc.poll() is None:
+        if last.exists() and int(last.resolve().name) >= 10:
+            break
+        time.sleep(0.2)
+    assert proc.poll() is None, proc.stderr.read().decode()[-2000:] if proc.stderr else ""
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    saved = int(last.resolve().name)
+    assert saved >= 10
+    args[args.index("train.steps=400")] = f"train.steps={saved + 10}"
+    out = subprocess.run(args, cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    manifest = json.loads((run / "manifest.json").read_text())
+    result = manifest["stages"]["train"]["shards"]["0-of-1"]["result"]
+    assert result["resumed_from"] >= saved and result["steps"] == saved + 10
+    log = [
+        json.loads(x) for x in (run / "policy" / "k" / "train_log.jsonl").read_text().splitlines()
+    ]
+    steps = [r["step"] for r in log]
+    assert steps == sorted(set(steps)) and steps[-1] == saved + 10
+
+
+def test_train_scenes_picks_episodes_and_statistics(policy_run: Path, tmp_path: Path) -> None:
+    """``train.scenes`` picks scenes of the dataset by count or id: the training record, the
+    sampled frames and the statistics cover those scenes' episodes only."""
+    from factory.errors import ConfigError
+    from factory.policy.inputs import input_spec
+    from factory.policy.train import Trainer, _low_dim, model_stats
+    from factory.policy.train_stage import selected_scenes
+
+    meta = {
+        "scenes": ["b", "a", "c"],
+        "episodes": [{"scene_id": s, "episode_index": i} for i, s in enumerate("abcab")],
+    }
+    assert selected_scenes(None, meta, tmp_path) is None
+    assert selected_scenes(2, meta, tmp_path) == ["a", "b"]
+    assert selected_scenes(["c", "a"], meta, tmp_path) == ["a", "c"]
+    for bad, words in ((4, "has 3 scene(s)"), (["x"], "no scene(s) ['x']"), ("a", "a number")):
+        with pytest.raises(ConfigError, match=re.escape(words)):
+            selected_scenes(bad, meta, tmp_path)
+
+    dataset = policy_run / "dataset" / "merged"
+    info = json.loads((dataset / "meta" / "factory.json").read_text())
+    first = info["episodes"][0]
+    rows = _low_dim(dataset, ["action"], [first["episode_index"]])
+    assert len(rows["action"]) == first["n_frames"]
+    everything = _low_dim(dataset, ["action"])
+    assert len(everything["action"]) == sum(e["n_frames"] for e in info["episodes"])
+
+    tc = TrainConfig(
+        name="sub", dataset=str(dataset), steps=1, batch_size=4, threads=1, options=TINY
+    )
+    features = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    spec = input_spec("state", features)
+    ep = int(first["episode_index"])
+    trainer = Trainer(tc, spec, dataset, tmp_path / "sub", None, [ep])
+    frames = trainer.trainset.frames
+    assert frames is not None
+    assert set(frames.episode[trainer.sampler().indices].tolist()) == {ep}
+    stats = model_stats(spec, dataset, trainer.base, trainer.trainset, [ep])
+    np.testing.assert_allclose(stats["action"]["max"], rows["action"].max(0), rtol=1e-6)
+    np.testing.assert_allclose(stats["action"]["min"], rows["action"].min(0), rtol=1e-6)
+    result = _train(tmp_path / "run", dataset, scenes=1, name="one")
+    record = json.loads((tmp_path / "run" / "policy" / "one" / "train.json").read_text())
+    assert result["steps"] == 4 and record["scenes"] == info["scenes"][:1]
+    chosen = [e for e in info["episodes"] if e["scene_id"] in record["scenes"]]
+    assert record["episodes"] == len(chosen)
+
+
+def test_max_minutes_stops_with_a_checkpoint_and_a_rerun_goes_on(
+    policy_run: Path, tmp_path: Path
+) -> None:
+    dataset = policy_run / "dataset" / "merged"
+    run = tmp_path / "run"
+    first = _train(run, dataset, name="late", max_minutes=1e-9)
+    assert first["steps"] == 1 and first["finished"] is False
+    ckpts = run / "policy" / "late" / "checkpoints"
+    assert (ckpts / "last").resolve().name == "000001"
+    log = [
+        json.loads(x)
+        for x in (run / "policy" / "late" / "train_log.jsonl").read_text().splitlines()
+    ]
+    assert [r["step"] for r in log] == [1]
+    again = _train(run, dataset, name="late")
+    assert again["steps"] == 4 and again["resumed_from"] == 1 and again["finished"] is True
