@@ -376,6 +376,9 @@ class EvalConfig:
             previous action with the demos' velocity lead (false: holds each action).
         dataset: the training dataset (default: the policy's, or ``<run_dir>/dataset/merged``).
         device: torch device of a trained policy (``auto``, ``cpu``, ``cuda``).
+        name: the results folder ``eval/<name>/`` (empty: the policy's name, ``replay`` or
+            ``planner``); another name keeps a second evaluation of the same policy apart
+            (e.g. on the training scenes).
     """
 
     policy: str = ""
@@ -390,6 +393,7 @@ class EvalConfig:
     interpolate: bool = True
     dataset: str | None = None
     device: str = "auto"
+    name: str = ""
 
 
 @dataclass

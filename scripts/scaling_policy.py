@@ -195,6 +195,7 @@ def main() -> None:
             "episodes": res["episodes"],
             "failures": res["failures"],
             "per_scene": res["per_scene"],
+            "scenes_skipped": res.get("scenes_skipped", {}),
         }
 
     t_all = time.perf_counter()
@@ -207,13 +208,24 @@ def main() -> None:
                 logs / "planner.log",
                 env,
             )
-        rows = list(pool.map(one_point, points))
+        futures = [pool.submit(one_point, n) for n in points]
+        rows, failed = [], []
+        for n, fut in zip(points, futures, strict=True):
+            try:
+                rows.append(fut.result())
+            except RuntimeError as e:  # one point failing keeps the others
+                log.error("scaling: point %d failed: %s", n, e)
+                failed.append({"scenes": n, "error": str(e)[-2000:]})
         planner = None
         if planner_job is not None:
-            planner_job.result()
-            res = read_results(run, "planner")
-            planner = {k: res[k] for k in ("success_rate", "ci95", "successes", "episodes")}
-            planner["failures"] = res["failures"]
+            try:
+                planner_job.result()
+                res = read_results(run, "planner")
+                planner = {k: res[k] for k in ("success_rate", "ci95", "successes", "episodes")}
+                planner["failures"] = res["failures"]
+                planner["scenes_skipped"] = res.get("scenes_skipped", {})
+            except RuntimeError as e:
+                log.error("scaling: the planner's evaluation failed: %s", e)
     result = {
         "schema_version": 1,
         "benchmark": "scaling-policy",
@@ -234,6 +246,7 @@ def main() -> None:
         "episodes_per_heldout_scene": a.episodes,
         "demos_per_scene": {s: per_scene.get(s, 0) for s in train_pool},
         "points": rows,
+        "failed_points": failed,
         "planner": planner,
         "seconds": round(time.perf_counter() - t_all, 1),
     }

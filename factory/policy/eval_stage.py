@@ -332,6 +332,8 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 "episodes": len(meta0["episodes"]),
                 "dataset": str(dataset),
             }
+    if ec.name:
+        name = _slug(str(ec.name))
     meta = _dataset_meta(dataset)
     run_scenes = store.scene_ids()
     listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]
@@ -437,9 +439,15 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 if kind == "replay":
                     _check_base(scene, bases.get(scene), env.setup.placement)
                 else:
-                    for j in todo:
-                        j.seed = _usable_seed(env, j.seed, RESEED_STRIDE)
-                        j.max_steps = max_steps
+                    try:
+                        for j in todo:
+                            j.seed = _usable_seed(env, j.seed, RESEED_STRIDE)
+                            j.max_steps = max_steps
+                    except TaskError as e:
+                        log.warning("eval: scene %s cannot host the task: %s", scene, e)
+                        skipped[scene] = str(e)
+                        bar.update(len(todo))
+                        continue
                 for start in range(0, len(todo), size):
                     batch = todo[start : start + size]
                     if kind == "planner":

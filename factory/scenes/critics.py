@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from factory.scenes.footprint import overlapping
+from factory.scenes.footprint import overlaps
 
 COMPANIONS: dict[str, tuple[str, str, str]] = {
     # support category -> (companion text, placement, rule)
@@ -95,12 +95,10 @@ def visual_critic(state: Any, min_objects: int = 25) -> dict[str, Any]:
                 }
             )
     # blocked doors and objects outside rooms
-    standing = [o for o in scene.objects if o.placement.kind == "floor"]
     for room in scene.rooms:
         for zone in state.door_zones(room):
-            blocked = overlapping(zone, [state.footprint(o) for o in standing])
-            for o, hit in zip(standing, blocked, strict=True):
-                if hit:
+            for o in scene.objects:
+                if o.placement.kind == "floor" and overlaps(state.footprint(o), zone):
                     suggestions.append(
                         {
                             "issue": "blocked door",

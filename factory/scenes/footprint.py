@@ -1,5 +1,4 @@
-"""2-D footprints for placement: oriented rectangles and their overlap test (separating axes,
-one footprint against many at once).
+"""2-D footprints for placement: oriented rectangles and their overlap test (separating axes).
 
 A footprint is an object's extent on the floor plane: centre ``(x, y)`` (m, world frame),
 half sizes ``(hx, hy)`` along the object's own x and y axes, and ``yaw`` (rad). Heights are
@@ -9,7 +8,6 @@ half sizes ``(hx, hy)`` along the object's own x and y axes, and ``yaw`` (rad). 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +32,15 @@ class Footprint:
         rot = np.array([[c, -s], [s, c]])
         return local @ rot.T + [self.x, self.y]
 
+    def axes(self) -> np.ndarray:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return np.array([[c, s], [-s, c]])
+
+    def grown(self, margin: float) -> Footprint:
+        return Footprint(
+            self.x, self.y, self.hx + margin, self.hy + margin, self.yaw, self.z0, self.z1
+        )
+
     def aabb(self) -> tuple[float, float, float, float]:
         c = self.corners()
         return (
@@ -44,38 +51,16 @@ class Footprint:
         )
 
 
-def outlines(fps: Sequence[Footprint], margin: float = 0.0) -> np.ndarray:
-    """``(N, 4, 2)`` corners (m, world frame, counter-clockwise) of footprints grown by
-    ``margin``."""
-    x, y, hx, hy, yaw = np.array([(f.x, f.y, f.hx, f.hy, f.yaw) for f in fps]).T
-    c, s = np.cos(yaw), np.sin(yaw)
-    u = np.stack([c, s], -1) * (hx + margin)[:, None]  # (N, 2) half extent along local x
-    v = np.stack([-s, c], -1) * (hy + margin)[:, None]  # along local y
-    return np.stack([-u - v, u - v, u + v, v - u], 1) + np.stack([x, y], -1)[:, None]
-
-
-def overlapping(fp: Footprint, others: Sequence[Footprint], margin: float = 0.0) -> np.ndarray:
-    """``(N,)`` bools: which of ``others`` overlap ``fp`` in height and in the plane, both
-    grown by ``margin`` (touching is no overlap).
-
-    The plane test is the separating-axis test of two oriented rectangles (the two edge
-    directions of each), for all of ``others`` in one numpy pass. Measured against shapely's
-    ``relate_pattern`` on the calls of kitchen generation (``scripts/bench_geometry_text.py``):
-    same answers, and a few rectangles per call are cheaper in numpy than as polygons.
-    """
-    if not others:
-        return np.zeros(0, bool)
-    corners = outlines([fp, *others], margin)  # (N + 1, 4, 2)
-    yaw = np.array([f.yaw for f in (fp, *others)])
-    c, s = np.cos(yaw), np.sin(yaw)
-    axes = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)  # (N + 1, 2, 2)
-    n = len(others)
-    pair = np.concatenate([np.broadcast_to(axes[0], (n, 2, 2)), axes[1:]], 1)  # (N, 4, 2)
-    pa = np.einsum("kd,nad->nak", corners[0], pair)  # (N, 4 axes, 4 corners)
-    pb = np.einsum("nkd,nad->nak", corners[1:], pair)
-    apart = (pa.max(-1) <= pb.min(-1)) | (pb.max(-1) <= pa.min(-1))
-    z0, z1 = np.array([(o.z0, o.z1) for o in others]).T
-    return ~apart.any(-1) & (z0 < fp.z1) & (fp.z0 < z1)
+def overlaps(a: Footprint, b: Footprint, margin: float = 0.0) -> bool:
+    """Whether two footprints overlap in the plane (grown by ``margin``) and in height."""
+    if a.z1 <= b.z0 or b.z1 <= a.z0:
+        return False
+    ca, cb = a.grown(margin).corners(), b.grown(margin).corners()
+    for axis in np.vstack([a.axes(), b.axes()]):
+        pa, pb = ca @ axis, cb @ axis
+        if pa.max() <= pb.min() or pb.max() <= pa.min():
+            return False
+    return True
 
 
 def inside(fp: Footprint, rect: tuple[float, float, float, float], margin: float = 0.0) -> bool:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from factory.assets import AssetLibrary, Resolution
-from factory.scenes.footprint import Footprint, inside, overlapping
+from factory.scenes.footprint import Footprint, inside, overlaps
 from factory.schema import (
     AssetMeta,
     AssetRef,
@@ -135,18 +135,23 @@ class SceneState:
         self, fp: Footprint, room: Room, ignore: set[str] | None = None, on: str | None = None
     ) -> bool:
         """Whether ``fp`` collides with nothing (objects, door and window zones)."""
-        near = [
-            self.footprint(o)
-            for o in self.scene.objects
-            if not (ignore and o.id in ignore)
-            and (o.placement.kind != "on_top" if on is None else o.placement.support_id == on)
-        ]
-        if overlapping(fp, near, CLEARANCE if on is None else 0.005).any():
-            return False
-        if on is not None:
-            return True
-        windows = [z for z in self.window_zones(room) if fp.z1 > z.z0 + 0.05]
-        return not overlapping(fp, self.door_zones(room) + windows).any()
+        for obj in self.scene.objects:
+            if ignore and obj.id in ignore:
+                continue
+            if on is not None and obj.placement.support_id != on:
+                continue
+            if on is None and obj.placement.kind == "on_top":
+                continue
+            if overlaps(fp, self.footprint(obj), CLEARANCE if on is None else 0.005):
+                return False
+        if on is None:
+            for zone in self.door_zones(room):
+                if overlaps(fp, zone):
+                    return False
+            for zone in self.window_zones(room):
+                if fp.z1 > zone.z0 + 0.05 and overlaps(fp, zone):
+                    return False
+        return True
 
     # ---- assets
     def asset(self, text: str, dims: Any = None) -> tuple[AssetMeta, Resolution]:

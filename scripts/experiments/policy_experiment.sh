@@ -5,10 +5,10 @@
 #   1. data: TRAIN_SCENES generated kitchens with the pick-and-place task (one generate shard
 #      per core), EPISODES demos per scene, the merged LeRobot dataset; then HELDOUT_SCENES
 #      more kitchens (other seeds) that are not in the dataset: the held-out scenes;
-#   2. the scaling curve: state-input diffusion policies trained on the CPU (2 cores each,
-#      taskset) on 1, 2, 4, ... scenes, evaluated on the held-out scenes with the planner as the
-#      reference (scripts/scaling_policy.py); the largest point is the CPU state policy, also
-#      evaluated on new configurations of its training scenes;
+#   2. the scaling curve: state-input diffusion policies trained on the GPU on 1, 2, 4, ...
+#      scenes, evaluated on the held-out scenes with the planner as the reference
+#      (scripts/scaling_policy.py); beside them a state policy trained on the CPU (2 threads),
+#      evaluated on the held-out scenes and on new configurations of its training scenes;
 #   3. the paper's setting: an RGB-D diffusion policy (three cameras + end-effector pose) trained
 #      on the GPU for RGBD_STEPS steps, evaluated on the held-out scenes.
 #
@@ -26,9 +26,12 @@ TRAIN_SCENES=${TRAIN_SCENES:-16}
 HELDOUT_SCENES=${HELDOUT_SCENES:-3}
 EPISODES=${EPISODES:-24}
 POINTS=${POINTS:-1 2 4 8 16}
-STATE_STEPS=${STATE_STEPS:-8000}
+STATE_STEPS=${STATE_STEPS:-20000}
 STATE_MINUTES=${STATE_MINUTES:-0}
 STATE_BATCH=${STATE_BATCH:-64}
+SCALE_BATCH=${SCALE_BATCH:-256}
+CPU_STEPS=${CPU_STEPS:-20000}
+CPU_MINUTES=${CPU_MINUTES:-0}
 RGBD_STEPS=${RGBD_STEPS:-6000}
 RGBD_MINUTES=${RGBD_MINUTES:-0}
 RGBD_BATCH=${RGBD_BATCH:-32}
@@ -38,7 +41,9 @@ TRAIN_CONFIGS=${TRAIN_CONFIGS:-5}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
 PY=${PY:-python3}
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
-STATE_OPTS='train.options={diffusion: {down_dims: [128, 256, 512], horizon: 16, n_action_steps: 8}}'
+DDIM='noise_scheduler_type: DDIM, num_inference_steps: 10'
+STATE_OPTS="train.options={diffusion: {down_dims: [128, 256, 512], horizon: 16, n_action_steps: 8, $DDIM}}"
+CPU_OPTS=${CPU_OPTS:-"train.options={diffusion: {down_dims: [64, 128, 256], horizon: 16, n_action_steps: 8, diffusion_step_embed_dim: 64, $DDIM}}"}
 mkdir -p "$RUN" "$OUT_DIR"
 log() { echo "$(date +%T) experiment: $*"; }
 
@@ -60,36 +65,48 @@ log "   $HELDOUT_SCENES held-out kitchens"
 generate "$HELDOUT_SCENES" 100000
 echo "{\"data_seconds\": $(( $(date +%s) - t0 ))}" > "$OUT_DIR/data.json"
 
-log "2. scaling curve (state, CPU) and 3. RGB-D (GPU), side by side"
+log "2. scaling curve (state, GPU), the CPU state policy and 3. RGB-D (GPU), side by side"
 t1=$(date +%s)
+HELD=${HELDOUT_IDS:+"eval.scenes=[${HELDOUT_IDS// /,}]"}
 rgbd() {
   $PY -m factory stage=train run_dir="$RUN" train.name=rgbd train.inputs=rgbd \
     train.steps="$RGBD_STEPS" train.batch_size="$RGBD_BATCH" train.num_workers="$RGBD_WORKERS" \
-    train.save_every=1000 train.log_every=50 train.device=auto train.max_minutes="$RGBD_MINUTES"
+    train.save_every=1000 train.log_every=50 train.device=auto train.max_minutes="$RGBD_MINUTES" \
+    "train.options={diffusion: {$DDIM}}"
+  log "   RGB-D trained in $(( $(date +%s) - t1 )) s"
+  $PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$EVAL_EPISODES" \
+    eval.device=auto eval.videos=2 eval.nthread=4 $HELD
 }
-rgbd > "$OUT_DIR/rgbd-train.log" 2>&1 &
+cpu_state() {  # trained on the CPU with 2 threads, evaluated on held-out and training scenes
+  $PY -m factory stage=train run_dir="$RUN" train.name=state_cpu train.inputs=state \
+    train.device=cpu train.threads=2 train.steps="$CPU_STEPS" train.batch_size="$STATE_BATCH" \
+    train.max_minutes="$CPU_MINUTES" train.save_every=500 train.log_every=50 "$CPU_OPTS"
+  log "   CPU state policy trained in $(( $(date +%s) - t1 )) s"
+  OMP_NUM_THREADS=2 $PY -m factory stage=eval run_dir="$RUN" eval.policy=state_cpu \
+    eval.episodes_per_scene="$EVAL_EPISODES" eval.device=cpu eval.nthread=2 eval.videos=1 $HELD
+  OMP_NUM_THREADS=2 $PY -m factory stage=eval run_dir="$RUN" eval.policy=state_cpu eval.scenes=train \
+    eval.name=state_cpu_train_scenes eval.episodes_per_scene="$TRAIN_CONFIGS" eval.device=cpu \
+    eval.nthread=2 eval.videos=1
+}
+rgbd > "$OUT_DIR/rgbd.log" 2>&1 &
 RGBD_PID=$!
-# the state points: 2 cores each (taskset inside scaling_policy's jobs through OMP threads = 2)
+cpu_state > "$OUT_DIR/state-cpu.log" 2>&1 &
+CPU_PID=$!
 npoints=$(wc -w <<< "$POINTS")
 $PY scripts/scaling_policy.py --run-dir "$RUN" --points $POINTS --steps "$STATE_STEPS" \
-  --batch-size "$STATE_BATCH" --device cpu --episodes "$EVAL_EPISODES" --parallel "$((npoints + 1))" \
-  --threads 2 --train-arg "$STATE_OPTS" --train-arg train.log_every=100 \
-  --train-arg train.max_minutes="$STATE_MINUTES" \
-  --train-arg train.save_every=1000 --tag "$(basename "$RUN")" \
-  --out "$OUT_DIR/scaling.json" --plot "$OUT_DIR/scaling.svg" > "$OUT_DIR/scaling.log" 2>&1
+  --batch-size "$SCALE_BATCH" --device auto --episodes "$EVAL_EPISODES" \
+  --parallel "$((npoints + 1))" --threads 2 --train-arg "$STATE_OPTS" \
+  --train-arg train.log_every=100 --train-arg train.max_minutes="$STATE_MINUTES" \
+  --train-arg train.save_every=2000 --tag "$(basename "$RUN")" \
+  --out "$OUT_DIR/scaling.json" --plot "$OUT_DIR/scaling.svg" ${HELDOUT_IDS:+--heldout $HELDOUT_IDS} \
+  > "$OUT_DIR/scaling.log" 2>&1 || log "   the scaling script failed: $OUT_DIR/scaling.log"
 log "   scaling done in $(( $(date +%s) - t1 )) s"
-last=$(printf 'scale_diffusion_state_%03d' "$(tr ' ' '\n' <<< "$POINTS" | sort -n | tail -1)")
-$PY -m factory stage=eval run_dir="$RUN" eval.policy="$last" eval.scenes=train \
-  eval.episodes_per_scene="$TRAIN_CONFIGS" eval.device=cpu eval.videos=1 \
-  > "$OUT_DIR/state-train-scenes.log" 2>&1
-wait "$RGBD_PID"
-log "   RGB-D trained in $(( $(date +%s) - t1 )) s"
-$PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$EVAL_EPISODES" \
-  eval.device=auto eval.videos=2 > "$OUT_DIR/rgbd-eval.log" 2>&1
-for d in "$RUN"/eval/*/; do cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"; done
+wait "$CPU_PID" || log "   the CPU state policy failed: $OUT_DIR/state-cpu.log"
+wait "$RGBD_PID" || log "   RGB-D failed: $OUT_DIR/rgbd.log"
+for d in "$RUN"/eval/*/; do if [ -f "$d/results.json" ]; then cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"; fi; done
 for d in "$RUN"/policy/*/; do
-  cp "$d/train.json" "$OUT_DIR/train-$(basename "$d").json"
-  cp "$d/train_log.jsonl" "$OUT_DIR/train_log-$(basename "$d").jsonl"
+  cp "$d/train.json" "$OUT_DIR/train-$(basename "$d").json" || true
+  cp "$d/train_log.jsonl" "$OUT_DIR/train_log-$(basename "$d").jsonl" || true
 done
 if [ "${BENCH:-0}" = 1 ]; then
   log "4. bench_policy (training steps/s, rollouts/min, memory)"
