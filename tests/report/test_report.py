@@ -209,15 +209,17 @@ def test_browser_small_profile_run(small_run, open_page, tmp_path: Path) -> None
     result = manifest["stages"]["report"]["shards"]["0-of-1"]["result"]
     path = run / "report.html"
     assert result["produced"] == [{"what": "report", "count": 1, "path": str(path)}]
-    expected = ["scenes", "demos", "dataset"]
+    # the small profile trains a policy for a few steps and evaluates it
+    expected = ["scenes", "demos", "dataset", "policies", "evaluation"]
     assert result["sections"] == expected
     check = open_page(path)
     _assert_page_ok(check, expected)
     (scene,) = (p.name for p in (run / "scenes").iterdir())
     assert scene in check.text and "Recorded episodes" in check.text
     gifs = [i for i in check.images if i["src"].startswith("data:image/gif")]
-    assert len(gifs) == 2  # one per stored episode (report.gifs=4)
-    assert len(check.images) == 2 + 2  # the scene's two views (report.views), the GIFs
+    # one per stored episode (report.gifs=4) and the rollout video of eval.videos=1
+    assert len(gifs) == 2 + 1
+    assert len(check.images) == 2 + len(gifs)  # the scene's two views (report.views), GIFs
 
     copy = tmp_path / "run"
     shutil.copytree(run, copy)
@@ -226,7 +228,7 @@ def test_browser_small_profile_run(small_run, open_page, tmp_path: Path) -> None
     assert out.returncode == 0, out.stderr[-3000:]
     assert _cli("stage=report", *common, "report.embed=false").returncode == 0
     variants = [p.name for p in (copy / "scenes").iterdir() if "__" in p.name]
-    expected = ["scenes", "augmentation", "demos", "dataset"] if variants else expected
+    expected = [expected[0], "augmentation", *expected[1:]] if variants else expected
     check = open_page(copy / "report.html", screenshot=tmp_path / "report.png")
     _assert_page_ok(check, expected)
     assert all(i["src"].startswith("report_files/") for i in check.images)
