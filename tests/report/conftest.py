@@ -66,9 +66,13 @@ class PageCheck:
     text: str = ""
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    """A headless Chromium (the system's, via playwright), shared by the session's tests."""
+    """A headless Chromium (the system's, via playwright), shared by a module's tests.
+
+    Module scope, not session: playwright's sync API keeps an event loop running in the main
+    thread while it is open, and later tests that call ``asyncio.run`` (the MCP client) would
+    fail with "cannot be called from a running event loop"."""
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
