@@ -265,15 +265,16 @@ def test_validate_scene_that_does_not_compile(cli, tmp_path: Path, example_scene
 
 
 @pytest.mark.slow
-def test_small_profile_main_job(cli, tmp_path: Path) -> None:
-    """The README's main job: a generated kitchen, validated, with recorded demonstrations,
-    written as a LeRobot dataset."""
-    run = tmp_path / "run"
-    out = cli("stage=all", "profile=small", f"run_dir={run}")
-    assert out.returncode == 0, out.stderr[-3000:]
+def test_small_profile_main_job(small_run) -> None:
+    """The README's main job (run once per session by the ``small_run`` fixture): a generated
+    kitchen, validated, with recorded demonstrations, written as a LeRobot dataset, a policy
+    trained on it for a few steps and evaluated in closed loop, the report."""
+    run, out = small_run.run_dir, small_run.out
     manifest = json.loads((run / "manifest.json").read_text())
-    stages = ("generate", "validate", "demos", "dataset")
+    stages = ("generate", "validate", "demos", "dataset", "train", "eval", "report")
     assert all(manifest["stages"][s]["status"] == "done" for s in stages)
+    results = json.loads((run / "eval" / "diffusion_state" / "results.json").read_text())
+    assert results["episodes"] == 2 and results["training_data"]["episodes"] == 2
     (scene_dir,) = (run / "scenes").iterdir()
     assert scene_dir.name.startswith("kitchen")
     summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
@@ -292,7 +293,7 @@ def test_small_profile_main_job(cli, tmp_path: Path) -> None:
     start = max(i for i, ln in enumerate(lines) if ln.startswith("stage=all done in "))
     table = lines[start + 1 :]
     assert table and all(ln.startswith("  ") for ln in table), out.stderr[-2000:]
-    assert [ln.split()[0] for ln in table if not ln.startswith("   ")][:4] == list(stages)
+    assert [ln.split()[0] for ln in table if not ln.startswith("   ")][:7] == list(stages)
     assert table[-1].split()[0] == "logs" and table[-1].endswith("/logs/")
     dataset_log = (run / "logs" / "dataset-0-of-1.log").read_text()
     assert "[libx264" in dataset_log and "INFO root: " in dataset_log  # x264's, lerobot's lines
