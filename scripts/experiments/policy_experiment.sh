@@ -17,6 +17,9 @@
 #   TRAIN_SCENES=2 HELDOUT_SCENES=1 EPISODES=2 POINTS="1 2" STATE_STEPS=20 RGBD_STEPS=4 \
 #     EVAL_EPISODES=2 RUN=/tmp/tiny bash scripts/experiments/policy_experiment.sh
 # Results: $RUN/eval/*/results.json, $OUT_DIR/*.json (scaling JSON + SVG, the summaries).
+# On the GPU machine (see ../shared/device.md for carrying wheels): its preinstalled
+# transformers needs a newer huggingface_hub than lerobot 0.4.4 pins, and lerobot imports it
+# while registering its policies: `python3 -m pip uninstall -y transformers` there first.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
