@@ -295,6 +295,10 @@ class TrainConfig:
         inputs: ``state`` (joints, gripper, tool pose and the pick and target objects' poses),
             ``rgb`` (the recorded cameras' images + joints, gripper, tool pose) or ``rgbd``
             (RGB and depth of every camera + the same; the paper's setting).
+        action: what the model predicts: ``tool`` (the tool pose in the robot's base frame +
+            gripper, turned into joint targets by IK at execution; the paper's end-effector
+            actions, and what generalises from few demos) or ``joint`` (the dataset's 8-D
+            joint-target action as it is; what ``lerobot-eval`` runs unchanged).
         dataset: the merged LeRobot dataset (empty: ``<run_dir>/dataset/merged``).
         scenes: the dataset's scenes trained on: empty (all), a number ``N`` (the first ``N``
             of its scene ids, sorted) or a list of ids; the other scenes' episodes are never
@@ -330,6 +334,7 @@ class TrainConfig:
     name: str = "${train.policy}_${train.inputs}"
     policy: str = "diffusion"
     inputs: str = "state"
+    action: str = "tool"
     dataset: str | None = None
     scenes: Any = None
     horizon: int = 0

@@ -64,7 +64,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         options=options,
     )
     features = json.loads((root / "meta" / "info.json").read_text())["features"]
-    spec = input_spec(a.inputs, features)
+    spec = input_spec(a.inputs, features, tc.action)
     t0 = time.perf_counter()
     trainer = Trainer(tc, spec, root, tmp / "bench")
     batches = trainer.loader()

@@ -61,7 +61,9 @@ class IKSolver:
         self._lo = np.array(PANDA.q_min) + 0.01
         self._hi = np.array(PANDA.q_max) - 0.01
 
-    def _attempt(self, target: np.ndarray, q0: np.ndarray) -> np.ndarray | None:
+    def _attempt(
+        self, target: np.ndarray, q0: np.ndarray, best_effort: bool = False
+    ) -> np.ndarray | None:
         mink = self._mink
         q = self.model.qpos0.copy()
         q[self.robot.qpos] = np.clip(q0, self._lo, self._hi)
@@ -85,7 +87,20 @@ class IKSolver:
                 limits=self.limits,
             )
             self.configuration.integrate_inplace(vel, self.cfg.dt)
-        return None
+        return np.array(self.configuration.q[self.robot.qpos]) if best_effort else None
+
+    def track(self, pose_tool_in_base: np.ndarray, q0: np.ndarray) -> np.ndarray:
+        """Joint positions (7,) moved from ``q0`` towards a tool pose: up to ``max_iters``
+        differential-IK steps, no restarts; where the pose is out of reach, the closest
+        configuration found (a tracking controller's step, not a solve).
+
+        Args:
+            pose_tool_in_base: the target (4, 4), robot base frame.
+            q0: the start configuration (7,) (rad), e.g. the previous command.
+        """
+        q = self._attempt(pose_tool_in_base, q0, best_effort=True)
+        assert q is not None
+        return q
 
     def solve(
         self,

@@ -71,6 +71,8 @@ class TrainInfo:
         depth_max_m: depth clipping range of ``rgbd`` (m).
         frames: frames trained on.
         episode_indices: the dataset's episode indices trained on (empty: all of them).
+        action: what the model predicts (``tool`` or ``joint``, see
+            :mod:`factory.policy.inputs`); the env always gets 8-D joint targets.
         config: the ``train.*`` settings of the run.
     """
 
@@ -88,6 +90,7 @@ class TrainInfo:
     frames: int = 0
     config: dict[str, Any] = field(default_factory=dict)
     episode_indices: list[int] = field(default_factory=list)
+    action: str = "joint"
 
     def to_json(self) -> dict[str, Any]:
         return {"schema_version": TRAIN_SCHEMA_VERSION, **asdict(self)}
@@ -300,12 +303,13 @@ class LoadedPolicy:
         postprocessor: Any,
         device: str,
     ) -> None:
-        from factory.policy.inputs import spec_from_features
+        from factory.policy.inputs import ToolActionTracker, spec_from_features
 
         self.info = info
         self.path = path
         self.device = device
-        self.spec = spec_from_features(info.inputs, info.features, info.depth_max_m)
+        self.spec = spec_from_features(info.inputs, info.features, info.depth_max_m, info.action)
+        self._tracker = ToolActionTracker() if info.action == "tool" else None
         self._policy = policy
         self._pre = preprocessor
         self._post = postprocessor
@@ -319,6 +323,8 @@ class LoadedPolicy:
     def reset(self) -> None:
         """Starts new episodes: clears the policy's observation and action queues."""
         self._policy.reset()
+        if self._tracker is not None:
+            self._tracker.reset()
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         """Actions for a batch of observations.
@@ -346,7 +352,11 @@ class LoadedPolicy:
             batch = self._pre(batch)
             action = self._policy.select_action(batch)
             action = self._post(action)
-        return np.asarray(action.detach().to("cpu").numpy(), np.float32).reshape(-1, 8)
+        out = np.asarray(action.detach().to("cpu").numpy(), np.float32)
+        out = out.reshape(-1, self.spec.action_dim)
+        if self._tracker is not None:
+            return self._tracker.joints(out, np.asarray(obs["observation.state"]))
+        return out
 
 
 def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedPolicy:

@@ -16,12 +16,25 @@ The model sees (lerobot feature names, so lerobot's policies and processors appl
   the robot's base frame: position (3, m) and the first two columns of its rotation matrix
   (6, the continuous "6D" rotation). The tool pose comes from the joints by forward kinematics
   of the demos' own Panda model, so it is exact and needs no world frame.
-* ``observation.environment_state`` (18,) (``state`` only): the pick object's and the target's
-  pose in the robot's base frame, each position (3, m) + 6D rotation (6).
+* ``observation.environment_state`` (24,) (``state`` only): the pick object's and the target's
+  pose in the robot's base frame, each position (3, m) + 6D rotation (6), then the offsets
+  from the tool to each of them (2 x 3, m, base frame): the quantity a reach is made of.
 * ``observation.images.<cam>`` (3, H, W) float in [0, 1].
 * ``observation.depth.<cam>`` (3, H, W) float in [0, 1]: depth in metres clipped to
   ``[0, depth_max_m]`` and divided by it, replicated to three channels (the ResNet encoders of
   lerobot's policies take three).
+
+The model predicts (``train.action``):
+
+* ``tool`` (default, the paper's end-effector actions): ``action`` (10,): the tool pose the
+  dataset's joint target reaches, by forward kinematics, in the robot's base frame: position
+  (3, m) + 6D rotation (6), then the gripper command (m). At execution the pose becomes joint
+  targets by differential IK (mink) started at the previous command
+  (:class:`ToolActionTracker`). Grasping an object is then "move to where it is", a nearly
+  linear map that a small dataset can teach; joint targets would need the arm's inverse
+  kinematics learned from the demos.
+* ``joint``: the dataset's 8-D action as it is (arm joint targets, rad, + gripper, m): what
+  LeRobot's own evaluation (``lerobot-eval`` on the ``factory`` env) can run unchanged.
 
 Why the base frame: the dataset's poses are in the world frame, and every scene puts the robot
 at another spot and heading. The base pose is recovered per frame from what every observation
@@ -49,6 +62,8 @@ from factory.errors import PolicyError
 
 INPUTS = ("state", "rgb", "rgbd")
 """The ``train.inputs`` settings."""
+ACTIONS = ("tool", "joint")
+"""The ``train.action`` settings: what the model predicts."""
 CAMERAS = ("left", "right", "wrist")
 STATE = "observation.state"
 EE_POSE = "observation.ee_pose"
@@ -60,8 +75,11 @@ DEPTH_MAX_M = 2.0
 """Depth beyond this (m) is clipped: the workspace is within about 1.5 m of every camera."""
 ROBOT_DIM = 17
 """Model ``observation.state``: 7 joints + gripper + tool position (3) + 6D rotation (6)."""
-ENV_DIM = 18
-"""Model ``observation.environment_state``: two poses of position (3) + 6D rotation (6)."""
+ENV_DIM = 24
+"""Model ``observation.environment_state``: two poses of position (3) + 6D rotation (6), then
+the two tool-to-object offsets (3 each)."""
+ACTION_DIMS = {"tool": 10, "joint": 8}
+"""Model ``action`` size per ``train.action``."""
 REFRESH = "re-run stage=dataset force=true (datasets written before this feature lack it)"
 
 
@@ -74,12 +92,19 @@ class InputSpec:
         cameras: cameras whose images (and depth, for ``rgbd``) are read, in CAMERAS order.
         image_size: (H, W) of the camera images (px); (0, 0) without images.
         depth_max_m: depth clipping range (m).
+        action: what the model predicts (:data:`ACTIONS`).
     """
 
     inputs: str
     cameras: tuple[str, ...] = ()
     image_size: tuple[int, int] = (0, 0)
     depth_max_m: float = DEPTH_MAX_M
+    action: str = "joint"
+
+    @property
+    def action_dim(self) -> int:
+        """Size of the model's ``action``."""
+        return ACTION_DIMS[self.action]
 
     @property
     def depth(self) -> bool:
@@ -121,7 +146,7 @@ class InputSpec:
         return [*self.raw_features(), ACTION]
 
 
-def input_spec(inputs: str, features: Mapping[str, Any]) -> InputSpec:
+def input_spec(inputs: str, features: Mapping[str, Any], action: str = "joint") -> InputSpec:
     """The inputs of a setting on a dataset with these features (``meta/info.json``).
 
     Raises:
@@ -129,6 +154,8 @@ def input_spec(inputs: str, features: Mapping[str, Any]) -> InputSpec:
     """
     if inputs not in INPUTS:
         raise PolicyError(f"unknown train.inputs {inputs!r}: use one of {', '.join(INPUTS)}")
+    if action not in ACTIONS:
+        raise PolicyError(f"unknown train.action {action!r}: use one of {', '.join(ACTIONS)}")
     need = [STATE, EE_POSE, ACTION]
     if inputs == "state":
         need.append(ENV_STATE)
@@ -138,7 +165,7 @@ def input_spec(inputs: str, features: Mapping[str, Any]) -> InputSpec:
             f"the dataset lacks {', '.join(missing)} (train.inputs={inputs}): {REFRESH}"
         )
     if inputs == "state":
-        return InputSpec("state")
+        return InputSpec("state", action=action)
     cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
     if not cams:
         raise PolicyError(
@@ -153,11 +180,11 @@ def input_spec(inputs: str, features: Mapping[str, Any]) -> InputSpec:
                 "with stage=dataset force=true, or use train.inputs=rgb"
             )
     shape = features[f"{IMAGE_PREFIX}{cams[0]}"]["shape"]
-    return InputSpec(inputs, cams, (int(shape[0]), int(shape[1])))
+    return InputSpec(inputs, cams, (int(shape[0]), int(shape[1])), action=action)
 
 
 def spec_from_features(
-    inputs: str, features: Mapping[str, list[int]], depth_max_m: float
+    inputs: str, features: Mapping[str, list[int]], depth_max_m: float, action: str = "joint"
 ) -> InputSpec:
     """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape)."""
     cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
@@ -165,7 +192,7 @@ def spec_from_features(
     if cams:
         shape = features[f"{IMAGE_PREFIX}{cams[0]}"]
         size = (int(shape[0]), int(shape[1]))
-    return InputSpec(inputs, cams, size, float(depth_max_m))
+    return InputSpec(inputs, cams, size, float(depth_max_m), action)
 
 
 # ---- geometry: poses in the robot's base frame
@@ -259,20 +286,99 @@ def base_poses(state: np.ndarray, ee_pose: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def env_features(state: np.ndarray, ee_pose: np.ndarray, env_state: np.ndarray) -> np.ndarray:
-    """Model ``observation.environment_state`` (..., 18) from the dataset's state (..., 8),
-    ee_pose (..., 7) and environment_state (..., 14): both objects' poses in the base frame."""
+    """Model ``observation.environment_state`` (..., 24) from the dataset's state (..., 8),
+    ee_pose (..., 7) and environment_state (..., 14): both objects' poses in the base frame,
+    then the offsets from the tool to each (base frame, m)."""
     lead = np.asarray(state).shape[:-1]
     s = np.asarray(state, np.float64).reshape(-1, 8)
     ee = np.asarray(ee_pose, np.float64).reshape(-1, 7)
     env = np.asarray(env_state, np.float64).reshape(-1, 14)
     base_pos, base_rot = base_poses(s, ee)
     inv = np.swapaxes(base_rot, -1, -2)
-    parts = []
+    tool = np.einsum("nij,nj->ni", inv, ee[:, :3] - base_pos)
+    parts, offsets = [], []
     for k in (0, 7):
         p = np.einsum("nij,nj->ni", inv, env[:, k : k + 3] - base_pos)
         r = inv @ quat_to_mat(env[:, k + 3 : k + 7])
         parts += [p, rot6d(r)]
-    return np.concatenate(parts, axis=1).reshape(*lead, ENV_DIM).astype(np.float32)
+        offsets.append(p - tool)
+    return np.concatenate(parts + offsets, axis=1).reshape(*lead, ENV_DIM).astype(np.float32)
+
+
+# ---- actions
+
+
+def rot6d_to_mat(r6: np.ndarray) -> np.ndarray:
+    """(..., 6) 6D rotations (first two columns, not necessarily orthonormal) -> (..., 3, 3)
+    rotation matrices by Gram-Schmidt."""
+    r6 = np.asarray(r6, np.float64)
+    a, b = r6[..., :3], r6[..., 3:]
+    x = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-9)
+    b = b - np.sum(x * b, axis=-1, keepdims=True) * x
+    y = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-9)
+    z = np.cross(x, y)
+    return np.stack([x, y, z], axis=-1)
+
+
+def model_actions(action: np.ndarray, kind: str) -> np.ndarray:
+    """The dataset's actions (..., 8) -> the model's (..., ``ACTION_DIMS[kind]``).
+
+    ``tool``: forward kinematics of the joint targets: tool position (3, m) and 6D rotation
+    (6) in the base frame, then the gripper command (m); ``joint``: unchanged.
+    """
+    action = np.asarray(action, np.float32)
+    if kind == "joint":
+        return action
+    flat = action.reshape(-1, 8).astype(np.float64)
+    pos, rot = kinematics().tool_poses(flat[:, :7])
+    out = np.concatenate([pos, rot6d(rot), flat[:, 7:]], axis=1)
+    return out.reshape(*action.shape[:-1], ACTION_DIMS["tool"]).astype(np.float32)
+
+
+class ToolActionTracker:
+    """Turns predicted tool poses into the env's joint targets, one batch of envs at a time.
+
+    Each env's target is reached by differential IK (mink, joint limits kept) started at that
+    env's previous joint command (at an episode's start: its measured joints), so the arm
+    follows the predicted tool path smoothly, as the demos' planner moved it.
+
+    Args:
+        iters: IK steps per action at most (each a small QP).
+    """
+
+    def __init__(self, iters: int = 20) -> None:
+        self.iters = iters
+        self._solver: Any = None
+        self._prev: dict[int, np.ndarray] = {}
+
+    def reset(self) -> None:
+        """New episodes: forget the previous commands."""
+        self._prev.clear()
+
+    def joints(self, tool: np.ndarray, state: np.ndarray) -> np.ndarray:
+        """Model actions (n, 10) -> env actions (n, 8).
+
+        Args:
+            tool: predicted tool position (3, m) + 6D rotation (6) in the base frame + gripper.
+            state: the env's ``observation.state`` (n, 8) (measured joints, rad, + gripper).
+        """
+        if self._solver is None:
+            from factory.demos.ik import IKConfig, IKSolver
+
+            self._solver = IKSolver(IKConfig(max_iters=self.iters, pos_tol=5e-4, rot_tol_deg=0.5))
+        tool = np.asarray(tool, np.float64)
+        rot = rot6d_to_mat(tool[:, 3:9])
+        out = np.zeros((len(tool), 8), np.float32)
+        for i in range(len(tool)):
+            target = np.eye(4)
+            target[:3, :3], target[:3, 3] = rot[i], tool[i, :3]
+            seed = self._prev.get(i)
+            if seed is None:
+                seed = np.asarray(state[i, :7], np.float64)
+            q = self._solver.track(target, seed)
+            self._prev[i] = q
+            out[i, :7], out[i, 7] = q, tool[i, 9]
+        return out
 
 
 # ---- images
@@ -315,7 +421,9 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
     for k in spec.depth_keys():
         out[k] = depth_image(unpack_depth_tensor(item[k]), spec.depth_max_m)
     for k, v in item.items():
-        if k == ACTION or k.endswith("_is_pad"):
+        if k == ACTION:
+            out[k] = torch.from_numpy(model_actions(v.numpy(), spec.action))
+        elif k.endswith("_is_pad"):
             out[k] = v
     return out
 

@@ -55,6 +55,7 @@ from factory.policy.inputs import (
     convert_sample,
     depth_image,
     env_features,
+    model_actions,
     robot_features,
 )
 
@@ -131,7 +132,7 @@ def policy_config(tc: Any, spec: InputSpec, device: str) -> Any:
         k: PolicyFeature(types.get(k, FeatureType.VISUAL), tuple(shape))
         for k, shape in spec.model_features().items()
     }
-    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (8,))}
+    cfg.output_features = {ACTION: PolicyFeature(FeatureType.ACTION, (spec.action_dim,))}
     # object poses are normalised like the robot state (lerobot leaves ENV as it is)
     mapping = dict(cfg.normalization_mapping)
     mapping.setdefault("ENV", mapping.get("STATE", NormalizationMode.MIN_MAX))
@@ -183,7 +184,10 @@ class LowDimFrames:
             return np.stack(table.column(key).to_numpy(zero_copy_only=False)).astype(np.float32)
 
         state = column(STATE)
-        self.values: dict[str, np.ndarray] = {STATE: robot_features(state), ACTION: column(ACTION)}
+        self.values: dict[str, np.ndarray] = {
+            STATE: robot_features(state),
+            ACTION: model_actions(column(ACTION), spec.action),
+        }
         if spec.inputs == "state":
             self.values[ENV_STATE] = env_features(state, column(EE_POSE), column(ENV_STATE))
         self.episode = np.asarray(table.column("episode_index").to_numpy(), np.int64)
@@ -377,7 +381,7 @@ def model_stats(
     rows = _low_dim(root, keys, episodes)
     stats: dict[str, Any] = {
         STATE: get_feature_stats(robot_features(rows[STATE]), axis=0, keepdims=False),
-        ACTION: get_feature_stats(rows[ACTION], axis=0, keepdims=False),
+        ACTION: get_feature_stats(model_actions(rows[ACTION], spec.action), axis=0, keepdims=False),
     }
     if spec.inputs == "state":
         env = env_features(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
@@ -411,6 +415,25 @@ def model_stats(
             st = get_feature_stats(arr, axis=(0, 2, 3), keepdims=True)
             stats[k] = {s: (v.reshape(3, 1, 1) if s != "count" else v) for s, v in st.items()}
     return stats
+
+
+def model_meta(meta: Any, spec: InputSpec) -> Any:
+    """The dataset's metadata as the model sees it: ``make_policy`` takes the action's shape
+    from the dataset's features, so a ``tool`` action (10,) needs a copy that says so."""
+    import copy
+
+    if spec.action_dim == int(meta.features[ACTION]["shape"][0]):
+        return meta
+    out = copy.copy(meta)
+    out.info = copy.deepcopy(meta.info)
+    out.info["features"][ACTION]["shape"] = [spec.action_dim]
+    names = out.info["features"][ACTION].get("names")
+    if names is not None:
+        out.info["features"][ACTION]["names"] = [
+            *(f"tool_{k}" for k in ("x", "y", "z", "r11", "r21", "r31", "r12", "r22", "r32")),
+            "gripper",
+        ]
+    return out
 
 
 # ---- the loop
@@ -509,7 +532,7 @@ class Trainer:
         )
         self.episodes = sorted(episodes) if episodes else None
         with quiet_stdout():
-            self.policy = make_policy(cfg, ds_meta=self.base.meta)
+            self.policy = make_policy(cfg, ds_meta=model_meta(self.base.meta, spec))
         if resume is not None:
             self.pre, self.post = make_pre_post_processors(
                 cfg,

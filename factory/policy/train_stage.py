@@ -162,6 +162,7 @@ def train_info(tc: Any, spec: InputSpec, root: Path) -> TrainInfo:
         frames=frames,
         config=_settings(tc),
         episode_indices=indices,
+        action=spec.action,
     )
 
 
@@ -179,7 +180,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     store = ctx.require_store()
     root = dataset_root(store.root, tc.dataset)
     features = _dataset(root)[0]["features"]
-    spec = input_spec(tc.inputs, features)
+    spec = input_spec(tc.inputs, features, tc.action)
     device = resolve_device(tc.device)
     policy_config(tc, spec, device)  # an unknown type or bad options fail before any write
     info = train_info(tc, spec, root)

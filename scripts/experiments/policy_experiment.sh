@@ -40,6 +40,8 @@ RGBD_MINUTES=${RGBD_MINUTES:-0}
 RGBD_BATCH=${RGBD_BATCH:-32}
 RGBD_WORKERS=${RGBD_WORKERS:-6}
 EVAL_EPISODES=${EVAL_EPISODES:-30}
+RGBD_EVAL_EPISODES=${RGBD_EVAL_EPISODES:-90}
+CPU_STATE=${CPU_STATE:-1}
 TRAIN_CONFIGS=${TRAIN_CONFIGS:-5}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
 PY=${PY:-python3}
@@ -77,8 +79,10 @@ rgbd() {
     train.save_every=1000 train.log_every=50 train.device=auto train.max_minutes="$RGBD_MINUTES" \
     "train.options={diffusion: {$DDIM}}"
   log "   RGB-D trained in $(( $(date +%s) - t1 )) s"
-  $PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$EVAL_EPISODES" \
+  $PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
     eval.device=auto eval.videos=2 eval.nthread=4 $HELD
+  $PY -m factory stage=eval run_dir="$RUN" eval.policy=planner eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
+    eval.name=planner_rgbd eval.nthread=4 eval.videos=0 $HELD
 }
 cpu_state() {  # trained on the CPU with 2 threads, evaluated on held-out and training scenes
   $PY -m factory stage=train run_dir="$RUN" train.name=state_cpu train.inputs=state \
@@ -93,8 +97,11 @@ cpu_state() {  # trained on the CPU with 2 threads, evaluated on held-out and tr
 }
 rgbd > "$OUT_DIR/rgbd.log" 2>&1 &
 RGBD_PID=$!
-cpu_state > "$OUT_DIR/state-cpu.log" 2>&1 &
-CPU_PID=$!
+CPU_PID=""
+if [ "$CPU_STATE" = 1 ]; then
+  cpu_state > "$OUT_DIR/state-cpu.log" 2>&1 &
+  CPU_PID=$!
+fi
 npoints=$(wc -w <<< "$POINTS")
 $PY scripts/scaling_policy.py --run-dir "$RUN" --points $POINTS --steps "$STATE_STEPS" \
   --batch-size "$SCALE_BATCH" --device auto --episodes "$EVAL_EPISODES" \
@@ -104,7 +111,7 @@ $PY scripts/scaling_policy.py --run-dir "$RUN" --points $POINTS --steps "$STATE_
   --out "$OUT_DIR/scaling.json" --plot "$OUT_DIR/scaling.svg" ${HELDOUT_IDS:+--heldout $HELDOUT_IDS} \
   > "$OUT_DIR/scaling.log" 2>&1 || log "   the scaling script failed: $OUT_DIR/scaling.log"
 log "   scaling done in $(( $(date +%s) - t1 )) s"
-wait "$CPU_PID" || log "   the CPU state policy failed: $OUT_DIR/state-cpu.log"
+[ -z "$CPU_PID" ] || wait "$CPU_PID" || log "   the CPU state policy failed: $OUT_DIR/state-cpu.log"
 wait "$RGBD_PID" || log "   RGB-D failed: $OUT_DIR/rgbd.log"
 for d in "$RUN"/eval/*/; do if [ -f "$d/results.json" ]; then cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"; fi; done
 for d in "$RUN"/policy/*/; do

@@ -41,7 +41,9 @@ def test_settings_read_what_they_name() -> None:
         "observation.ee_pose": [7],
         ENV_STATE: [14],
     }
-    assert state.model_features() == {"observation.state": [17], ENV_STATE: [18]}
+    assert state.model_features() == {"observation.state": [17], ENV_STATE: [24]}
+    assert state.action == "joint" and state.action_dim == 8
+    assert input_spec("state", _features(), "tool").action_dim == 10
     rgb = input_spec("rgb", _features())
     assert rgb.cameras == ("left", "wrist") and rgb.image_size == (32, 48)
     assert ENV_STATE not in rgb.raw_features() and not rgb.depth_keys()
@@ -59,14 +61,16 @@ def test_settings_read_what_they_name() -> None:
         ("rgbd", _features(depth=False), "observation.depth.left"),
         ("rgb", _features(cams=()), "no camera images"),
         ("pointcloud", _features(), "unknown train.inputs"),
+        ("state:velocity", _features(), "unknown train.action"),
     ],
 )
 def test_missing_features_are_one_line_errors(inputs: str, feats: dict, words: str) -> None:
+    inputs, _, action = inputs.partition(":")
     with pytest.raises(PolicyError) as e:
-        input_spec(inputs, feats)
+        input_spec(inputs, feats, action or "joint")
     msg = str(e.value)
     assert words in msg and "\n" not in msg
-    if inputs == "state":
+    if inputs == "state" and not action:
         assert "stage=dataset force=true" in msg
 
 
@@ -113,6 +117,9 @@ def test_poses_in_the_base_frame_do_not_depend_on_where_the_robot_stands() -> No
     assert np.allclose(feats[0], feats[1], atol=2e-5)
     assert np.allclose(feats[0][0, :3], obj_pos[0], atol=1e-5)
     assert np.allclose(feats[0][0, 3:9], rot6d(obj_rot[0]), atol=1e-5)
+    # the tool-to-object offsets, base frame
+    assert np.allclose(feats[0][:, 18:21], obj_pos[0] - pos_b, atol=1e-5)
+    assert np.allclose(feats[0][:, 21:24], obj_pos[1] - pos_b, atol=1e-5)
     robot = robot_features(state)
     assert robot.shape == (2, 17) and np.allclose(robot[:, 8:11], pos_b, atol=1e-5)
 
@@ -169,3 +176,41 @@ def test_depth_is_converted_identically_from_the_dataset_and_from_the_env() -> N
     assert depth.shape == (2, 3, 32, 48) and float(depth.min()) >= 0 and float(depth.max()) <= 1
     assert math.isclose(float(depth[0, 0, 0, 1]), 1.999 / 2.0, rel_tol=1e-6)
     assert float(depth[0, 2, 0, 2]) == 1.0  # beyond the range: clipped
+
+
+def test_tool_actions_are_the_joint_targets_tool_pose_and_track_back_to_it() -> None:
+    """``train.action=tool``: the model's action is the forward kinematics of the dataset's
+    joint target; the tracker's IK turns a path of such poses back into joint targets that
+    reach them (to 1 mm, 1 degree), starting from the measured joints."""
+    pytest.importorskip("robosuite")
+    from factory.policy.inputs import (
+        ToolActionTracker,
+        kinematics,
+        model_actions,
+        rot6d_to_mat,
+    )
+
+    start = np.array([0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785])
+    end = np.array([0.4, 0.2, -0.3, -2.0, 0.2, 2.3, 0.3])
+    path = np.linspace(start, end, 20)
+    action = np.concatenate([path, np.full((20, 1), 0.04)], axis=1).astype(np.float32)
+    tool = model_actions(action, "tool")
+    assert tool.shape == (20, 10) and np.allclose(tool[:, 9], 0.04)
+    pos, rot = kinematics().tool_poses(path)
+    assert np.allclose(tool[:, :3], pos, atol=1e-5)
+    assert np.allclose(rot6d_to_mat(tool[:, 3:9]), rot, atol=1e-5)
+    assert np.array_equal(model_actions(action, "joint"), action)
+
+    tracker = ToolActionTracker()
+    state = np.concatenate([start, [0.08]])[None].astype(np.float32)
+    for t in range(20):
+        joints = tracker.joints(tool[t : t + 1], state)
+        assert joints.shape == (1, 8) and joints[0, 7] == pytest.approx(0.04)
+        got_pos, got_rot = kinematics().tool_poses(joints[:, :7].astype(np.float64))
+        assert np.linalg.norm(got_pos[0] - pos[t]) < 1e-3
+        cos = (np.trace(got_rot[0].T @ rot[t]) - 1) / 2
+        assert math.degrees(math.acos(min(1.0, cos))) < 1.0
+    # a new episode starts from the measured joints again
+    tracker.reset()
+    first = tracker.joints(tool[:1], state)
+    assert np.allclose(first[0, :7], start, atol=0.05)

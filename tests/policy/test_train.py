@@ -143,10 +143,12 @@ def test_checkpoints_are_lerobot_pretrained_models(state_run: Path, policy_run: 
     assert (state / "optimizer_state.safetensors").is_file()
     policy = DiffusionPolicy.from_pretrained(model)
     assert tuple(policy.config.input_features["observation.state"].shape) == (17,)
-    assert tuple(policy.config.input_features["observation.environment_state"].shape) == (18,)
+    assert tuple(policy.config.input_features["observation.environment_state"].shape) == (24,)
+    assert tuple(policy.config.output_features["action"].shape) == (10,)  # train.action=tool
     info = json.loads((out / "train.json").read_text())
     assert info["schema_version"] == 1 and info["steps"] == 4
     assert info["policy_type"] == "diffusion" and info["inputs"] == "state"
+    assert info["action"] == "tool"
     assert info["dataset"] == str((policy_run / "dataset" / "merged").resolve())
     assert info["scenes"] == ["kitchen_a"] and info["episodes"] == 3 and info["fps"] == 20
     assert info["features"] == {
