@@ -309,7 +309,8 @@ class LoadedPolicy:
         self.path = path
         self.device = device
         self.spec = spec_from_features(info.inputs, info.features, info.depth_max_m, info.action)
-        self._tracker = ToolActionTracker() if info.action == "tool" else None
+        self._tracker = ToolActionTracker() if info.action != "joint" else None
+        self._origin: np.ndarray | None = None
         self._policy = policy
         self._pre = preprocessor
         self._post = postprocessor
@@ -325,6 +326,7 @@ class LoadedPolicy:
         self._policy.reset()
         if self._tracker is not None:
             self._tracker.reset()
+        self._origin = None
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         """Actions for a batch of observations.
@@ -348,15 +350,32 @@ class LoadedPolicy:
             check_features(self.info, obs, {k: np.shape(v)[1:] for k, v in obs.items()})
             self._checked = True
         batch = convert_observation(self.spec, obs)
+        tool_now = batch["observation.state"][:, 8:11].numpy().copy()
         with torch.inference_mode():
+            if self.spec.action == "tool_rel" and chunk_starts(self._policy):
+                self._origin = tool_now  # this chunk's positions are relative to it
             batch = self._pre(batch)
             action = self._policy.select_action(batch)
             action = self._post(action)
         out = np.asarray(action.detach().to("cpu").numpy(), np.float32)
         out = out.reshape(-1, self.spec.action_dim)
         if self._tracker is not None:
-            return self._tracker.joints(out, np.asarray(obs["observation.state"]))
+            origin = self._origin if self.spec.action == "tool_rel" else None
+            return self._tracker.joints(out, np.asarray(obs["observation.state"]), origin)
         return out
+
+
+def chunk_starts(policy: Any) -> bool:
+    """Whether the policy's next ``select_action`` predicts a new action chunk (its queue of
+    actions is empty: lerobot's diffusion ``_queues["action"]``, ACT's ``_action_queue``); a
+    policy without a queue predicts at every step."""
+    queues = getattr(policy, "_queues", None)
+    if isinstance(queues, dict) and "action" in queues:
+        return len(queues["action"]) == 0
+    queue = getattr(policy, "_action_queue", None)
+    if queue is not None:
+        return len(queue) == 0
+    return True
 
 
 def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedPolicy:

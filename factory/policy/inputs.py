@@ -33,6 +33,10 @@ The model predicts (``train.action``):
   (:class:`ToolActionTracker`). Grasping an object is then "move to where it is", a nearly
   linear map that a small dataset can teach; joint targets would need the arm's inverse
   kinematics learned from the demos.
+* ``tool_rel``: the same, with the position relative to the tool's measured position at the
+  frame the action chunk is predicted from (``action[:3] = target - tool_now``, base frame):
+  a reach is then the tool-to-object offset the model reads, and the normalisation range of
+  the positions shrinks from the workspace to one chunk's motion.
 * ``joint``: the dataset's 8-D action as it is (arm joint targets, rad, + gripper, m): what
   LeRobot's own evaluation (``lerobot-eval`` on the ``factory`` env) can run unchanged.
 
@@ -62,7 +66,7 @@ from factory.errors import PolicyError
 
 INPUTS = ("state", "rgb", "rgbd")
 """The ``train.inputs`` settings."""
-ACTIONS = ("tool", "joint")
+ACTIONS = ("tool", "tool_rel", "joint")
 """The ``train.action`` settings: what the model predicts."""
 CAMERAS = ("left", "right", "wrist")
 STATE = "observation.state"
@@ -78,7 +82,7 @@ ROBOT_DIM = 17
 ENV_DIM = 24
 """Model ``observation.environment_state``: two poses of position (3) + 6D rotation (6), then
 the two tool-to-object offsets (3 each)."""
-ACTION_DIMS = {"tool": 10, "joint": 8}
+ACTION_DIMS = {"tool": 10, "tool_rel": 10, "joint": 8}
 """Model ``action`` size per ``train.action``."""
 REFRESH = "re-run stage=dataset force=true (datasets written before this feature lack it)"
 
@@ -323,8 +327,9 @@ def rot6d_to_mat(r6: np.ndarray) -> np.ndarray:
 def model_actions(action: np.ndarray, kind: str) -> np.ndarray:
     """The dataset's actions (..., 8) -> the model's (..., ``ACTION_DIMS[kind]``).
 
-    ``tool``: forward kinematics of the joint targets: tool position (3, m) and 6D rotation
-    (6) in the base frame, then the gripper command (m); ``joint``: unchanged.
+    ``tool`` and ``tool_rel``: forward kinematics of the joint targets: tool position (3, m)
+    and 6D rotation (6) in the base frame, then the gripper command (m) (``tool_rel`` subtracts
+    the current tool position afterwards: :func:`relative_to`); ``joint``: unchanged.
     """
     action = np.asarray(action, np.float32)
     if kind == "joint":
@@ -333,6 +338,14 @@ def model_actions(action: np.ndarray, kind: str) -> np.ndarray:
     pos, rot = kinematics().tool_poses(flat[:, :7])
     out = np.concatenate([pos, rot6d(rot), flat[:, 7:]], axis=1)
     return out.reshape(*action.shape[:-1], ACTION_DIMS["tool"]).astype(np.float32)
+
+
+def relative_to(actions: np.ndarray, tool_now: np.ndarray) -> np.ndarray:
+    """``tool_rel``: tool actions (..., H, 10) with their positions made relative to the
+    current tool position (..., 3) (base frame, m); rotation and gripper stay absolute."""
+    out = np.array(actions, np.float32, copy=True)
+    out[..., :3] -= np.asarray(tool_now, np.float32)[..., None, :]
+    return out
 
 
 class ToolActionTracker:
@@ -355,18 +368,23 @@ class ToolActionTracker:
         """New episodes: forget the previous commands."""
         self._prev.clear()
 
-    def joints(self, tool: np.ndarray, state: np.ndarray) -> np.ndarray:
+    def joints(
+        self, tool: np.ndarray, state: np.ndarray, origin: np.ndarray | None = None
+    ) -> np.ndarray:
         """Model actions (n, 10) -> env actions (n, 8).
 
         Args:
             tool: predicted tool position (3, m) + 6D rotation (6) in the base frame + gripper.
             state: the env's ``observation.state`` (n, 8) (measured joints, rad, + gripper).
+            origin: ``tool_rel``: the tool positions (n, 3) the positions are relative to.
         """
         if self._solver is None:
             from factory.demos.ik import IKConfig, IKSolver
 
             self._solver = IKSolver(IKConfig(max_iters=self.iters, pos_tol=5e-4, rot_tol_deg=0.5))
-        tool = np.asarray(tool, np.float64)
+        tool = np.array(tool, np.float64, copy=True)
+        if origin is not None:
+            tool[:, :3] += np.asarray(origin, np.float64)
         rot = rot6d_to_mat(tool[:, 3:9])
         out = np.zeros((len(tool), 8), np.float32)
         for i in range(len(tool)):
@@ -422,7 +440,11 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
         out[k] = depth_image(unpack_depth_tensor(item[k]), spec.depth_max_m)
     for k, v in item.items():
         if k == ACTION:
-            out[k] = torch.from_numpy(model_actions(v.numpy(), spec.action))
+            act = model_actions(v.numpy(), spec.action)
+            if spec.action == "tool_rel":
+                robot = out[STATE].numpy()
+                act = relative_to(act, robot[-1, 8:11] if robot.ndim == 2 else robot[8:11])
+            out[k] = torch.from_numpy(act)
         elif k.endswith("_is_pad"):
             out[k] = v
     return out

@@ -56,6 +56,7 @@ from factory.policy.inputs import (
     depth_image,
     env_features,
     model_actions,
+    relative_to,
     robot_features,
 )
 
@@ -219,6 +220,9 @@ class LowDimFrames:
                 continue
             q = idx + np.asarray(delta)
             out[key] = torch.from_numpy(values[np.clip(q, start, end - 1)])
+        if self.spec.action == "tool_rel":
+            now = self.values[STATE][idx, 8:11]
+            out[ACTION] = torch.from_numpy(relative_to(out[ACTION].numpy(), now))
         for key, frames in self.videos.items():
             delta = self.delta.get(key)
             at = idx if delta is None else np.clip(idx + np.asarray(delta), start, end - 1)
@@ -360,6 +364,27 @@ def _low_dim(
     return {k: np.concatenate(v).astype(np.float32) for k, v in parts.items()}
 
 
+def relative_action_rows(
+    base: Any, spec: InputSpec, trainset: TrainSet, episodes: list[int] | None
+) -> np.ndarray:
+    """Every ``tool_rel`` action a training sample holds: for each frame of the episodes
+    trained on and each step of the action window (clamped to the episode, as sampled), the
+    tool action relative to that frame's tool position: (frames x window, 10)."""
+    import dataclasses as dc
+
+    frames = trainset.frames or LowDimFrames(base, dc.replace(spec, cameras=()))
+    idx = np.arange(len(frames.episode))
+    if episodes is not None:
+        idx = idx[np.isin(frames.episode, episodes)]
+    delta = np.asarray(frames.delta.get(ACTION, [0]))
+    start = np.array([frames.start[int(e)] for e in frames.episode[idx]])
+    end = np.array([frames.end[int(e)] for e in frames.episode[idx]])
+    q = np.clip(idx[:, None] + delta[None, :], start[:, None], end[:, None] - 1)
+    tool = frames.values[ACTION][q]  # (N, H, 10) absolute tool actions
+    rel = relative_to(tool, frames.values[STATE][idx, 8:11])
+    return rel.reshape(-1, rel.shape[-1])
+
+
 def model_stats(
     spec: InputSpec,
     root: Path,
@@ -379,9 +404,13 @@ def model_stats(
 
     keys = [STATE, EE_POSE, ACTION] + ([ENV_STATE] if spec.inputs == "state" else [])
     rows = _low_dim(root, keys, episodes)
+    if spec.action == "tool_rel":
+        actions = relative_action_rows(base, spec, trainset, episodes)
+    else:
+        actions = model_actions(rows[ACTION], spec.action)
     stats: dict[str, Any] = {
         STATE: get_feature_stats(robot_features(rows[STATE]), axis=0, keepdims=False),
-        ACTION: get_feature_stats(model_actions(rows[ACTION], spec.action), axis=0, keepdims=False),
+        ACTION: get_feature_stats(actions, axis=0, keepdims=False),
     }
     if spec.inputs == "state":
         env = env_features(rows[STATE], rows[EE_POSE], rows[ENV_STATE])

@@ -285,6 +285,57 @@ def test_act_policy_by_name(policy_run: Path, tmp_path: Path) -> None:
     assert actions.shape == (2, 8) and np.isfinite(actions).all()
 
 
+@pytest.mark.parametrize("action", ["joint", "tool_rel"])
+def test_other_action_kinds_train_and_act(policy_run: Path, tmp_path: Path, action: str) -> None:
+    """``train.action=joint`` predicts the dataset's action as it is; ``tool_rel`` predicts
+    tool positions relative to the tool at each chunk's start: its samples add back to the
+    ``tool`` samples, its statistics are those of the relative windows, and acting adds each
+    chunk's origin back (the queue of a chunk shares one origin)."""
+    from factory.policy.checkpoint import chunk_starts, load_policy
+    from factory.policy.inputs import input_spec
+    from factory.policy.train import Trainer, model_stats
+
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(tmp_path, dataset, name=action, action=action, steps=2)
+    assert result["steps"] == 2
+    policy = load_policy(action, tmp_path, device="cpu")
+    assert policy.info.action == action
+    dim = 8 if action == "joint" else 10
+    assert tuple(policy.policy.config.output_features["action"].shape) == (dim,)
+    obs = _frames(dataset, 2, list(policy.info.features))
+    policy.reset()
+    origins = []
+    for step in range(5):  # n_action_steps 4: a new chunk at steps 0 and 4
+        assert chunk_starts(policy.policy) == (step % 4 == 0)
+        actions = policy.act(obs)
+        assert actions.shape == (2, 8) and np.isfinite(actions).all()
+        origins.append(getattr(policy, "_origin", None))
+    if action == "joint":
+        return
+    assert origins[1] is origins[0] and origins[3] is origins[0]  # one chunk, one origin
+    assert origins[4] is not origins[0]
+    features = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    tc = TrainConfig(name="x", dataset=str(dataset), steps=1, batch_size=4, threads=1, options=TINY)
+    absolute = Trainer(tc, input_spec("state", features, "tool"), dataset, tmp_path / "a")
+    spec = input_spec("state", features, "tool_rel")
+    relative = Trainer(tc, spec, dataset, tmp_path / "r")
+    for i in (0, 5, len(relative.trainset) - 1):
+        a, r = absolute.trainset[i], relative.trainset[i]
+        now = r["observation.state"][-1, 8:11]
+        assert torch_allclose(r["action"][:, :3] + now, a["action"][:, :3])
+        assert torch_allclose(r["action"][:, 3:], a["action"][:, 3:])
+    stats = model_stats(spec, dataset, relative.base, relative.trainset)
+    span = stats["action"]["max"][:3] - stats["action"]["min"][:3]
+    whole = model_stats(
+        input_spec("state", features, "tool"), dataset, absolute.base, absolute.trainset
+    )
+    assert (span <= whole["action"]["max"][:3] - whole["action"]["min"][:3] + 1e-6).all()
+
+
+def torch_allclose(a: Any, b: Any) -> bool:
+    return bool(np.allclose(np.asarray(a), np.asarray(b), atol=1e-5))
+
+
 def test_bad_inputs_are_one_line_errors_and_write_nothing(
     state_run: Path, policy_run: Path, tmp_path: Path
 ) -> None:
