@@ -299,8 +299,7 @@ class TrainConfig:
             gripper, turned into joint targets by IK at execution; the paper's end-effector
             actions, and what generalises from few demos), ``tool_rel`` (the same with
             positions relative to the tool at each action chunk's start) or ``joint`` (the
-            dataset's 8-D
-            joint-target action as it is; what ``lerobot-eval`` runs unchanged).
+            dataset's 8-D joint-target action as it is; what ``lerobot-eval`` runs unchanged).
         dataset: the merged LeRobot dataset (empty: ``<run_dir>/dataset/merged``).
         scenes: the dataset's scenes trained on: empty (all), a number ``N`` (the first ``N``
             of its scene ids, sorted) or a list of ids; the other scenes' episodes are never

@@ -71,7 +71,7 @@ class TrainInfo:
         depth_max_m: depth clipping range of ``rgbd`` (m).
         frames: frames trained on.
         episode_indices: the dataset's episode indices trained on (empty: all of them).
-        action: what the model predicts (``tool`` or ``joint``, see
+        action: what the model predicts (``tool``, ``tool_rel`` or ``joint``, see
             :mod:`factory.policy.inputs`); the env always gets 8-D joint targets.
         config: the ``train.*`` settings of the run.
     """
@@ -344,16 +344,16 @@ class LoadedPolicy:
         """
         import torch
 
-        from factory.policy.inputs import convert_observation
+        from factory.policy.inputs import TOOL_POS, convert_observation
 
         if not self._checked:
             check_features(self.info, obs, {k: np.shape(v)[1:] for k, v in obs.items()})
             self._checked = True
         batch = convert_observation(self.spec, obs)
-        tool_now = batch["observation.state"][:, 8:11].numpy().copy()
         with torch.inference_mode():
             if self.spec.action == "tool_rel" and chunk_starts(self._policy):
-                self._origin = tool_now  # this chunk's positions are relative to it
+                # this chunk's positions are relative to the tool's position now
+                self._origin = batch["observation.state"][:, TOOL_POS].numpy().copy()
             batch = self._pre(batch)
             action = self._policy.select_action(batch)
             action = self._post(action)

@@ -79,6 +79,8 @@ DEPTH_MAX_M = 2.0
 """Depth beyond this (m) is clipped: the workspace is within about 1.5 m of every camera."""
 ROBOT_DIM = 17
 """Model ``observation.state``: 7 joints + gripper + tool position (3) + 6D rotation (6)."""
+TOOL_POS = slice(8, 11)
+"""Where the tool position (base frame, m) sits in the model's ``observation.state``."""
 ENV_DIM = 24
 """Model ``observation.environment_state``: two poses of position (3) + 6D rotation (6), then
 the two tool-to-object offsets (3 each)."""
@@ -443,7 +445,7 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
             act = model_actions(v.numpy(), spec.action)
             if spec.action == "tool_rel":
                 robot = out[STATE].numpy()
-                act = relative_to(act, robot[-1, 8:11] if robot.ndim == 2 else robot[8:11])
+                act = relative_to(act, robot[-1, TOOL_POS] if robot.ndim == 2 else robot[TOOL_POS])
             out[k] = torch.from_numpy(act)
         elif k.endswith("_is_pad"):
             out[k] = v

@@ -51,6 +51,7 @@ from factory.policy.inputs import (
     EE_POSE,
     ENV_STATE,
     STATE,
+    TOOL_POS,
     InputSpec,
     convert_sample,
     depth_image,
@@ -221,7 +222,7 @@ class LowDimFrames:
             q = idx + np.asarray(delta)
             out[key] = torch.from_numpy(values[np.clip(q, start, end - 1)])
         if self.spec.action == "tool_rel":
-            now = self.values[STATE][idx, 8:11]
+            now = self.values[STATE][idx, TOOL_POS]
             out[ACTION] = torch.from_numpy(relative_to(out[ACTION].numpy(), now))
         for key, frames in self.videos.items():
             delta = self.delta.get(key)
@@ -381,7 +382,7 @@ def relative_action_rows(
     end = np.array([frames.end[int(e)] for e in frames.episode[idx]])
     q = np.clip(idx[:, None] + delta[None, :], start[:, None], end[:, None] - 1)
     tool = frames.values[ACTION][q]  # (N, H, 10) absolute tool actions
-    rel = relative_to(tool, frames.values[STATE][idx, 8:11])
+    rel = relative_to(tool, frames.values[STATE][idx, TOOL_POS])
     return rel.reshape(-1, rel.shape[-1])
 
 
