@@ -231,6 +231,10 @@ class DemosConfig:
         speed: share of the Panda's velocity limit for free motions (acceleration and jerk
             use 0.6 and 0.4 of it).
         max_grasps: grasp candidates tried per episode.
+        grasp_facing: weight of the preference for grasps on the side of the object facing the
+            robot, held in one of the gripper's two symmetric orientations. Demos that grasp
+            the same way each time are what an imitation policy can learn (random rim points
+            around a mug taught it every azimuth at once); 0 keeps the geometric ranking.
         sleep: let bodies at rest sleep (MuJoCo island sleeping; about 4x faster execution).
             Recorded states replay images exactly either way; stepping the physics from a
             recorded state reproduces the next one exactly only with ``sleep=false`` (sleep
@@ -253,6 +257,7 @@ class DemosConfig:
     plan_timeout: float = 5.0
     speed: float = 0.5
     max_grasps: int = 12
+    grasp_facing: float = 1.0
     sleep: bool = True
 
 

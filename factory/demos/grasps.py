@@ -15,7 +15,7 @@ closing axis; ``pose_tool_in_obj`` is a 4x4 transform in the object's body frame
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -346,6 +346,53 @@ def antipodal_candidates(
             seen.add(key)
             unique.append(g)
     return unique
+
+
+def facing_order(
+    grasps: list[Grasp],
+    pose_obj_in_world: np.ndarray,
+    base_xy_in_world: np.ndarray,
+    weight: float,
+) -> list[Grasp]:
+    """Grasps made consistent for learning: on the side facing the robot, one hand orientation.
+
+    A policy trained on the demos sees the object, not the planner's random draw of its
+    surface points; if the grasp lands anywhere around a mug's rim, the demos teach every
+    azimuth at once and an imitation policy averages them into the middle of the mug. So the
+    candidates are ranked by ``score + weight * cos(azimuth)``, where the azimuth is the angle,
+    seen from above, between the grasp centre's offset from the object and the direction from
+    the object to the robot base (0: the side facing the robot), and the parallel gripper's
+    two symmetric ways of holding the same grasp (rotated by 180 degrees about the approach)
+    are reduced to the one whose closing axis points away from the robot.
+
+    Args:
+        grasps: candidates (object frame), e.g. :func:`antipodal_candidates`.
+        pose_obj_in_world: the object's pose (4, 4).
+        base_xy_in_world: the robot base position (2,), world frame (m).
+        weight: strength of the facing preference; 0 keeps the geometric ranking and the
+            sampled hand orientations.
+
+    Returns:
+        the candidates, re-oriented and re-ranked (best first).
+    """
+    if weight <= 0:
+        return list(grasps)
+    obj_xy = pose_obj_in_world[:2, 3]
+    toward = np.asarray(base_xy_in_world, float) - obj_xy
+    toward /= max(float(np.linalg.norm(toward)), 1e-9)
+    flip = np.diag([-1.0, -1.0, 1.0, 1.0])  # 180 degrees about the tool's approach axis
+    ranked = []
+    for g in grasps:
+        pose = g.pose_tool_in_obj
+        world = pose_obj_in_world @ pose
+        if float(world[:2, 0] @ toward) > 0:  # closing axis points at the robot: flip it
+            pose = pose @ flip
+        off = world[:2, 3] - obj_xy
+        norm = float(np.linalg.norm(off))
+        facing = float(off @ toward) / norm if norm > 1e-4 else 0.0
+        ranked.append((g.score + weight * facing, replace(g, pose_tool_in_obj=pose)))
+    ranked.sort(key=lambda t: -t[0])
+    return [g for _, g in ranked]
 
 
 @dataclass

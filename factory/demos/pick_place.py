@@ -27,6 +27,7 @@ from factory.demos.grasps import (
     GripperShape,
     antipodal_candidates,
     collision_pieces,
+    facing_order,
     gripper_clear,
 )
 from factory.demos.ik import IKConfig, IKSolver
@@ -341,6 +342,8 @@ class EpisodePlanner:
         grasp_cfg, ik_cfg, planner_cfg, motion: parameters.
         ws: where task objects are put per episode.
         max_grasps: grasp candidates tried per episode.
+        grasp_facing: preference for grasps on the object's side facing the robot, in one hand
+            orientation (:func:`~factory.demos.grasps.facing_order`; 0: geometric ranking).
     """
 
     def __init__(
@@ -352,6 +355,7 @@ class EpisodePlanner:
         motion: MotionConfig | None = None,
         ws: Workspace | None = None,
         max_grasps: int = 12,
+        grasp_facing: float = 1.0,
     ) -> None:
         self.setup = setup
         self.grasp_cfg = grasp_cfg or GraspConfig()
@@ -360,6 +364,7 @@ class EpisodePlanner:
         self.motion = motion or MotionConfig()
         self.ws = ws or Workspace()
         self.max_grasps = max_grasps
+        self.grasp_facing = grasp_facing
         m = setup.model
         self.model = m
         self.robot = setup.robot
@@ -391,6 +396,7 @@ class EpisodePlanner:
             self._rng,
             self.model.body_ipos[self.pick_body],
         )
+        cands = facing_order(cands, pose, self.base[:2, 3], self.grasp_facing)
         out = []
         back = np.eye(4)
         back[2, 3] = -self.grasp_cfg.pregrasp

@@ -121,6 +121,7 @@ def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[
         planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
         motion=motion,
         max_grasps=dc.max_grasps,
+        grasp_facing=dc.grasp_facing,
     )
     return setup, planner
 
