@@ -48,6 +48,7 @@ PY=${PY:-python3}
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 DDIM='noise_scheduler_type: DDIM, num_inference_steps: 10'
 STATE_OPTS="train.options={diffusion: {down_dims: [128, 256, 512], horizon: 16, n_action_steps: 8, $DDIM}}"
+RGBD_OPTS=${RGBD_OPTS:-"train.options={diffusion: {$DDIM}}"}
 CPU_OPTS=${CPU_OPTS:-"train.options={diffusion: {down_dims: [64, 128, 256], horizon: 16, n_action_steps: 8, diffusion_step_embed_dim: 64, $DDIM}}"}
 mkdir -p "$RUN" "$OUT_DIR"
 log() { echo "$(date +%T) experiment: $*"; }
@@ -77,7 +78,7 @@ rgbd() {
   $PY -m factory stage=train run_dir="$RUN" train.name=rgbd train.inputs=rgbd \
     train.steps="$RGBD_STEPS" train.batch_size="$RGBD_BATCH" train.num_workers="$RGBD_WORKERS" \
     train.save_every=1000 train.log_every=50 train.device=auto train.max_minutes="$RGBD_MINUTES" \
-    "train.options={diffusion: {$DDIM}}"
+    "$RGBD_OPTS"
   log "   RGB-D trained in $(( $(date +%s) - t1 )) s"
   $PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
     eval.device=auto eval.videos=2 eval.nthread=4 $HELD
