@@ -173,8 +173,11 @@ def setup_scene(
     A spot is taken when the robot at home collides with nothing and a top-down tool pose
     above the middle of the reachable workspace has an IK solution. When every spot is
     blocked only by movable floor objects (chairs around a table, a bin), the nearest such
-    spot is freed by taking those objects (and what stands on them) out of the scene; the
-    setup's ``cleared`` names them.
+    spot is freed by taking those objects (and what stands on them) out of the scene. A spot
+    is preferred where the episodes' sampler finds room for the task objects within reach
+    (:func:`has_room`); where no spot has room, the objects crowding the support nearest to
+    the robot are taken off it (:func:`clear_clutter`). The setup's ``cleared`` names every
+    object taken out.
 
     Raises:
         TaskError: the scene lacks task objects, or no spot around the support works.
@@ -197,14 +200,27 @@ def setup_scene(
         raise TaskError("the robot cannot reach its own workspace centre")
     keep = {objects.pick.id, objects.target.id, objects.support.id}
     scene_ids = {o.id for o in scene.objects}
+
+    def done(spot: RobotPlacement, sc: Scene, cleared: set[str], why: str) -> SceneSetup:
+        if cleared:
+            log.info("scene %s: cleared %s %s", scene.id, sorted(cleared), why)
+        cams = aim_cameras(sc, assets_root, spot, rig)
+        out = compose(sc, assets_root, spot, cams)
+        return SceneSetup(sc, objects, spot, out, RobotIndex.of(out), cams, tuple(sorted(cleared)))
+
+    def room(sc: Scene, spot: RobotPlacement) -> bool:
+        return has_room(checker.model, qpos, sc, objects, spot, ws)
+
+    free: list[RobotPlacement] = []
     blocked: list[tuple[RobotPlacement, set[str]]] = []
     for spot in spots[:max_spots]:
         move_robot(checker.model, spot, base_body)
         hits = checker.collisions(HOME_QPOS)
         if not hits:
-            rig = aim_cameras(scene, assets_root, spot, rig)
-            model = compose(scene, assets_root, spot, rig)
-            return SceneSetup(scene, objects, spot, model, robot, rig)
+            if room(scene, spot):
+                return done(spot, scene, set(), "")
+            free.append(spot)
+            continue
         names = {b for pair in hits for b in pair[:2] if not b.startswith("panda/")}
         if names and all(
             n in scene_ids and n not in keep and _movable(scene.object(n)) for n in names
@@ -214,25 +230,96 @@ def setup_scene(
         cleared = scene.with_dependents(names)
         trimmed = replace(scene, objects=[o for o in scene.objects if o.id not in cleared])
         model = compose(trimmed, assets_root, spot, rig)
-        robot = RobotIndex.of(model)
-        check = CollisionChecker(model, robot, initial_state(model, robot))
-        if check.valid(HOME_QPOS):
-            log.info("scene %s: cleared %s for the robot's base", scene.id, sorted(cleared))
-            rig = aim_cameras(trimmed, assets_root, spot, rig)
-            model = compose(trimmed, assets_root, spot, rig)
-            return SceneSetup(
-                trimmed,
-                objects,
-                spot,
-                model,
-                robot,
-                rig,
-                tuple(sorted(cleared)),
-            )
+        trimmed_robot = RobotIndex.of(model)
+        check = CollisionChecker(model, trimmed_robot, initial_state(model, trimmed_robot))
+        if check.valid(HOME_QPOS) and room(trimmed, spot):
+            return done(spot, trimmed, cleared, "for the robot's base")
+    for spot in free[:3]:
+        trimmed, cleared = clear_clutter(checker.model, qpos, scene, objects, spot, ws)
+        if cleared:
+            return done(spot, trimmed, cleared, "from the task's table to make room for the task")
+    if free:  # no room anywhere: each episode's object placement fails with its own reason
+        return done(free[0], scene, set(), "")
     raise TaskError(
         f"scene {scene.id!r}: no free base spot next to {objects.support.id!r} "
         f"(tried {min(len(spots), max_spots)})"
     )
+
+
+ROOM_SEEDS = 10
+"""Seeds tried by :func:`has_room` (an episode's placement is one seed)."""
+ROOM_SHARE = 0.5
+"""Least share of them that must place the task objects for a spot to have room."""
+MAX_CLUTTER = 8
+"""Most objects :func:`clear_clutter` takes off the task's support."""
+
+
+def has_room(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    scene: Scene,
+    objects: TaskObjects,
+    spot: RobotPlacement,
+    ws: Workspace,
+    seeds: int = ROOM_SEEDS,
+) -> bool:
+    """Whether the episodes' sampler (:func:`~factory.demos.task.randomize`) puts the task
+    objects within reach of a base at ``spot`` for at least :data:`ROOM_SHARE` of ``seeds``
+    seeds (a table so crowded that most episodes cannot be set up is not used as it is).
+
+    Args:
+        model: a composed model holding the task objects' free joints.
+        qpos: its initial state (nq,).
+        scene: the scene whose objects occupy the support.
+    """
+    need, placed = ROOM_SHARE * seeds, 0
+    for s in range(seeds):
+        try:
+            randomize(model, qpos, scene, objects, spot, ws, np.random.default_rng(s))
+            placed += 1
+        except TaskError:
+            pass
+        if placed >= need:
+            return True
+        if placed + (seeds - s - 1) < need:
+            return False
+    return False
+
+
+def clear_clutter(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    scene: Scene,
+    objects: TaskObjects,
+    spot: RobotPlacement,
+    ws: Workspace,
+) -> tuple[Scene, set[str]]:
+    """Takes objects off the task's support, nearest to the robot first (with what stands on
+    them), until the task objects fit within reach (:func:`has_room`).
+
+    A generated table can be set so fully (plates, bowls, mugs) that no spot within the arm's
+    reach is free for the task's two objects; a person would clear a corner of it first.
+
+    Returns:
+        ``(scene without them, their ids)``; ``(scene, set())`` when clearing up to
+        :data:`MAX_CLUTTER` objects does not make room.
+    """
+    base = spot.pos()[:2]
+    clutter = sorted(
+        (
+            o
+            for o in scene.objects
+            if o.placement.support_id == objects.support.id
+            and o.id not in (objects.pick.id, objects.target.id)
+        ),
+        key=lambda o: float(np.hypot(o.position.x - base[0], o.position.y - base[1])),
+    )
+    for k in range(1, min(len(clutter), MAX_CLUTTER) + 1):
+        cleared = scene.with_dependents({o.id for o in clutter[:k]})
+        trimmed = replace(scene, objects=[o for o in scene.objects if o.id not in cleared])
+        if has_room(model, qpos, trimmed, objects, spot, ws):
+            return trimmed, cleared
+    return scene, set()
 
 
 def _movable(obj: SceneObject) -> bool:

@@ -84,6 +84,10 @@ class CollisionChecker:
         m.geom_conaffinity[robot.geoms] = _ROBOT_AFF
         m.geom_margin[:] = 0.0
         m.geom_gap[:] = 0.0
+        # Island sleeping keeps static bodies' poses from the last full update, so a robot base
+        # moved in the model (``move_robot``) would be checked where it was: the checker only
+        # poses and collides, and gains nothing from sleeping.
+        m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
         self.robot = robot
         self.data = mujoco.MjData(m)
         self.base = np.array(qpos, dtype=float)

@@ -29,11 +29,19 @@ from factory.demos.ik import IKSolver
 from factory.demos.pick_place import (
     EpisodePlan,
     EpisodePlanner,
+    clear_clutter,
+    has_room,
     setup_scene,
 )
 from factory.demos.planner import CollisionChecker, PlannerConfig, plan
 from factory.demos.robot import HOME_QPOS, PANDA, RobotIndex
-from factory.demos.task import check_success, initial_state, task_objects
+from factory.demos.task import (
+    Workspace,
+    check_success,
+    initial_state,
+    move_robot,
+    task_objects,
+)
 from factory.demos.timing import Limits, time_path, time_segment
 from factory.errors import StoreError, TaskError
 from factory.schema import Scene, scene_to_json
@@ -468,16 +476,62 @@ def test_robot_cache_matches_robosuite(tmp_path: Path, monkeypatch) -> None:
 
 @pytest.mark.slow
 def test_blocked_table_is_cleared(tmp_path: Path) -> None:
-    """A generated kitchen whose dining table is ringed by chairs: the chair in the way of the
-    nearest spot is taken out, and the episode plans."""
+    """A generated kitchen whose dining table's nearest spot is taken by a chair: limited to
+    that spot, the chair is taken out and the episode plans; with every spot allowed, a free
+    one is used and nothing is cleared (the spot check sees the robot where it is moved even
+    with island sleeping on, which once kept it at the first spot)."""
     from factory.scenes.brain import generate_scene
 
     request = "a kitchen where the robot picks up a mug and puts it in the bowl"
     scene, _ = generate_scene(request, AssetLibrary(tmp_path / "assets"), seed=4)
-    setup = setup_scene(scene, tmp_path / "assets")
-    assert setup.cleared, "this scene's table is blocked by chairs on every side"
+    setup = setup_scene(scene, tmp_path / "assets", max_spots=1)
+    assert setup.cleared, "this scene's nearest spot is blocked by a chair"
     for oid in setup.cleared:
         original = scene.object(oid)
         assert original.placement.kind == "floor" or original.placement.support_id in setup.cleared
         assert oid not in {o.id for o in setup.scene.objects}
     assert isinstance(EpisodePlanner(setup).plan_episode(0), EpisodePlan)
+    free = setup_scene(scene, tmp_path / "assets")
+    assert free.cleared == ()
+    assert (free.placement.x, free.placement.y) != (setup.placement.x, setup.placement.y)
+    checker = CollisionChecker(free.model, free.robot, initial_state(free.model, free.robot))
+    assert checker.valid(HOME_QPOS)
+    base = free.model.body("panda/robot0_base").id
+    move_robot(checker.model, setup.placement, base)  # back onto the chair
+    assert not checker.valid(HOME_QPOS)
+
+
+def test_crowded_table_is_cleared_nearest_first(setup) -> None:
+    """A table set so fully that the task objects find no spot within reach: objects nearest
+    to the robot are taken off until the episodes' sampler places them (has_room)."""
+    from factory.schema import Vec3
+
+    objects, spot = setup.objects, setup.placement
+    model, qpos = setup.model, initial_state(setup.model, setup.robot)
+    ws = Workspace()
+    assert has_room(model, qpos, setup.scene, objects, spot, ws)
+    big = replace(objects.target.dimensions, width=0.3, length=0.3)
+    clutter = []
+    for i, ang in enumerate(np.radians(np.arange(-62.5, 63, 25.0)) + spot.yaw):
+        xy = spot.pos()[:2] + 0.5 * np.array([np.cos(ang), np.sin(ang)])
+        clutter.append(
+            replace(
+                objects.target,
+                id=f"tray_{i}",
+                dimensions=big,
+                position=Vec3(float(xy[0]), float(xy[1]), objects.target.position.z),
+            )
+        )
+    crowded = replace(setup.scene, objects=[*setup.scene.objects, *clutter])
+    assert not has_room(model, qpos, crowded, objects, spot, ws)
+    trimmed, cleared = clear_clutter(model, qpos, crowded, objects, spot, ws)
+    assert cleared and objects.pick.id not in cleared and objects.target.id not in cleared
+    assert has_room(model, qpos, trimmed, objects, spot, ws)
+    dist = {
+        o.id: float(np.hypot(o.position.x - spot.x, o.position.y - spot.y))
+        for o in crowded.objects
+        if o.placement.support_id == objects.support.id
+        and o.id not in (objects.pick.id, objects.target.id)
+    }
+    kept = [d for k, d in dist.items() if k not in cleared]
+    assert max(dist[k] for k in cleared) <= min(kept, default=np.inf) + 1e-9
