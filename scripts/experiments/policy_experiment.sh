@@ -42,6 +42,8 @@ RGBD_WORKERS=${RGBD_WORKERS:-6}
 EVAL_EPISODES=${EVAL_EPISODES:-30}
 RGBD_EVAL_EPISODES=${RGBD_EVAL_EPISODES:-90}
 CPU_STATE=${CPU_STATE:-1}
+RGBD=${RGBD:-1}  # 0: no RGB-D policy (then DEMOS_ARGS=demos.render=false makes the data much faster)
+DEMOS_ARGS=${DEMOS_ARGS:-}
 TRAIN_CONFIGS=${TRAIN_CONFIGS:-5}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
 PY=${PY:-python3}
@@ -65,7 +67,7 @@ generate() {  # generate <count> <seed>: kitchens, one shard per core
 t0=$(date +%s)
 log "1. $TRAIN_SCENES training kitchens"
 generate "$TRAIN_SCENES" 0
-$PY -m factory stage=demos run_dir="$RUN" demos.episodes_per_scene="$EPISODES" demos.workers="$JOBS"
+$PY -m factory stage=demos run_dir="$RUN" demos.episodes_per_scene="$EPISODES" demos.workers="$JOBS" $DEMOS_ARGS
 $PY -m factory stage=dataset run_dir="$RUN" dataset.workers="$JOBS"
 log "   $HELDOUT_SCENES held-out kitchens"
 generate "$HELDOUT_SCENES" 100000
@@ -96,8 +98,11 @@ cpu_state() {  # trained on the CPU with 2 threads, evaluated on held-out and tr
     eval.name=state_cpu_train_scenes eval.episodes_per_scene="$TRAIN_CONFIGS" eval.device=cpu \
     eval.nthread=2 eval.videos=1
 }
-rgbd > "$OUT_DIR/rgbd.log" 2>&1 &
-RGBD_PID=$!
+RGBD_PID=""
+if [ "$RGBD" = 1 ]; then
+  rgbd > "$OUT_DIR/rgbd.log" 2>&1 &
+  RGBD_PID=$!
+fi
 CPU_PID=""
 if [ "$CPU_STATE" = 1 ]; then
   cpu_state > "$OUT_DIR/state-cpu.log" 2>&1 &
@@ -113,7 +118,7 @@ $PY scripts/scaling_policy.py --run-dir "$RUN" --points $POINTS --steps "$STATE_
   > "$OUT_DIR/scaling.log" 2>&1 || log "   the scaling script failed: $OUT_DIR/scaling.log"
 log "   scaling done in $(( $(date +%s) - t1 )) s"
 [ -z "$CPU_PID" ] || wait "$CPU_PID" || log "   the CPU state policy failed: $OUT_DIR/state-cpu.log"
-wait "$RGBD_PID" || log "   RGB-D failed: $OUT_DIR/rgbd.log"
+[ -z "$RGBD_PID" ] || wait "$RGBD_PID" || log "   RGB-D failed: $OUT_DIR/rgbd.log"
 for d in "$RUN"/eval/*/; do if [ -f "$d/results.json" ]; then cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"; fi; done
 for d in "$RUN"/policy/*/; do
   cp "$d/train.json" "$OUT_DIR/train-$(basename "$d").json" || true
