@@ -199,6 +199,26 @@ def test_fast_low_dim_samples_equal_lerobots_own(policy_run: Path) -> None:
     assert bool(trainset[len(base) - 1]["action_is_pad"][-1])
 
 
+def test_state_diffusion_recipe_defaults(policy_run: Path) -> None:
+    """Diffusion on state inputs predicts the clean chunk (sample) in 10 DDIM steps at lr 3e-4
+    unless train.options / train.lr say otherwise; image inputs keep lerobot's preset."""
+    from factory.policy.inputs import input_spec
+    from factory.policy.train import STATE_DIFFUSION_LR, policy_config
+
+    feats = json.loads((policy_run / "dataset" / "merged" / "meta" / "info.json").read_text())
+    state = input_spec("state", feats["features"])
+    cfg = policy_config(TrainConfig(options=TINY), state, "cpu")
+    assert (cfg.prediction_type, cfg.noise_scheduler_type) == ("sample", "DDIM")
+    assert cfg.num_inference_steps == TINY["diffusion"]["num_inference_steps"]  # options win
+    eps = {"diffusion": {**TINY["diffusion"], "prediction_type": "epsilon"}}
+    assert policy_config(TrainConfig(options=eps), state, "cpu").prediction_type == "epsilon"
+    rgb = input_spec("rgb", feats["features"])
+    assert policy_config(TrainConfig(inputs="rgb", options=TINY), rgb, "cpu").prediction_type == (
+        "epsilon"
+    )
+    assert STATE_DIFFUSION_LR == 3e-4
+
+
 def test_video_cache_samples_equal_lerobots_own(policy_run: Path) -> None:
     """An RGB-D policy's samples read from the videos decoded into memory are what
     ``LeRobotDataset.__getitem__`` decodes per sample (same delta timestamps), converted:
