@@ -17,9 +17,11 @@
 #   TRAIN_SCENES=2 HELDOUT_SCENES=1 EPISODES=2 POINTS="1 2" STATE_STEPS=20 RGBD_STEPS=4 \
 #     EVAL_EPISODES=2 RUN=/tmp/tiny bash scripts/experiments/policy_experiment.sh
 # Results: $RUN/eval/*/results.json, $OUT_DIR/*.json (scaling JSON + SVG, the summaries).
-# On the GPU machine (see ../shared/device.md for carrying wheels): its preinstalled
-# transformers needs a newer huggingface_hub than lerobot 0.4.4 pins, and lerobot imports it
-# while registering its policies: `python3 -m pip uninstall -y transformers` there first.
+# On the GPU machine: scripts/experiments/device_bundle.sh gathers the wheels, GL loaders and
+# robot model it needs and says how to install them there (its preinstalled transformers needs a
+# newer huggingface_hub than lerobot 0.4.4 pins: `python3 -m pip uninstall -y transformers`).
+# Run this script there in the background (setsid) and copy results under $OUT in every call:
+# an idle machine is given back after 30 s with everything on it.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
@@ -51,6 +53,7 @@ PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 DDIM='noise_scheduler_type: DDIM, num_inference_steps: 10'
 STATE_OPTS="train.options={diffusion: {down_dims: [128, 256, 512], horizon: 16, n_action_steps: 8, $DDIM}}"
 RGBD_OPTS=${RGBD_OPTS:-"train.options={diffusion: {$DDIM}}"}
+RGBD_ARGS=${RGBD_ARGS:-}  # more train.* overrides of the RGB-D policy (word-split), e.g. train.lr=3e-4
 CPU_OPTS=${CPU_OPTS:-"train.options={diffusion: {down_dims: [64, 128, 256], horizon: 16, n_action_steps: 8, diffusion_step_embed_dim: 64, $DDIM}}"}
 mkdir -p "$RUN" "$OUT_DIR"
 log() { echo "$(date +%T) experiment: $*"; }
@@ -80,7 +83,7 @@ rgbd() {
   $PY -m factory stage=train run_dir="$RUN" train.name=rgbd train.inputs=rgbd \
     train.steps="$RGBD_STEPS" train.batch_size="$RGBD_BATCH" train.num_workers="$RGBD_WORKERS" \
     train.save_every=1000 train.log_every=50 train.device=auto train.max_minutes="$RGBD_MINUTES" \
-    "$RGBD_OPTS"
+    "$RGBD_OPTS" $RGBD_ARGS
   log "   RGB-D trained in $(( $(date +%s) - t1 )) s"
   $PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
     eval.device=auto eval.videos=2 eval.nthread=4 $HELD
