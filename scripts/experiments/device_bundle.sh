@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # What the GPU machine (device tool: Python 3.12, torch, no package registry) needs to run the
-# factory's stages, gathered here into folders that git ignores and a device call carries:
+# factory's stages, gathered here into folders that .gitignore lists and a device call carries:
 #
 #   .whl   first part of the wheels (under the 64 MiB a call may carry), installed by a first call
 #   .whl2  the rest, installed by a second call right after (the machine stays warm 30 s)
@@ -20,19 +20,18 @@
 # and call 2 (carry .whl2 .gl .gpu), started within 30 s of the first:
 #   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
 #   python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target /tmp/site2 .whl2/*.whl
-#   . .gpu/env.sh; python3 -m factory ...
+#   . .gpu/env.sh; python3 -m factory ...   (from the checkout's root: env.sh reads $PWD)
 # Copy every result under $OUT in the call that makes it: a machine left idle for 30 s is given
 # back with everything on it (this lost two evaluations once).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-for d in /.whl/ /.whl2/ /.gl/ /.gpu/; do
-  grep -qxF "$d" .git/info/exclude 2>/dev/null || { mkdir -p .git/info; echo "$d" >> .git/info/exclude; }
-done
 PY=${PY:-.venv/bin/python}
 PLAT=""
 for p in manylinux_2_35 manylinux_2_34 manylinux_2_31 manylinux_2_28 manylinux_2_27 manylinux_2_24 \
   manylinux_2_17 manylinux2014 manylinux1; do PLAT="$PLAT --platform ${p}_x86_64"; done
-version() { "$PY" -c "import importlib.metadata as m; print(m.version('$1'))"; }
+pins() {  # pins <names...>: name==version of each as installed in .venv (one interpreter start)
+  "$PY" -c 'import sys, importlib.metadata as m; print(*(f"{n}=={m.version(n)}" for n in sys.argv[1:]))' "$@"
+}
 # Part 1: PyAV (39 MB) and the small pure-Python ones; part 2: MuJoCo, planning, lerobot & co.
 PART1="av numcodecs deepdiff dill donfig draccus farama-notifications fast-simplification glfw
   google-crc32c importlib-metadata jsonlines mergedeep multiprocess omegaconf orderly-set plyfile
@@ -42,21 +41,20 @@ PART2="mujoco mujoco-core ompl diffusers pyopengl rapidfuzz coacd pydantic-core 
   datasets trimesh rtree zarr gymnasium hydra-core"
 fetch() {  # fetch <dir> <names...>: the versions installed in .venv, as Python 3.12 wheels
   local dir=$1; shift; mkdir -p "$dir"
-  local specs=()
-  for n in "$@"; do specs+=("$n==$(version "$n")"); done
   python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 \
-    --implementation cp $PLAT -d "$dir" "${specs[@]}"
+    --implementation cp $PLAT -d "$dir" $(pins "$@")
 }
 fetch .whl $PART1
 fetch .whl2 $PART2
 # hydra's parser runtime has no wheel on PyPI: build one (pure Python)
-python3 -m pip wheel -q --no-deps -w .whl2 "antlr4-python3-runtime==$(version antlr4-python3-runtime)"
+python3 -m pip wheel -q --no-deps -w .whl2 $(pins antlr4-python3-runtime)
 mkdir -p .gl /tmp/amd64/partial
 o='-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64'
 apt-get $o update -qq
 (cd .gl && apt-get $o download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2)
 mkdir -p .gpu
-FACTORY_ROBOT_CACHE=$PWD/.gpu/robots "$PY" -c "from factory.demos.robot import _robot_xml; _robot_xml()"
+FACTORY_ROBOT_CACHE=$PWD/.gpu/robots "$PY" -c \
+  "from factory.demos.robot import export_robot, robot_cache_dir as d; d().is_dir() or export_robot(d())"
 cat > .gpu/env.sh <<'EOF'
 export PYTHONPATH=/tmp/site:/tmp/site2:$PWD MUJOCO_GL=egl FACTORY_ROBOT_CACHE=$PWD/.gpu/robots \
   PYTHONUNBUFFERED=1 HF_HUB_OFFLINE=1
