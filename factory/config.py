@@ -380,7 +380,11 @@ class EvalConfig:
         max_steps: frames per episode before it fails with a time-out (0: 1.5x the longest
             training episode, else 400); replay and planner run their own length.
         batch: episodes of a scene simulated together (0: all of a scene's, at most 16).
-        nthread: simulation threads (0: one per core).
+        workers: processes that run batches side by side, each with its own simulation,
+            renderer and copy of the policy (0: one per 4 cores); image policies are bound by
+            rendering on the CPU, so a many-core node evaluates them about ``workers`` times
+            faster.
+        nthread: simulation threads per process (0: the cores shared among the workers).
         videos: rollouts written as mp4 under ``eval/<policy>/videos``.
         env_state: observe ``observation.environment_state`` even if the policy does not use it.
         interpolate: the env's controller moves the arm target linearly over a frame from the
@@ -398,6 +402,7 @@ class EvalConfig:
     seed: int = 0
     max_steps: int = 0
     batch: int = 0
+    workers: int = 1
     nthread: int = 0
     videos: int = 2
     env_state: bool = False

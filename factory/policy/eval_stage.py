@@ -42,8 +42,10 @@ def check_config(ec: Any) -> None:
     """Raises :class:`ConfigError` naming a bad ``eval.*`` value."""
     if ec.episodes_per_scene < 1:
         raise ConfigError(f"eval.episodes_per_scene must be >= 1, got {ec.episodes_per_scene}")
-    if ec.max_steps < 0 or ec.batch < 0 or ec.nthread < 0 or ec.videos < 0:
-        raise ConfigError("eval.max_steps, eval.batch, eval.nthread and eval.videos must be >= 0")
+    if min(ec.max_steps, ec.batch, ec.workers, ec.nthread, ec.videos) < 0:
+        raise ConfigError(
+            "eval.max_steps, eval.batch, eval.workers, eval.nthread and eval.videos must be >= 0"
+        )
     scenes = ec.scenes
     if isinstance(scenes, str):
         if scenes not in ("heldout", "train"):
@@ -280,7 +282,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
     from factory.policy.env import (
         RESEED_STRIDE,
         eval_seed,
-        make_vec_env,
         obs_spec_of_dataset,
         obs_spec_of_demos,
     )
@@ -288,14 +289,11 @@ def run(ctx: StageContext) -> dict[str, Any]:
         Job,
         append_records,
         drop_torn_records,
-        plan_actions,
         read_records,
         record_key,
-        run_batch,
-        scripted_actor,
         summarize,
-        write_video,
     )
+    from factory.policy.eval_units import UnitSettings, make_units, run_units
     from factory.policy.vector_env import ObsSpec
 
     t0 = time.perf_counter()
@@ -393,7 +391,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
     have_videos = len(list(videos_dir.glob("*.mp4"))) if videos_dir.is_dir() else 0
     want_videos = max(0, ec.videos - have_videos)
     cores = os.cpu_count() or 1
-    nthread = ec.nthread or cores
     skipped: dict[str, str] = {}
     all_keys = {j.key for j in jobs}
     todo_total = sum(1 for j in jobs if j.key not in done)
@@ -406,6 +403,23 @@ def run(ctx: StageContext) -> dict[str, Any]:
         len(jobs) - todo_total,
         max_steps,
     )
+    workers = ec.workers or max(1, cores // 4)
+    nthread = ec.nthread or max(1, cores // workers)
+    todo_jobs = [j for j in jobs if j.key not in done]
+    units = make_units(todo_jobs, ec.batch or MAX_BATCH, want_videos, bases)
+    settings = UnitSettings(
+        run_dir=run_dir,
+        kind=kind,
+        policy_ref=str(policy.path) if policy is not None else "",
+        device=ec.device,
+        spec=spec,
+        max_steps=max_steps,
+        nthread=nthread,
+        interpolate=ec.interpolate,
+        demos=cfg.demos,
+        videos_dir=videos_dir,
+        reseed_stride=RESEED_STRIDE,
+    )
     with tqdm(
         total=len(jobs),
         initial=len(jobs) - todo_total,
@@ -414,67 +428,16 @@ def run(ctx: StageContext) -> dict[str, Any]:
         disable=None,
         file=terminal(),
     ) as bar:
-        for scene in scenes:
-            todo = [j for j in jobs if j.scene == scene and j.key not in done]
-            if not todo:
-                continue
-            size = min(ec.batch or MAX_BATCH, len(todo))
-            try:
-                env, planner = make_vec_env(
-                    run_dir,
-                    scene,
-                    size,
-                    spec,
-                    max_steps,
-                    nthread,
-                    ec.interpolate,
-                    cfg.demos,
-                )
-            except TaskError as e:
-                log.warning("eval: scene %s cannot host the task: %s", scene, e)
-                skipped[scene] = str(e)
-                bar.update(len(todo))
-                continue
-            try:
-                if kind == "replay":
-                    _check_base(scene, bases.get(scene), env.setup.placement)
-                else:
-                    try:
-                        for j in todo:
-                            j.seed = _usable_seed(env, j.seed, RESEED_STRIDE)
-                            j.max_steps = max_steps
-                    except TaskError as e:
-                        log.warning("eval: scene %s cannot host the task: %s", scene, e)
-                        skipped[scene] = str(e)
-                        bar.update(len(todo))
-                        continue
-                for start in range(0, len(todo), size):
-                    batch = todo[start : start + size]
-                    if kind == "planner":
-                        for j in batch:
-                            res = planner.plan_episode(j.seed)
-                            if hasattr(res, "targets"):
-                                j.actions = plan_actions(res.targets, env.per_frame)
-                                j.max_steps = len(j.actions)
-                            else:
-                                j.failure = f"plan:{res.reason}"
-                    video = [i for i in range(len(batch)) if i < want_videos]
-                    if policy is not None:
-                        actor = _policy_actor(policy)
-                        records, frames = run_batch(env, batch, actor, video, policy.reset)
-                    else:
-                        records, frames = run_batch(env, batch, scripted_actor(batch), video)
-                    for i, fr in frames.items():
-                        if len(fr) > 1:
-                            clip = f"{_slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
-                            write_video(videos_dir / f"{clip}.mp4", fr, spec.fps)
-                            want_videos -= 1
-                    append_records(episodes_path, records)
-                    for r in records:
-                        done[record_key(r)] = r
-                    bar.update(len(batch))
-            finally:
-                env.close()
+        for res in run_units(units, settings, workers, policy, cores):
+            if res.skipped:
+                if res.scene not in skipped:
+                    log.warning("eval: scene %s cannot host the task: %s", res.scene, res.skipped)
+                skipped[res.scene] = res.skipped
+            else:
+                append_records(episodes_path, res.records)
+                for r in res.records:
+                    done[record_key(r)] = r
+            bar.update(res.episodes)
     records = [r for k, r in done.items() if k in all_keys]
     results = summarize(
         records,
@@ -521,36 +484,3 @@ def run(ctx: StageContext) -> dict[str, Any]:
             {"what": "eval videos", "count": n_videos, "path": str(videos_dir)},
         ],
     }
-
-
-def _usable_seed(env: Any, seed: int, stride: int) -> int:
-    """The seed itself, or the first ``seed + k * stride`` whose configuration the sampler
-    can place (the env's own rule)."""
-    for k in range(100):
-        try:
-            env.sample_qpos(seed + k * stride)
-            return seed + k * stride
-        except TaskError:
-            continue
-    raise TaskError(f"scene {env.setup.scene.id!r}: no seed of 100 places the task objects")
-
-
-def _check_base(scene: str, recorded: Any, placement: Any) -> None:
-    """Replay needs the robot where it stood when the episodes were recorded."""
-    if recorded is None:
-        return
-    got = np.array([placement.x, placement.y, placement.z, placement.yaw])
-    want = np.array([recorded["x"], recorded["y"], recorded["z"], recorded["yaw"]])
-    if not np.allclose(got, want, atol=1e-6):
-        raise StoreError(
-            f"scene {scene!r}: the robot's base spot {got.round(3).tolist()} differs from the "
-            f"recorded {want.round(3).tolist()} (the scene changed since the demos): re-record "
-            "them (stage=demos force=true)"
-        )
-
-
-def _policy_actor(policy: Any) -> Any:
-    def act(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
-        return np.asarray(policy.act(obs), np.float32)
-
-    return act

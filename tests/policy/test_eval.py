@@ -95,6 +95,64 @@ def test_planner_on_held_out_scene_and_resume(policy_run: Path, pcli) -> None:
     assert other.returncode == 2 and "force=true" in other.stderr
 
 
+def test_worker_processes_give_the_same_episodes(policy_run: Path, pcli) -> None:
+    """``eval.workers``: batches spread over spawned processes give the records of one
+    process (replay is deterministic), and a trained policy loads and acts in each worker."""
+    run = f"run_dir={policy_run}"
+    one = pcli("stage=eval", run, "eval.policy=replay", "eval.name=w1", "eval.videos=0")
+    assert one.returncode == 0, one.stderr[-3000:]
+    two = pcli(
+        "stage=eval",
+        run,
+        "eval.policy=replay",
+        "eval.name=w2",
+        "eval.workers=2",
+        "eval.batch=1",
+        "eval.videos=1",
+    )
+    assert two.returncode == 0, two.stderr[-3000:]
+    assert "over 2 worker processes" in two.stderr
+
+    def key(r: dict) -> tuple:
+        return (r["episode_id"], r["success"], r["reason"], r["steps"])
+
+    w1 = sorted(key(r) for r in read_records(policy_run / "eval" / "w1" / "episodes.jsonl"))
+    w2 = sorted(key(r) for r in read_records(policy_run / "eval" / "w2" / "episodes.jsonl"))
+    assert w1 == w2 and len(w1) == 3
+    assert len(list((policy_run / "eval" / "w2" / "videos").glob("*.mp4"))) == 1
+    # a (barely) trained policy, two workers each loading it
+    out = pcli(
+        "stage=train",
+        run,
+        "train.name=tiny",
+        "train.steps=2",
+        "train.batch_size=2",
+        "train.device=cpu",
+        "train.options={diffusion: {down_dims: [16, 32], diffusion_step_embed_dim: 16}}",
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    out = pcli(
+        "stage=eval",
+        run,
+        "eval.policy=tiny",
+        "eval.device=cpu",
+        "eval.workers=2",
+        "eval.batch=1",
+        "eval.episodes_per_scene=2",
+        "eval.max_steps=4",
+        "eval.videos=0",
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    r = _results(policy_run, "tiny")
+    assert r["episodes"] == 2 and list(r["per_scene"]) == ["kitchen_b"]
+    assert all(
+        0 < rec["steps"] <= 4
+        for rec in read_records(policy_run / "eval" / "tiny" / "episodes.jsonl")
+    )
+    bad = pcli("stage=eval", run, "eval.policy=replay", "eval.workers=-1")
+    assert bad.returncode == 2 and "eval.workers" in bad.stderr
+
+
 def test_bad_inputs_write_nothing(policy_run: Path, tmp_path: Path, pcli) -> None:
     run = f"run_dir={policy_run}"
     out = pcli("stage=eval", run, "eval.policy=nonexistent")

@@ -1,0 +1,280 @@
+"""Units of an evaluation: batches of episodes of one scene, run in this process or spread over
+worker processes (``eval.workers``).
+
+A :class:`Unit` is up to ``eval.batch`` episodes of one scene stepped together in one
+:class:`~factory.policy.vector_env.PickPlaceVecEnv`; :func:`run_units` runs a list of them and
+yields each unit's records as it finishes, so that the stage appends them to ``episodes.jsonl``
+at once (a killed evaluation resumes after the last finished unit). With one worker the units
+run here, one after the other; with more, in ``spawn`` processes (CUDA and EGL both want a fresh
+process), each with its own simulation, renderer and copy of the policy: an image policy's
+evaluation is bound by rendering on the CPU, and workers spread it over the cores.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import re
+from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from factory.errors import StoreError, TaskError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class UnitSettings:
+    """What every unit of one evaluation shares (picklable: sent once to each worker).
+
+    Attributes:
+        run_dir: the run directory.
+        kind: ``replay``, ``planner`` or ``trained``.
+        policy_ref: a trained policy's reference (``eval.policy``), else empty.
+        device: torch device of a trained policy.
+        spec: the env's observations (:class:`~factory.policy.vector_env.ObsSpec`).
+        max_steps: frames per episode before truncation (policy episodes).
+        nthread: simulation threads per process.
+        interpolate: the env's controller (see :mod:`factory.policy.vector_env`).
+        demos: the run's demos settings (``cfg.demos``).
+        videos_dir: where rollout videos go.
+        reseed_stride: stride of :func:`usable_seed`'s retries.
+    """
+
+    run_dir: Path
+    kind: str
+    policy_ref: str
+    device: str
+    spec: Any
+    max_steps: int
+    nthread: int
+    interpolate: bool
+    demos: Any
+    videos_dir: Path
+    reseed_stride: int
+
+
+@dataclass
+class Unit:
+    """Episodes of one scene stepped together.
+
+    Attributes:
+        scene: the scene id.
+        jobs: the episodes (:class:`~factory.policy.eval.Job`), at most ``size``.
+        size: simulations of the env (the scene's batch size: one env serves all its units).
+        videos: the first ``videos`` episodes are written as rollout videos.
+        base: replay: the robot's base spot when the episodes were recorded (``x, y, z, yaw``;
+            m, rad, world frame), checked against the env's.
+    """
+
+    scene: str
+    jobs: list[Any]
+    size: int
+    videos: int = 0
+    base: dict[str, float] | None = None
+
+
+@dataclass
+class UnitResult:
+    """What a unit gave: records of its episodes, or why its scene cannot host the task."""
+
+    scene: str
+    records: list[dict[str, Any]] = field(default_factory=list)
+    skipped: str = ""
+    videos: int = 0
+    episodes: int = 0
+
+
+def make_units(
+    jobs: list[Any], batch: int, videos: int, bases: dict[str, Any] | None = None
+) -> list[Unit]:
+    """Splits episodes by scene into batches of at most ``batch``; the first ``videos``
+    episodes (in order) are recorded as videos; ``bases``: replay's recorded base spots by
+    scene."""
+    scenes: dict[str, list[Any]] = {}
+    for j in jobs:
+        scenes.setdefault(j.scene, []).append(j)
+    units = []
+    for scene, todo in scenes.items():
+        size = min(batch, len(todo))
+        for start in range(0, len(todo), size):
+            part = todo[start : start + size]
+            n = min(videos, len(part))
+            videos -= n
+            units.append(Unit(scene, part, size, n, (bases or {}).get(scene)))
+    return units
+
+
+def usable_seed(env: Any, seed: int, stride: int) -> int:
+    """The seed itself, or the first ``seed + k * stride`` whose configuration the sampler
+    can place (the env's own rule)."""
+    for k in range(100):
+        try:
+            env.sample_qpos(seed + k * stride)
+            return seed + k * stride
+        except TaskError:
+            continue
+    raise TaskError(f"scene {env.setup.scene.id!r}: no seed of 100 places the task objects")
+
+
+def check_base(scene: str, recorded: dict[str, float] | None, placement: Any) -> None:
+    """Replay needs the robot where it stood when the episodes were recorded.
+
+    Raises:
+        StoreError: the scene's base spot moved since the demos.
+    """
+    if recorded is None:
+        return
+    import numpy as np
+
+    got = np.array([placement.x, placement.y, placement.z, placement.yaw])
+    want = np.array([recorded["x"], recorded["y"], recorded["z"], recorded["yaw"]])
+    if not np.allclose(got, want, atol=1e-6):
+        raise StoreError(
+            f"scene {scene!r}: the robot's base spot {got.round(3).tolist()} differs from the "
+            f"recorded {want.round(3).tolist()} (the scene changed since the demos): re-record "
+            "them (stage=demos force=true)"
+        )
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_.") or "policy"
+
+
+class UnitRunner:
+    """Runs units in one process, keeping the env of the last scene and size."""
+
+    def __init__(self, settings: UnitSettings, policy: Any = None) -> None:
+        self.s = settings
+        self.policy = policy
+        self._env: Any = None
+        self._planner: Any = None
+        self._key: tuple[str, int] | None = None
+
+    def close(self) -> None:
+        if self._env is not None:
+            self._env.close()
+        self._env = self._planner = self._key = None
+
+    def _env_for(self, scene: str, size: int) -> tuple[Any, Any]:
+        from factory.policy.env import make_vec_env
+
+        if self._key != (scene, size):
+            self.close()
+            s = self.s
+            self._env, self._planner = make_vec_env(
+                s.run_dir, scene, size, s.spec, s.max_steps, s.nthread, s.interpolate, s.demos
+            )
+            self._key = (scene, size)
+        return self._env, self._planner
+
+    def run(self, unit: Unit) -> UnitResult:
+        """Runs one unit; a scene that cannot host the task gives ``skipped``."""
+        from factory.policy.eval import plan_actions, run_batch, scripted_actor, write_video
+
+        s = self.s
+        try:
+            env, planner = self._env_for(unit.scene, unit.size)
+            if s.kind == "replay":
+                check_base(unit.scene, unit.base, env.setup.placement)
+            else:
+                for j in unit.jobs:
+                    j.seed = usable_seed(env, j.seed, s.reseed_stride)
+                    j.max_steps = s.max_steps
+        except TaskError as e:
+            return UnitResult(unit.scene, skipped=str(e), episodes=len(unit.jobs))
+        batch = unit.jobs
+        if s.kind == "planner":
+            for j in batch:
+                res = planner.plan_episode(j.seed)
+                if hasattr(res, "targets"):
+                    j.actions = plan_actions(res.targets, env.per_frame)
+                    j.max_steps = len(j.actions)
+                else:
+                    j.failure = f"plan:{res.reason}"
+        video = list(range(unit.videos))
+        if self.policy is not None:
+            policy = self.policy
+
+            def actor(obs: dict[str, Any], steps: Any) -> Any:
+                import numpy as np
+
+                return np.asarray(policy.act(obs), np.float32)
+
+            records, frames = run_batch(env, batch, actor, video, policy.reset)
+        else:
+            records, frames = run_batch(env, batch, scripted_actor(batch), video)
+        written = 0
+        for i, fr in frames.items():
+            if len(fr) > 1:
+                clip = f"{_slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
+                write_video(s.videos_dir / f"{clip}.mp4", fr, s.spec.fps)
+                written += 1
+        return UnitResult(unit.scene, records, videos=written, episodes=len(batch))
+
+
+# ---- worker processes
+
+_RUNNER: UnitRunner | None = None
+
+
+def _init_worker(settings: UnitSettings, torch_threads: int) -> None:
+    global _RUNNER
+    policy = None
+    if settings.kind == "trained":
+        import torch
+
+        torch.set_num_threads(max(1, torch_threads))
+        from factory.policy.checkpoint import load_policy
+
+        policy = load_policy(settings.policy_ref, settings.run_dir, settings.device)
+    _RUNNER = UnitRunner(settings, policy)
+
+
+def _run_in_worker(unit: Unit) -> UnitResult:
+    assert _RUNNER is not None, "the worker was not initialised"
+    return _RUNNER.run(unit)
+
+
+def run_units(
+    units: list[Unit], settings: UnitSettings, workers: int, policy: Any = None, cores: int = 1
+) -> Iterator[UnitResult]:
+    """Runs ``units`` and yields their results as they finish.
+
+    Args:
+        units: the batches to run.
+        settings: what they share.
+        workers: processes (1: here, with ``policy`` already loaded; more: ``spawn`` workers
+            that load the policy themselves).
+        policy: the loaded policy (trained kind, one worker).
+        cores: CPU cores to share among the workers' torch threads.
+    """
+    if workers <= 1 or len(units) <= 1:
+        runner = UnitRunner(settings, policy)
+        try:
+            for unit in units:
+                yield runner.run(unit)
+        finally:
+            runner.close()
+        return
+    workers = min(workers, len(units))
+    log.info("eval: %d unit(s) over %d worker processes", len(units), workers)
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=ctx,
+        initializer=_init_worker,
+        initargs=(settings, max(1, cores // workers)),
+    ) as pool:
+        pending: set[Future[UnitResult]] = {pool.submit(_run_in_worker, u) for u in units}
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    yield fut.result()
+        finally:
+            for fut in pending:
+                fut.cancel()
