@@ -43,6 +43,9 @@ RGBD_BATCH=${RGBD_BATCH:-32}
 RGBD_WORKERS=${RGBD_WORKERS:-6}
 EVAL_EPISODES=${EVAL_EPISODES:-30}
 RGBD_EVAL_EPISODES=${RGBD_EVAL_EPISODES:-90}
+RGBD_EVAL_WORKERS=${RGBD_EVAL_WORKERS:-$(( $(getconf _NPROCESSORS_ONLN) * 3 / 4 ))}  # eval.workers
+RGBD_EVAL_BATCH=${RGBD_EVAL_BATCH:-8}
+PLANNER_WORKERS=${PLANNER_WORKERS:-4}
 CPU_STATE=${CPU_STATE:-1}
 RGBD=${RGBD:-1}  # 0: no RGB-D policy (then DEMOS_ARGS=demos.render=false makes the data much faster)
 DEMOS_ARGS=${DEMOS_ARGS:-}
@@ -79,16 +82,20 @@ echo "{\"data_seconds\": $(( $(date +%s) - t0 ))}" > "$OUT_DIR/data.json"
 log "2. scaling curve (state, GPU), the CPU state policy and 3. RGB-D (GPU), side by side"
 t1=$(date +%s)
 HELD=${HELDOUT_IDS:+"eval.scenes=[${HELDOUT_IDS// /,}]"}
-rgbd() {
+rgbd() {  # the planner on the same configurations runs beside the training (it needs no policy)
+  $PY -m factory stage=eval run_dir="$RUN" eval.policy=planner eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
+    eval.name=planner_rgbd eval.workers="$PLANNER_WORKERS" eval.batch="$RGBD_EVAL_BATCH" eval.videos=0 \
+    $HELD > "$OUT_DIR/planner-rgbd.log" 2>&1 &
+  local planner=$!
   $PY -m factory stage=train run_dir="$RUN" train.name=rgbd train.inputs=rgbd \
     train.steps="$RGBD_STEPS" train.batch_size="$RGBD_BATCH" train.num_workers="$RGBD_WORKERS" \
     train.save_every=1000 train.log_every=50 train.device=auto train.max_minutes="$RGBD_MINUTES" \
     "$RGBD_OPTS" $RGBD_ARGS
   log "   RGB-D trained in $(( $(date +%s) - t1 )) s"
   $PY -m factory stage=eval run_dir="$RUN" eval.policy=rgbd eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
-    eval.device=auto eval.videos=2 eval.nthread=4 $HELD
-  $PY -m factory stage=eval run_dir="$RUN" eval.policy=planner eval.episodes_per_scene="$RGBD_EVAL_EPISODES" \
-    eval.name=planner_rgbd eval.nthread=4 eval.videos=0 $HELD
+    eval.device=auto eval.videos=2 eval.workers="$RGBD_EVAL_WORKERS" eval.batch="$RGBD_EVAL_BATCH" $HELD
+  log "   RGB-D evaluated in $(( $(date +%s) - t1 )) s"
+  wait "$planner" || log "   the planner evaluation failed: $OUT_DIR/planner-rgbd.log"
 }
 cpu_state() {  # trained on the CPU with 2 threads, evaluated on held-out and training scenes
   $PY -m factory stage=train run_dir="$RUN" train.name=state_cpu train.inputs=state \
