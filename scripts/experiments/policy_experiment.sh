@@ -47,6 +47,7 @@ RGBD_EVAL_WORKERS=${RGBD_EVAL_WORKERS:-$(( $(getconf _NPROCESSORS_ONLN) * 3 / 4 
 RGBD_EVAL_BATCH=${RGBD_EVAL_BATCH:-8}
 PLANNER_WORKERS=${PLANNER_WORKERS:-4}
 CPU_STATE=${CPU_STATE:-1}
+SCALING=${SCALING:-1}  # 0: no scaling curve (e.g. an RGB-D-only run)
 RGBD=${RGBD:-1}  # 0: no RGB-D policy (then DEMOS_ARGS=demos.render=false makes the data much faster)
 DEMOS_ARGS=${DEMOS_ARGS:-}
 TRAIN_CONFIGS=${TRAIN_CONFIGS:-5}
@@ -118,14 +119,16 @@ if [ "$CPU_STATE" = 1 ]; then
   cpu_state > "$OUT_DIR/state-cpu.log" 2>&1 &
   CPU_PID=$!
 fi
-npoints=$(wc -w <<< "$POINTS")
-$PY scripts/scaling_policy.py --run-dir "$RUN" --points $POINTS --steps "$STATE_STEPS" \
-  --batch-size "$SCALE_BATCH" --device auto --episodes "$EVAL_EPISODES" \
-  --parallel "$((npoints + 1))" --threads 2 --train-arg "$STATE_OPTS" \
-  --train-arg train.log_every=100 --train-arg train.max_minutes="$STATE_MINUTES" \
-  --train-arg train.save_every=2000 --tag "$(basename "$RUN")" \
-  --out "$OUT_DIR/scaling.json" --plot "$OUT_DIR/scaling.svg" ${HELDOUT_IDS:+--heldout $HELDOUT_IDS} \
-  > "$OUT_DIR/scaling.log" 2>&1 || log "   the scaling script failed: $OUT_DIR/scaling.log"
+if [ "$SCALING" = 1 ]; then
+  npoints=$(wc -w <<< "$POINTS")
+  $PY scripts/scaling_policy.py --run-dir "$RUN" --points $POINTS --steps "$STATE_STEPS" \
+    --batch-size "$SCALE_BATCH" --device auto --episodes "$EVAL_EPISODES" \
+    --parallel "$((npoints + 1))" --threads 2 --train-arg "$STATE_OPTS" \
+    --train-arg train.log_every=100 --train-arg train.max_minutes="$STATE_MINUTES" \
+    --train-arg train.save_every=2000 --tag "$(basename "$RUN")" \
+    --out "$OUT_DIR/scaling.json" --plot "$OUT_DIR/scaling.svg" ${HELDOUT_IDS:+--heldout $HELDOUT_IDS} \
+    > "$OUT_DIR/scaling.log" 2>&1 || log "   the scaling script failed: $OUT_DIR/scaling.log"
+fi
 log "   scaling done in $(( $(date +%s) - t1 )) s"
 [ -z "$CPU_PID" ] || wait "$CPU_PID" || log "   the CPU state policy failed: $OUT_DIR/state-cpu.log"
 [ -z "$RGBD_PID" ] || wait "$RGBD_PID" || log "   RGB-D failed: $OUT_DIR/rgbd.log"
