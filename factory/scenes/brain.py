@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from factory.assets import AssetLibrary
-from factory.scenes.request import parse_task, style_of
+from factory.scenes.request import parse_request, parse_task, style_of
 from factory.scenes.rooms import ROOM_TYPES, Item
 from factory.schema import Scene, Task, check_id
 
@@ -124,7 +124,9 @@ def heuristic_agent(
     alive = {o["id"] for o in call("get_scene_info").get("objects", [])}
     keyed = {k: [i for i in v if i in alive] for k, v in keyed.items()}
     # 3. task objects first, on the largest table-like surface
-    spec = parse_task(task or request) if cfg.task_objects else None
+    spec = None
+    if cfg.task_objects:  # the request's own task is read from its English reading
+        spec = parse_task(task) if task else parse_request(request).task
     if spec is not None:
         objects = call("get_scene_info")["objects"]
         tables = [o for o in objects if o["category"] in TABLES]

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from factory.scenes.request import names_a_room, room_types_in, style_of
+from factory.scenes.request import parse_request
 from factory.scenes.rooms import ROOM_TYPES
 from factory.schema import Door, Room, Scene, Size3, Vec3, Wall, Window, check_id
 
@@ -65,13 +65,16 @@ def init_scene(
     request: str, seed: int = 0, scene_id: str | None = None, room_type: str | None = None
 ) -> tuple[Scene, dict[str, Any]]:
     """Builds the empty floor plan for the request: one room, or several in a row joined by
-    doors for an apartment or house; sizes, materials, walls, doors, windows.
+    doors for a home (:func:`~.request.parse_request` reads which); sizes, materials, walls,
+    doors, windows. ``info["request"]`` is the parsed request's summary (language, rooms,
+    style, condition words, materials, translations, warnings).
 
     Raises:
         ValueError: a request too small to hold a room (e.g. "0.5 m wide").
     """
     rng = np.random.default_rng(seed)
-    types = [room_type] if room_type else room_types_in(request)
+    parsed = parse_request(request)
+    types = [room_type] if room_type else list(parsed.room_types)
     m = re.search(r"(\d+(?:\.\d+)?)\s*(?:m|meters?|metres?)\s*(?:wide|by)", request.lower())
     forced_width = float(m.group(1)) if m else None
     if forced_width is not None and forced_width < 1.5:
@@ -134,7 +137,7 @@ def init_scene(
         description=request,
         source="text",
         seed=seed,
-        building_style=style_of(request),
+        building_style=parsed.style,
     )
     info: dict[str, Any] = {
         "room_type": first.room_type,
@@ -149,11 +152,14 @@ def init_scene(
         ],
         "size_m": [round(first.dimensions.width, 2), round(first.dimensions.length, 2)],
         "floor": first.floor_material,
+        "request": parsed.summary(),
     }
-    if room_type is None and not names_a_room(request):
+    if room_type is None:
+        for warning in parsed.warnings:  # words not understood, no room named
+            log.warning("%s", warning)
+    if room_type is None and not parsed.names_a_room:
         info["approximated"] = True
         info["note"] = (
             f"no known room type in {request!r} (another language?); built a {first.room_type}"
         )
-        log.warning("%s", info["note"])
     return scene, info

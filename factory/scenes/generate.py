@@ -11,7 +11,7 @@ from typing import Any
 from factory.assets import AssetLibrary
 from factory.scenes.brain import AgentConfig, generate_scene
 from factory.scenes.mcp_client import SyncMCPCaller
-from factory.scenes.rooms import room_type_of
+from factory.scenes.request import primary_room_type
 from factory.schema import Scene, check_id
 
 log = logging.getLogger(__name__)
@@ -149,7 +149,7 @@ def run(ctx: Any) -> dict[str, Any]:
         for k in range(gcfg.scenes_per_prompt):
             seed = ctx.cfg.seed + 1000 * i + k
             digest = hashlib.sha1(f"{prompt}|{seed}".encode()).hexdigest()[:8]
-            rt = re.sub(r"[^a-z0-9]+", "_", room_type_of(prompt)).strip("_")
+            rt = re.sub(r"[^a-z0-9]+", "_", primary_room_type(prompt)).strip("_")
             jobs.append((f"{rt}_{digest}_{k}", prompt, seed))
     mine = ctx.shard.select(jobs)
     by_id = {j[0]: j for j in mine}

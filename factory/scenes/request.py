@@ -1,35 +1,41 @@
-"""Request understanding: task instructions, styles and the room types a request names."""
+"""Request understanding: the rooms, style, condition words and task a text request names.
+
+:func:`parse_request` reads a request (English, Spanish, French, German or Chinese: see
+:mod:`.translate`) into a :class:`ParsedRequest`: the room types to build (one room, or a
+whole home's program: :mod:`.homes`), the rooms named by owner or purpose
+(:mod:`.room_mentions`), the style, condition and material words (:mod:`.style_words`), the
+pick-and-place task, and notes and warnings on what was approximated or not understood.
+"""
 
 from __future__ import annotations
 
 import logging
 import re
 from dataclasses import dataclass
+from functools import cache, lru_cache
 
-from factory.scenes.rooms import ROOM_TYPES, room_type_of
+from factory.scenes.homes import find_home, home_rooms
+from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
+from factory.scenes.style_words import CONDITIONS, STYLE_WORDS, read_style
+from factory.scenes.translate import translate
 
 log = logging.getLogger(__name__)
 
-STYLE_WORDS = (
-    "mid-century",
-    "cyberpunk",
-    "fairy-tale",
-    "princess",
-    "scandinavian",
-    "industrial",
-    "rustic",
-    "farmhouse",
-    "modern",
-    "minimalist",
-    "victorian",
-    "japanese",
-    "boho",
-    "art deco",
-    "coastal",
-    "gothic",
-    "retro",
-    "futuristic",
-)
+DEFAULT_ROOM = "living room"
+"""The room built when the request names none."""
+
+__all__ = [
+    "DEFAULT_ROOM",
+    "STYLE_WORDS",
+    "ParsedRequest",
+    "TaskSpec",
+    "names_a_room",
+    "parse_request",
+    "parse_task",
+    "primary_room_type",
+    "room_types_in",
+    "style_of",
+]
 
 
 @dataclass
@@ -43,7 +49,7 @@ class TaskSpec:
 
 
 def parse_task(text: str) -> TaskSpec | None:
-    """Reads "pick up the mug and put it in the bowl" style instructions."""
+    """Reads "pick up the mug and put it in the bowl" style instructions (English)."""
     m = re.search(
         r"(?:pick(?:s)?(?: up)?|grab(?:s)?|move(?:s)?|take(?:s)?)\s+(?:the|a|an)\s+([a-z ]+?)"
         r"\s+(?:and\s+(?:put|place|drop)s?\s+it\s+|from\s+the\s+[a-z ]+?\s+)?"
@@ -60,52 +66,188 @@ def parse_task(text: str) -> TaskSpec | None:
     )
 
 
-def style_of(text: str) -> str:
-    low = text.lower()
-    return next((s for s in STYLE_WORDS if s in low), "")
+@dataclass(frozen=True)
+class ParsedRequest:
+    """What a request asks for.
+
+    Attributes:
+        text: the request as written.
+        english: its English reading (``text`` itself for an English request).
+        language: ``"en"``, ``"es"``, ``"fr"``, ``"de"`` or ``"zh"``.
+        room_types: the rooms to build, in order (keys of
+            :data:`~factory.scenes.rooms.ROOM_TYPES`); one for a single room.
+        home: the home word ("apartment", "family home", ...), ``""`` for a single room.
+        rooms: the rooms the request names, where and how many.
+        style: the first design style named, ``""`` if none.
+        styles: every design style named.
+        conditions: condition kinds named (``rust``, ``dust``, ``mud``, ``wear``, ``gold``,
+            ``luxury``, ...: :data:`~.style_words.CONDITIONS`).
+        condition_words: the condition words as written (in English).
+        materials: materials named or brought by a condition (names of
+            :data:`factory.assets.physics.MATERIALS`).
+        translated: (foreign word, English) for each word translated.
+        unknown: words not understood (foreign words no table knows).
+        notes: what was approximated and why ("no pantry type: a kitchen ...").
+        warnings: what the user should know (words not understood, no room named).
+    """
+
+    text: str
+    english: str
+    language: str
+    room_types: tuple[str, ...]
+    home: str = ""
+    rooms: tuple[RoomMention, ...] = ()
+    style: str = ""
+    styles: tuple[str, ...] = ()
+    conditions: tuple[str, ...] = ()
+    condition_words: tuple[str, ...] = ()
+    materials: tuple[str, ...] = ()
+    translated: tuple[tuple[str, str], ...] = ()
+    unknown: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def names_a_room(self) -> bool:
+        """The request names a room or a home (else :data:`DEFAULT_ROOM` stands in)."""
+        return bool(self.home or self.rooms)
+
+    @property
+    def task(self) -> TaskSpec | None:
+        """The pick-and-place task of the request, read from its English reading."""
+        return parse_task(self.english)
+
+    def summary(self) -> dict[str, object]:
+        """A JSON-ready digest for tool results and reports (empty fields left out)."""
+        out: dict[str, object] = {
+            "language": self.language,
+            "room_types": list(self.room_types),
+            "home": self.home,
+            "style": self.style,
+            "conditions": list(self.conditions),
+            "materials": list(self.materials),
+            "english": self.english if self.english != self.text else "",
+            "translated": [list(w) for w in self.translated],
+            "unknown": list(self.unknown),
+            "notes": list(self.notes),
+            "warnings": list(self.warnings),
+        }
+        return {k: v for k, v in out.items() if v}
 
 
-NUMBERS = {"one": 1, "two": 2, "three": 3, "four": 4, "single": 1, "double": 2}
+@cache
+def _english_vocabulary() -> frozenset[str]:
+    """English words the parser or the asset library understands (object, room, style,
+    condition and material names), so that they are not reported in a foreign request."""
+    from factory.assets.catalog import CATEGORIES
+    from factory.assets.physics import ALIASES, MATERIALS
 
-MULTI_ROOM_WORDS = ("apartment", "house", "flat", "condo", "townhouse")
-_MULTI_RE = re.compile(r"\b(" + "|".join(MULTI_ROOM_WORDS) + r")\b")
+    phrases = [
+        *(n.replace("_", " ") for n in CATEGORIES),
+        *(s for c in CATEGORIES.values() for s in c.synonyms),
+        *PHRASES,
+        *STYLE_WORDS,
+        *CONDITIONS,
+        *MATERIALS,
+        *ALIASES,
+    ]
+    words = {w for p in phrases for w in re.split(r"[\s-]+", p.lower()) if w}
+    return frozenset(words | {w + "s" for w in words})
+
+
+def _known(word: str) -> bool:
+    return word in _english_vocabulary()
+
+
+@cache
+def _object_words() -> frozenset[str]:
+    """The last word of every object name and synonym of the asset catalog ("bed",
+    "plant"), plural forms too."""
+    from factory.assets.catalog import CATEGORIES
+
+    phrases = [
+        *(n.replace("_", " ") for n in CATEGORIES),
+        *(s for c in CATEGORIES.values() for s in c.synonyms),
+    ]
+    heads = {p.lower().split()[-1] for p in phrases if p.strip()}
+    return frozenset(heads | {w + "s" for w in heads})
+
+
+def _is_object(word: str) -> bool:
+    return word in _object_words()
+
+
+@lru_cache(maxsize=512)
+def parse_request(text: str) -> ParsedRequest:
+    """Reads a request (cached: the result is frozen).
+
+    Args:
+        text: e.g. ``"a dusty child's room"``, ``"a three-bedroom family home"``,
+            ``"una cocina con una taza"``.
+
+    Returns:
+        the rooms to build, style and condition words, translations, notes and warnings.
+    """
+    tr = translate(text, _known)
+    english = tr.text
+    rooms = find_rooms(english)
+    home = find_home(english, rooms, _is_object)
+    notes = [f"{r.phrase!r}: {r.note}" for r in rooms if r.note]
+    if home is not None:
+        named = [r for r in rooms if r.end <= home.start or r.start >= home.end]
+        room_types = tuple(home_rooms(home, named))
+    elif rooms:
+        room_types = (_main_room(rooms).room_type,)
+    else:
+        room_types = (DEFAULT_ROOM,)
+    warnings = [tr.warning] if tr.unknown else []
+    if home is None and not rooms:
+        warnings.append(
+            f"no known room type in {text!r} (another language?); built a {DEFAULT_ROOM}"
+        )
+    looks = read_style(english)
+    parsed = ParsedRequest(
+        text=text,
+        english=english,
+        language=tr.language,
+        room_types=room_types,
+        home="" if home is None else home.word,
+        rooms=tuple(rooms),
+        style=looks.style,
+        styles=looks.styles,
+        conditions=looks.conditions,
+        condition_words=looks.condition_words,
+        materials=looks.materials,
+        translated=tr.words,
+        unknown=tr.unknown,
+        notes=tuple(notes),
+        warnings=tuple(warnings),
+    )
+    for note in notes:
+        log.info("request %r: %s", text, note)
+    return parsed
+
+
+def _main_room(rooms: list[RoomMention]) -> RoomMention:
+    """The room of a single-room request: the longest phrase, the first of equals."""
+    return max(rooms, key=lambda r: (len(r.phrase), -r.start))
 
 
 def room_types_in(request: str) -> list[str]:
-    """The room types a request asks for: several for an apartment or house, else one."""
-    from factory.scenes.rooms import ROOM_TYPES as RT
+    """The room types a request asks for: several for a home, else one."""
+    return list(parse_request(request).room_types)
 
-    low = request.lower()
-    found: list[tuple[int, str]] = []
-    for name, rt in RT.items():
-        if name == "studio":
-            continue
-        for phrase in (name, *rt.aliases):
-            i = low.find(phrase)
-            if i >= 0 and not any(n == name for _, n in found):
-                found.append((i, name))
-    mentioned = [n for _, n in sorted(found)]
-    if _MULTI_RE.search(low):
-        rooms = []
-        for name in mentioned:  # "two bedrooms", "2-bedroom"
-            m = re.search(rf"\b({'|'.join(NUMBERS)}|\d)[\s-]*{re.escape(name)}", low)
-            n = (
-                1
-                if m is None
-                else NUMBERS.get(m.group(1), int(m.group(1)) if m.group(1).isdigit() else 1)
-            )
-            rooms += [name] * max(1, min(n, 3))
-        for extra in ("living room", "kitchen", "bathroom"):
-            if extra not in rooms:
-                rooms.append(extra)
-        if "bedroom" not in rooms and "studio" not in low:
-            rooms.insert(0, "bedroom")
-        return rooms[:6]
-    return [room_type_of(request)]
+
+def primary_room_type(request: str) -> str:
+    """The first room type a request asks for (names scenes and jobs)."""
+    return parse_request(request).room_types[0]
 
 
 def names_a_room(request: str) -> bool:
-    low = request.lower()
-    return bool(_MULTI_RE.search(low)) or any(
-        phrase in low for name, rt in ROOM_TYPES.items() for phrase in (name, *rt.aliases)
-    )
+    """The request names a room or a home (in any language read)."""
+    return parse_request(request).names_a_room
+
+
+def style_of(text: str) -> str:
+    """The first design style a request names (``""`` if none)."""
+    return parse_request(text).style

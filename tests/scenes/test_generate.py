@@ -164,10 +164,31 @@ def test_llm_agent_falls_back_when_endpoint_is_down(cli, tmp_path: Path) -> None
 
 
 def test_unknown_room_type_is_flagged() -> None:
-    _, info = init_scene("une cuisine moderne avec une table")
+    _, info = init_scene("una cucina moderna con un tavolo")  # Italian: not read
     assert info["approximated"] and "another language" in info["note"]
+    assert info["request"]["unknown"] == ["cucina", "tavolo"]
+    scene, info = init_scene("une cuisine moderne avec une table")  # French: read
+    assert "approximated" not in info and scene.rooms[0].room_type == "kitchen"
+    assert info["request"]["language"] == "fr" and scene.building_style == "modern"
     _, info = init_scene("a modern kitchen")
     assert "approximated" not in info
+
+
+def test_family_home_builds_its_program() -> None:
+    scene, info = init_scene("a family home", seed=2)
+    types = [r.room_type for r in scene.rooms]
+    assert types == [
+        "bedroom",
+        "children's room",
+        "living room",
+        "kitchen",
+        "dining room",
+        "bathroom",
+    ]
+    assert info["request"]["home"] == "family home"
+    ids = [r.id for r in scene.rooms]
+    assert len(ids) == len(set(ids))
+    validate(scene)
 
 
 def test_multi_room_apartment_is_connected_and_furnished(tmp_path: Path) -> None:
