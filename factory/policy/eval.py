@@ -20,6 +20,7 @@ import json
 import logging
 import math
 import os
+import re
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -69,6 +70,11 @@ class Job:
     def key(self) -> str:
         """Identifies the episode in ``episodes.jsonl`` (resume)."""
         return self.episode_id or f"{self.scene}#{self.index}"
+
+
+def slug(text: str) -> str:
+    """``text`` as a file or folder name (letters, digits, ``_.-``)."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_.") or "policy"
 
 
 def record_key(record: dict[str, Any]) -> str:

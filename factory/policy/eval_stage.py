@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import re
 import shutil
 import time
 from pathlib import Path
@@ -54,10 +53,6 @@ def check_config(ec: Any) -> None:
             )
     elif not (isinstance(scenes, list | tuple) or hasattr(scenes, "__iter__")) or not list(scenes):
         raise ConfigError("eval.scenes must be heldout, train or a non-empty list of scene ids")
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_.") or "policy"
 
 
 # ---- the dataset
@@ -291,6 +286,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         drop_torn_records,
         read_records,
         record_key,
+        slug,
         summarize,
     )
     from factory.policy.eval_units import UnitSettings, make_units, run_units
@@ -310,7 +306,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     policy = None
     if kind == "trained":
         policy = _load_trained(ref, run_dir, ec.device)
-        name = _slug(policy.info.name)
+        name = slug(policy.info.name)
         dataset = Path(ec.dataset or policy.info.dataset)
         train_scenes = list(policy.info.scenes)
         training_data: dict[str, Any] | None = {
@@ -331,7 +327,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 "dataset": str(dataset),
             }
     if ec.name:
-        name = _slug(str(ec.name))
+        name = slug(str(ec.name))
     meta = _dataset_meta(dataset)
     run_scenes = store.scene_ids()
     listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
-import re
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from factory.errors import StoreError, TaskError
 
@@ -84,7 +85,6 @@ class UnitResult:
     scene: str
     records: list[dict[str, Any]] = field(default_factory=list)
     skipped: str = ""
-    videos: int = 0
     episodes: int = 0
 
 
@@ -128,8 +128,6 @@ def check_base(scene: str, recorded: dict[str, float] | None, placement: Any) ->
     """
     if recorded is None:
         return
-    import numpy as np
-
     got = np.array([placement.x, placement.y, placement.z, placement.yaw])
     want = np.array([recorded["x"], recorded["y"], recorded["z"], recorded["yaw"]])
     if not np.allclose(got, want, atol=1e-6):
@@ -138,10 +136,6 @@ def check_base(scene: str, recorded: dict[str, float] | None, placement: Any) ->
             f"recorded {want.round(3).tolist()} (the scene changed since the demos): re-record "
             "them (stage=demos force=true)"
         )
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_.") or "policy"
 
 
 class UnitRunner:
@@ -173,7 +167,7 @@ class UnitRunner:
 
     def run(self, unit: Unit) -> UnitResult:
         """Runs one unit; a scene that cannot host the task gives ``skipped``."""
-        from factory.policy.eval import plan_actions, run_batch, scripted_actor, write_video
+        from factory.policy.eval import plan_actions, run_batch, scripted_actor, slug, write_video
 
         s = self.s
         try:
@@ -199,21 +193,17 @@ class UnitRunner:
         if self.policy is not None:
             policy = self.policy
 
-            def actor(obs: dict[str, Any], steps: Any) -> Any:
-                import numpy as np
-
+            def actor(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
                 return np.asarray(policy.act(obs), np.float32)
 
             records, frames = run_batch(env, batch, actor, video, policy.reset)
         else:
             records, frames = run_batch(env, batch, scripted_actor(batch), video)
-        written = 0
         for i, fr in frames.items():
             if len(fr) > 1:
-                clip = f"{_slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
+                clip = f"{slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
                 write_video(s.videos_dir / f"{clip}.mp4", fr, s.spec.fps)
-                written += 1
-        return UnitResult(unit.scene, records, videos=written, episodes=len(batch))
+        return UnitResult(unit.scene, records, episodes=len(batch))
 
 
 # ---- worker processes
