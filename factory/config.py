@@ -110,6 +110,11 @@ class AugmentConfig:
         task_objects: ids of the task-relevant objects; empty: those with a task role.
         physics_critic: judge re-placed objects in simulation while making a variant.
         render: write each kept variant's renders.
+        min_distance: configuration variants of a scene differ by at least this move of one
+            task object (m), or by ``min_yaw_deg``.
+        min_yaw_deg: ... or by at least this turn of one task object (deg).
+        batch: candidate rows per batched physics check; 0: by backend (cpu: as many as the
+            count needs, at least 4; GPU backends: 2,048 to 8,192).
     """
 
     levels: list[str] = field(default_factory=lambda: ["configuration"])
@@ -117,6 +122,9 @@ class AugmentConfig:
     task_objects: list[str] = field(default_factory=list)
     physics_critic: bool = True
     render: bool = True
+    min_distance: float = 0.03
+    min_yaw_deg: float = 15.0
+    batch: int = 0
 
 
 @dataclass
@@ -226,7 +234,11 @@ class DemosConfig:
         cameras: ``left``, ``right`` (third-person views of the table), ``wrist``.
         depth: ``uint16_mm`` or ``float32`` (metres).
         render: record images (off: states and robot signals only).
-        backend: execution backend: ``cpu`` (mujoco.batch).
+        executor: where episodes are executed and recorded: ``cpu`` (``mujoco.batch`` threads
+            and EGL/OSMesa rendering in ``workers`` processes), ``warp`` (the GPU: the
+            episodes of a scene as worlds of one MuJoCo Warp model, rendered by its batch
+            renderer; ``workers`` processes plan), ``auto`` (``warp`` when CUDA is present).
+        gpu_batch: most worlds (episodes of one scene) per GPU call of the ``warp`` executor.
         plan_timeout: seconds per RRTConnect query.
         speed: share of the Panda's velocity limit for free motions (acceleration and jerk
             use 0.6 and 0.4 of it).
@@ -253,7 +265,8 @@ class DemosConfig:
     cameras: list[str] = field(default_factory=lambda: ["left", "right", "wrist"])
     depth: str = "uint16_mm"
     render: bool = True
-    backend: str = "cpu"
+    executor: str = "auto"
+    gpu_batch: int = 512
     plan_timeout: float = 5.0
     speed: float = 0.5
     max_grasps: int = 12

@@ -2,7 +2,11 @@
 and failure reasons, planning time per segment, rendering frames/s.
 
     python scripts/bench_demos.py [--scenes 2] [--episodes 4] [--cores 1] [--batch 16]
+        [--executor cpu|warp] [--gpu-batch 512] [--workers N]
         [--run-dir runs/bench_demos] [--out benchmarks/results/demos-cpu1.json]
+
+``--executor warp`` runs the episodes on the GPU (MuJoCo Warp worlds and batch renderer) with
+``--workers`` planning processes (default: cores - 1).
 
 Scenes are generated first (kitchens with a pick-and-place task; not timed; kept in
 ``--run-dir`` and reused). ``stage=demos`` then runs through the real CLI on ``--cores`` cores
@@ -39,6 +43,16 @@ def _cli(args: list[str], cores: int, env: dict[str, str]) -> float:
     return time.perf_counter() - t0
 
 
+def _gpu_name() -> str | None:
+    """The GPU's name (nvidia-smi), None without one."""
+    if not shutil.which("nvidia-smi"):
+        return None
+    out = subprocess.run(
+        ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True
+    )
+    return out.stdout.strip() or None
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", type=int, default=2)
@@ -48,6 +62,9 @@ def main() -> None:
     p.add_argument("--run-dir", type=Path, default=ROOT / "runs" / "bench_demos")
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--gl", default=None, help="MUJOCO_GL for rendering (egl, osmesa)")
+    p.add_argument("--executor", default="cpu", choices=["cpu", "warp", "auto"])
+    p.add_argument("--gpu-batch", type=int, default=512)
+    p.add_argument("--workers", type=int, default=0, help="0: --cores (cpu), cores - 1 (warp)")
     args = p.parse_args()
     env = dict(os.environ)
     env["LP_NUM_THREADS"] = str(args.cores)  # Mesa llvmpipe render threads
@@ -68,6 +85,7 @@ def main() -> None:
             os.cpu_count() or 1,
             env,
         )
+    workers = args.workers or (max(1, args.cores - 1) if args.executor == "warp" else args.cores)
     results = {}
     for label in ("cold", "warm"):
         shutil.rmtree(run / "episodes", ignore_errors=True)
@@ -76,8 +94,10 @@ def main() -> None:
                 "stage=demos",
                 f"run_dir={run}",
                 f"demos.episodes_per_scene={args.episodes}",
-                f"demos.workers={args.cores}",
+                f"demos.workers={workers}",
                 f"demos.batch={args.batch}",
+                f"demos.executor={args.executor}",
+                f"demos.gpu_batch={args.gpu_batch}",
             ],
             args.cores,
             env,
@@ -110,6 +130,8 @@ def main() -> None:
             "render_frames_per_s": frames / sec["render"] if sec["render"] else None,
             "render_images_per_s": frames * cams * 2 / sec["render"] if sec["render"] else None,
             "sim_seconds_simulated": frames / infos[0]["fps"] if infos else 0,
+            "executor": summary.get("executor", "cpu"),
+            "gpu_seconds": sec.get("gpu"),
         }
         r = results[label]
         print(
@@ -127,12 +149,16 @@ def main() -> None:
             "cpus_total": os.cpu_count(),
             "cores_used": args.cores,
             "gl": env.get("MUJOCO_GL", "auto"),
+            "gpu": _gpu_name(),
         },
+        "executor": args.executor,
+        "workers": workers,
         "scenes": args.scenes,
         "episodes_per_scene": args.episodes,
         "results": results,
     }
-    path = args.out or ROOT / "benchmarks" / "results" / f"demos-cpu{args.cores}.json"
+    name = f"demos-{'gpu' if args.executor == 'warp' else 'cpu'}{args.cores}.json"
+    path = args.out or ROOT / "benchmarks" / "results" / name
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {path}")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -73,7 +74,8 @@ class EpisodeStore:
             return
         zarr = _zarr()
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_name(self.path.name + f".new-{os.getpid()}")
+        # one name per process and thread: writer threads may open a new store together
+        tmp = self.path.with_name(self.path.name + f".new-{os.getpid()}-{threading.get_ident()}")
         shutil.rmtree(tmp, ignore_errors=True)
         root = zarr.open_group(str(tmp), mode="w", zarr_format=3)
         root.attrs.update({"kind": STORE_KIND, "schema_version": EPISODE_SCHEMA_VERSION})

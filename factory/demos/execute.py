@@ -181,6 +181,67 @@ def object_poses(data: mujoco.MjData, bodies: tuple[int, int]) -> np.ndarray:
     return np.concatenate([np.concatenate([data.xpos[b], data.xquat[b]]) for b in bodies])
 
 
+def new_recordings(n_frames: list[int], cfg: RecordConfig, nstate: int) -> list[Recording]:
+    """Empty recordings of ``n_frames[i]`` frames each (images only when ``cfg.render``)."""
+    depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
+    return [
+        Recording(
+            time=np.arange(f) / cfg.fps,
+            state=np.zeros((f, nstate)),
+            joint_pos=np.zeros((f, 7)),
+            gripper=np.zeros((f, 1)),
+            ee_pose=np.zeros((f, 7)),
+            action=np.zeros((f, 8)),
+            env_state=np.zeros((f, 14)),
+            rgb={c: np.zeros((f, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
+            if cfg.render
+            else {},
+            depth={c: np.zeros((f, cfg.height, cfg.width), depth_type) for c in cfg.cameras}
+            if cfg.render
+            else {},
+        )
+        for f in n_frames
+    ]
+
+
+def finish_recordings(
+    setup: SceneSetup,
+    plans: list[EpisodePlan],
+    recs: list[Recording],
+    n_frames: list[int],
+    per_frame: int,
+    worst: np.ndarray,
+    fps: float,
+) -> None:
+    """Sets each recording's outcome: the task's success check on its recorded states.
+
+    Args:
+        n_frames: frames of each recording; per_frame: physics steps per frame;
+        worst: (n,) deepest robot penetration into the scene seen at a recorded frame (m).
+    """
+    model = setup.model
+    pick = model.body(setup.objects.pick.id).id
+    qadr = int(model.jnt_qposadr[model.body_jntadr[pick]])
+    qpos_slice = slice(1, 1 + model.nq)  # time, then qpos in the integration state
+    hold_frames = max(1, round(0.5 * fps))
+    for i, p in enumerate(plans):
+        rec = recs[i]
+        last = n_frames[i] - 1
+        lift_frame = min(last, int(np.ceil(p.phases["transport"] / per_frame)))
+        q_end = rec.state[last, qpos_slice]
+        q_before = rec.state[max(0, last - hold_frames), qpos_slice]
+        rec.outcome = check_success(
+            model,
+            q_end,
+            q_before,
+            float(rec.state[lift_frame, qpos_slice][qadr + 2]),
+            float(rec.state[0, qpos_slice][qadr + 2]),
+            setup.objects,
+            setup.robot,
+            float(worst[i]),
+        )
+
+
 def execute(
     setup: SceneSetup,
     plans: list[EpisodePlan],
@@ -234,30 +295,7 @@ def execute(
     allowed = np.isin(model.geom_bodyid, [pick, target, support])
     nstate = mujoco.mj_stateSize(model, STATE_SPEC)
     worst = np.zeros(n)
-    recs = [
-        Recording(
-            time=np.arange(f) / cfg.fps,
-            state=np.zeros((f, nstate)),
-            joint_pos=np.zeros((f, 7)),
-            gripper=np.zeros((f, 1)),
-            ee_pose=np.zeros((f, 7)),
-            action=np.zeros((f, 8)),
-            env_state=np.zeros((f, 14)),
-            rgb={c: np.zeros((f, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
-            if cfg.render
-            else {},
-            depth={
-                c: np.zeros(
-                    (f, cfg.height, cfg.width),
-                    np.uint16 if cfg.depth == "uint16_mm" else np.float32,
-                )
-                for c in cfg.cameras
-            }
-            if cfg.render
-            else {},
-        )
-        for f in n_frames
-    ]
+    recs = new_recordings(n_frames, cfg, nstate)
     sim_s = render_s = 0.0
 
     def record(frame: int, states: np.ndarray) -> float:
@@ -293,26 +331,8 @@ def execute(
         render_s += record(f + 1, batch.state)
     if renderer is None and own is not None:
         own.close()
-    # Success checks from the recorded states.
-    qadr = int(model.jnt_qposadr[model.body_jntadr[pick]])
-    qpos_slice = slice(1, 1 + model.nq)  # time, then qpos in the integration state
-    hold_frames = max(1, round(0.5 * cfg.fps))
-    for i, p in enumerate(plans):
-        rec = recs[i]
-        last = n_frames[i] - 1
-        lift_frame = min(last, int(np.ceil(p.phases["transport"] / per_frame)))
-        q_end = rec.state[last, qpos_slice]
-        q_before = rec.state[max(0, last - hold_frames), qpos_slice]
-        rec.outcome = check_success(
-            model,
-            q_end,
-            q_before,
-            float(rec.state[lift_frame, qpos_slice][qadr + 2]),
-            float(rec.state[0, qpos_slice][qadr + 2]),
-            setup.objects,
-            robot,
-            float(worst[i]),
-        )
+    finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
+    for rec in recs:
         rec.sim_seconds = sim_s / n
         rec.render_seconds = render_s / n
     return recs

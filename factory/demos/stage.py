@@ -35,7 +35,28 @@ log = logging.getLogger(__name__)
 TASKS: dict[str, str] = {"pick_place": "pick up an object and put it in or on a target"}
 """Robot tasks ``stage=demos`` can record (``task=<name>``)."""
 
+EXECUTORS: dict[str, str] = {
+    "auto": "warp when CUDA is present, else cpu",
+    "cpu": "mujoco.batch threads + EGL/OSMesa rendering (factory.demos.execute)",
+    "warp": "MuJoCo Warp worlds + its batch renderer (factory.demos.execute_warp)",
+}
+"""``demos.executor`` values."""
+
 SUMMARY_SCHEMA_VERSION = 1
+
+
+def resolve_executor(name: str) -> str:
+    """``cpu`` or ``warp`` for a ``demos.executor`` value (``auto``: ``warp`` with CUDA).
+
+    ``warp`` without CUDA runs on Warp's CPU device: correct but slow (meant for tests).
+    """
+    from factory.sim.backend import cuda_available
+
+    if name == "auto":
+        return "warp" if cuda_available() else "cpu"
+    if name == "warp" and not cuda_available():
+        log.warning("demos.executor=warp without CUDA: MuJoCo Warp runs on the CPU (slow)")
+    return name
 
 
 def episode_seed(root: int, scene_id: str, slot: int, attempt: int) -> int:
@@ -72,11 +93,12 @@ def check_config(dc: DemosConfig, task: str) -> None:
     """Raises :class:`ConfigError` naming a bad ``demos.*`` value or task."""
     if task not in TASKS:
         raise ConfigError(f"unknown task {task!r}: choose one of {', '.join(TASKS)}")
-    if dc.backend != "cpu":
+    if dc.executor not in EXECUTORS:
         raise ConfigError(
-            f"demos.backend={dc.backend!r} is not available: batched execution runs on 'cpu' "
-            "(mujoco.batch)"
+            f"demos.executor={dc.executor!r} is unknown: choose one of {', '.join(EXECUTORS)}"
         )
+    if dc.gpu_batch < 1:
+        raise ConfigError("demos.gpu_batch must be >= 1")
     if dc.depth not in ("uint16_mm", "float32"):
         raise ConfigError(f"demos.depth must be uint16_mm or float32, got {dc.depth!r}")
     unknown = [c for c in dc.cameras if c not in ("left", "right", "wrist")]
@@ -127,23 +149,102 @@ def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[
 
 
 _SETUPS: dict[str, Any] = {}
+_KEEP_SETUPS = 3
+"""Scene setups a process keeps (the GPU pipeline's planners see the tasks of two scenes
+interleaved: the one on the GPU and the next)."""
 
 
 def _setup(env: _Env, scene_id: str) -> Any:
-    """The scene's setup and planner, made once per process and scene."""
-    if scene_id not in _SETUPS:
-        _SETUPS.clear()
+    """The scene's setup and planner, made once per process and scene (the last few kept)."""
+    if scene_id in _SETUPS:
+        _SETUPS[scene_id] = _SETUPS.pop(scene_id)  # most recently used last
+    else:
+        while len(_SETUPS) >= _KEEP_SETUPS:
+            del _SETUPS[next(iter(_SETUPS))]
         _SETUPS[scene_id] = scene_planner(env.run_dir, scene_id, env.demos)
     return _SETUPS[scene_id]
 
 
+def episode_instruction(setup: Any) -> str:
+    """The scene's task instruction, else one made from the task objects."""
+    scene, objects = setup.scene, setup.objects
+    if scene.task and scene.task.instruction:
+        return str(scene.task.instruction)
+    return (
+        f"put the {objects.pick.category.replace('_', ' ')} {objects.relation} the "
+        f"{objects.target.category.replace('_', ' ')}"
+    )
+
+
+def write_episode(
+    store: Any,
+    env: _Env,
+    setup: Any,
+    k: int,
+    seed: int,
+    plan: Any,
+    rec: Any,
+    rec_cfg: Any,
+    instruction: str,
+) -> None:
+    """Stores a successful recording as episode ``k`` of its scene (meta + arrays)."""
+    from factory import __version__
+    from factory.demos.execute import STATE_SPEC
+    from factory.schema.episode import EpisodeInfo, RobotBase
+
+    dc = env.demos
+    objects = setup.objects
+    per_frame = max(1, round(1.0 / (dc.fps * setup.model.opt.timestep)))
+    scene_id = setup.scene.id
+    meta = EpisodeInfo(
+        episode_id=episode_id(scene_id, k),
+        scene_id=scene_id,
+        task=env.task,
+        instruction=instruction,
+        seed=seed,
+        success=True,
+        failure_reason="",
+        pick_id=objects.pick.id,
+        target_id=objects.target.id,
+        support_id=objects.support.id,
+        robot=RobotBase(
+            setup.placement.x, setup.placement.y, setup.placement.z, setup.placement.yaw
+        ),
+        fps=dc.fps,
+        timestep=float(setup.model.opt.timestep),
+        n_frames=len(rec.time),
+        cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
+        image_size=[dc.height, dc.width],
+        depth_format=dc.depth,
+        state_spec=int(STATE_SPEC),
+        phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
+        grasp_width=plan.grasp_width,
+        plan_seconds=plan.plan_seconds,
+        outcome=rec.outcome.details,
+        factory_version=__version__,
+        cleared=list(setup.cleared),
+    )
+    arrays: dict[str, np.ndarray] = {
+        "time": rec.time,
+        "state": rec.state,
+        "joint_pos": rec.joint_pos.astype(np.float32),
+        "gripper": rec.gripper.astype(np.float32),
+        "ee_pose": rec.ee_pose.astype(np.float32),
+        "action": rec.action.astype(np.float32),
+        "env_state": rec.env_state.astype(np.float32),
+    }
+    for cam, im in rec.rgb.items():
+        arrays[f"rgb/{cam}"] = im
+    for cam, dp in rec.depth.items():
+        arrays[f"depth/{cam}"] = dp
+    store.write(meta, arrays)
+
+
 def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
     """Fills the item's slots (in a worker process or inline); returns its statistics."""
-    from factory import __version__
     from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute
+    from factory.demos.execute import FrameRenderer, RecordConfig, execute
     from factory.demos.pick_place import EpisodePlan
-    from factory.schema.episode import EpisodeInfo, RobotBase
 
     dc = env.demos
     out: dict[str, Any] = {
@@ -165,7 +266,6 @@ def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
         return out
     out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
     out["cleared"] = list(setup.cleared)
-    scene = setup.scene
     rec_cfg = RecordConfig(
         fps=dc.fps,
         width=dc.width,
@@ -176,14 +276,7 @@ def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
     )
     store = EpisodeStore(env.store_path)
     renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
-    per_frame = max(1, round(1.0 / (dc.fps * setup.model.opt.timestep)))
-    objects = setup.objects
-    instruction = (
-        scene.task.instruction
-        if scene.task and scene.task.instruction
-        else f"put the {objects.pick.category.replace('_', ' ')} {objects.relation} the "
-        f"{objects.target.category.replace('_', ' ')}"
-    )
+    instruction = episode_instruction(setup)
     attempt = dict.fromkeys(item.slots, 0)
     open_slots = [k for k in item.slots if episode_id(item.scene_id, k) not in store]
     try:
@@ -208,48 +301,7 @@ def run_item(env: _Env, item: WorkItem) -> dict[str, Any]:
                 if not rec.outcome.success:
                     out["failures"][rec.outcome.reason] += 1
                     continue
-                meta = EpisodeInfo(
-                    episode_id=episode_id(item.scene_id, k),
-                    scene_id=item.scene_id,
-                    task=env.task,
-                    instruction=instruction,
-                    seed=seed,
-                    success=True,
-                    failure_reason="",
-                    pick_id=objects.pick.id,
-                    target_id=objects.target.id,
-                    support_id=objects.support.id,
-                    robot=RobotBase(
-                        setup.placement.x, setup.placement.y, setup.placement.z, setup.placement.yaw
-                    ),
-                    fps=dc.fps,
-                    timestep=float(setup.model.opt.timestep),
-                    n_frames=len(rec.time),
-                    cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
-                    image_size=[dc.height, dc.width],
-                    depth_format=dc.depth,
-                    state_spec=int(STATE_SPEC),
-                    phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
-                    grasp_width=plan.grasp_width,
-                    plan_seconds=plan.plan_seconds,
-                    outcome=rec.outcome.details,
-                    factory_version=__version__,
-                    cleared=list(setup.cleared),
-                )
-                arrays: dict[str, np.ndarray] = {
-                    "time": rec.time,
-                    "state": rec.state,
-                    "joint_pos": rec.joint_pos.astype(np.float32),
-                    "gripper": rec.gripper.astype(np.float32),
-                    "ee_pose": rec.ee_pose.astype(np.float32),
-                    "action": rec.action.astype(np.float32),
-                    "env_state": rec.env_state.astype(np.float32),
-                }
-                for cam, im in rec.rgb.items():
-                    arrays[f"rgb/{cam}"] = im
-                for cam, dp in rec.depth.items():
-                    arrays[f"depth/{cam}"] = dp
-                store.write(meta, arrays)
+                write_episode(store, env, setup, k, seed, plan, rec, rec_cfg, instruction)
                 out["frames"] += len(rec.time)
                 done.add(k)
                 out["new"] += 1
@@ -304,15 +356,24 @@ def run(ctx: StageContext) -> dict[str, Any]:
         for start in range(0, len(todo), dc.batch):
             items.append(WorkItem(sid, tuple(todo[start : start + dc.batch])))
     cores = os.cpu_count() or 1
-    workers = min(dc.workers or cores, max(1, len(items)))
+    executor = resolve_executor(dc.executor)
+    if executor == "warp":
+        workers = dc.workers or max(1, cores - 1)
+    else:
+        workers = min(dc.workers or cores, max(1, len(items)))
     nthread = dc.nthread or max(1, cores // workers)
     env = _Env(str(store.root), str(episodes.path), dc, cfg.task, cfg.seed, nthread)
     t_start = time.perf_counter()
     results: list[dict[str, Any]] = []
     total = sum(len(i.slots) for i in items)
-    with tqdm(total=total, desc="demos", unit="episode", disable=None, file=terminal()) as bar:
+    desc = "demos (gpu)" if executor == "warp" else "demos"
+    with tqdm(total=total, desc=desc, unit="episode", disable=None, file=terminal()) as bar:
         try:
-            if workers > 1:
+            if executor == "warp" and items:
+                from factory.demos.gpu_pipeline import run_gpu
+
+                results = run_gpu(env, items, workers, bar)
+            elif workers > 1:
                 with ProcessPoolExecutor(workers) as pool:
                     futures = {pool.submit(_run_item_logged, env, it): it for it in items}
                     for fut in as_completed(futures):
@@ -360,6 +421,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         "failures": dict(reasons),
         "success_rate": n_ok / max(1, tried),
         "scenes": scenes,
+        "executor": executor,
         "workers": workers,
         "threads_per_worker": nthread,
         "seconds": {
@@ -371,6 +433,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
         },
         "frames": frames,
     }
+    gpu = [r["warp_seconds"] for r in results if "warp_seconds" in r]
+    if gpu:
+        summary["seconds"]["gpu"] = {k: sum(g[k] for g in gpu) for k in gpu[0]}
     atomic_write_json(store.root / "episodes" / f"summary-{ctx.shard.name}.json", summary)
     log.info(
         "demos: %d new successful episodes, failures %s, %.1f s",

@@ -1,0 +1,420 @@
+"""Execution and recording of the planned episodes of one scene on the GPU (MuJoCo Warp).
+
+The episodes of a scene (same model; different object poses, seeds and trajectories) run as the
+worlds of one MuJoCo Warp model. Their timed control sequences are uploaded once as one
+``(n, T, nu)`` array (episodes shorter than the longest hold their last control); a small
+kernel writes each world's control of the current physics step before ``mujoco_warp.step``.
+One recording period (``1 / fps``) is a fixed sequence of launches: the period's steps, a
+``forward`` (so kinematics and contacts match the recorded state, as the CPU executor's
+``mj_forward`` does), a refit of the renderer's BVH, MuJoCo Warp's batched ray-traced render
+of every world and camera, and a conversion kernel to ``uint8`` RGB and depth (``uint16`` mm or
+``float32`` m). On CUDA that sequence is captured once into a CUDA graph and replayed per
+frame. The host copies each frame's images, states and contacts in a few large blocks.
+
+The recorded MuJoCo integration state has the layout of ``mj_getState(..., mjSTATE_INTEGRATION)``
+(:func:`state_layout`), so recordings replay on the CPU like the CPU executor's; the success
+check is the same function (:func:`factory.demos.execute.finish_recordings`).
+
+MuJoCo Warp computes in float32 (the CPU executor in float64): trajectories agree closely but
+not bit for bit, and its renderer (ray tracing, headlight and model lights, no shadows) draws
+images that are alike but not identical to the OpenGL ones (tests/demos/test_execute_warp.py
+states the tolerances).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from factory.demos.execute import (
+    STATE_SPEC,
+    RecordConfig,
+    Recording,
+    finish_recordings,
+    new_recordings,
+)
+from factory.demos.pick_place import EpisodePlan, SceneSetup
+from factory.demos.robot import CAMERAS
+
+log = logging.getLogger(__name__)
+
+OVERFLOW = "sim_overflow"
+"""Failure reason of a world whose contact or constraint buffers overflowed."""
+
+DYNAMIC = ("time", "qpos", "qvel", "act", "qacc_warmstart", "ctrl")
+"""Parts of the integration state that change during an episode (read from the device)."""
+
+_BITS: dict[str, int] = {
+    "time": int(mujoco.mjtState.mjSTATE_TIME),
+    "qpos": int(mujoco.mjtState.mjSTATE_QPOS),
+    "qvel": int(mujoco.mjtState.mjSTATE_QVEL),
+    "act": int(mujoco.mjtState.mjSTATE_ACT),
+    "history": int(mujoco.mjtState.mjSTATE_HISTORY),
+    "qacc_warmstart": int(mujoco.mjtState.mjSTATE_WARMSTART),
+    "ctrl": int(mujoco.mjtState.mjSTATE_CTRL),
+    "qfrc_applied": int(mujoco.mjtState.mjSTATE_QFRC_APPLIED),
+    "xfrc_applied": int(mujoco.mjtState.mjSTATE_XFRC_APPLIED),
+    "eq_active": int(mujoco.mjtState.mjSTATE_EQ_ACTIVE),
+    "mocap_pos": int(mujoco.mjtState.mjSTATE_MOCAP_POS),
+    "mocap_quat": int(mujoco.mjtState.mjSTATE_MOCAP_QUAT),
+    "userdata": int(mujoco.mjtState.mjSTATE_USERDATA),
+    "plugin": int(mujoco.mjtState.mjSTATE_PLUGIN),
+    "plastic": int(mujoco.mjtState.mjSTATE_PLASTIC),
+}
+
+
+def state_layout(model: mujoco.MjModel, spec: int = int(STATE_SPEC)) -> dict[str, slice]:
+    """Where each part of a MuJoCo state vector lies (``mj_getState`` order: the ``mjtState``
+    bits in increasing order), for the parts in ``spec``.
+
+    Returns:
+        part name (``time``, ``qpos``, ...) -> slice into the state vector.
+    """
+    out: dict[str, slice] = {}
+    at = 0
+    for name, bit in sorted(_BITS.items(), key=lambda kv: kv[1]):
+        if not spec & bit:
+            continue
+        size = mujoco.mj_stateSize(model, bit)
+        out[name] = slice(at, at + size)
+        at += size
+    if at != mujoco.mj_stateSize(model, spec):
+        raise AssertionError(f"state layout covers {at} of {mujoco.mj_stateSize(model, spec)}")
+    return out
+
+
+def quat_from_mat(mat: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w, x, y, z) of rotation matrices ``mat`` (..., 3, 3), as
+    ``mju_mat2Quat`` gives them."""
+    m = np.asarray(mat, np.float64)
+    flat = m.reshape(-1, 3, 3)
+    out = np.empty((len(flat), 4))
+    for i, r in enumerate(flat):
+        mujoco.mju_mat2Quat(out[i], r.reshape(9))
+    return out.reshape(*m.shape[:-2], 4)
+
+
+def buffer_sizes(model: mujoco.MjModel, qpos: np.ndarray, headroom: float = 3.0) -> tuple[int, int]:
+    """``(nconmax, njmax)`` per world: ``headroom`` times the contacts of the initial states
+    (sampled) plus room for the gripper's contacts and every free body touching twice."""
+    data = mujoco.MjData(model)
+    most = 0
+    for q in qpos[np.linspace(0, len(qpos) - 1, min(len(qpos), 8)).astype(int)]:
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        most = max(most, int(data.ncon))
+    free = int(np.sum(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE))
+    nconmax = int(headroom * most) + 4 * free + 64
+    rows = 4 if model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL else 6
+    njmax = rows * nconmax + model.nv
+    return nconmax, njmax
+
+
+@dataclass
+class WarpTimes:
+    """Seconds spent by one :meth:`WarpExecutor.execute` call."""
+
+    setup: float = 0.0
+    frames: float = 0.0
+    copy: float = 0.0
+    finish: float = 0.0
+
+
+class WarpExecutor:
+    """Runs the planned episodes of one scene as worlds of one MuJoCo Warp model and records
+    them (the GPU twin of :func:`factory.demos.execute.execute`).
+
+    Args:
+        setup: the scene with the robot (its composed model).
+        cfg: what to record.
+        device: Warp device; default ``cuda:0`` when CUDA is present, else ``cpu`` (slow: tests).
+        graph: capture one recording period into a CUDA graph (CUDA only).
+        broadphase: MuJoCo Warp's broadphase (``nxn``, ``sap_tile``, ``sap_segmented``);
+            None keeps its own choice (by the number of geom pairs).
+    """
+
+    def __init__(
+        self,
+        setup: SceneSetup,
+        cfg: RecordConfig,
+        device: str | None = None,
+        graph: bool = True,
+        broadphase: str | None = None,
+    ) -> None:
+        import mujoco_warp as mjw
+        import warp as wp
+
+        from factory.sim.backend import cuda_available
+
+        wp.config.quiet = True  # type: ignore[attr-defined]
+        wp.init()
+        self.wp, self.mjw = wp, mjw
+        self.setup = setup
+        self.cfg = cfg
+        self.device = device or ("cuda:0" if cuda_available() else "cpu")
+        self.graph = graph and self.device.startswith("cuda")
+        model = setup.model
+        self.layout = state_layout(model)
+        self.per_frame = max(1, round(1.0 / (cfg.fps * float(model.opt.timestep))))
+        with wp.ScopedDevice(self.device):
+            self.m = mjw.put_model(model)
+        if broadphase is not None:
+            self.m.opt.broadphase = mjw.BroadphaseType[broadphase.upper()]
+        self.times = WarpTimes()
+
+    def _render_context(self, n: int) -> Any:
+        cfg = self.cfg
+        names = [CAMERAS[c] for c in cfg.cameras]
+        return self.mjw.create_render_context(
+            self.setup.model,
+            nworld=n,
+            cam_res=(cfg.width, cfg.height),
+            render_rgb=True,
+            render_depth=True,
+            render_seg=False,
+            use_textures=True,
+            use_shadows=False,
+            enabled_geom_groups=[0, 1, 2],
+            cam_active=names,
+        )
+
+    def execute(self, plans: list[EpisodePlan]) -> list[Recording]:
+        """Runs ``plans`` together and records them (one recording per plan, success checked).
+
+        Worlds whose contact or constraint buffers overflowed are run again with doubled
+        buffers (twice at most); if they still overflow their outcome is ``sim_overflow``.
+        """
+        n = len(plans)
+        if n == 0:
+            return []
+        recs = self._execute(plans, headroom=3.0)
+        for grow in (6.0, 12.0):
+            again = [i for i, r in enumerate(recs) if r.outcome and r.outcome.reason == OVERFLOW]
+            if not again:
+                break
+            log.info("warp demos: %d world(s) overflowed; re-running with more room", len(again))
+            redo = self._execute([plans[i] for i in again], headroom=grow)
+            for i, r in zip(again, redo, strict=True):
+                recs[i] = r
+        return recs
+
+    def _execute(self, plans: list[EpisodePlan], headroom: float) -> list[Recording]:
+        wp, mjw = self.wp, self.mjw
+        from factory.demos.warp_kernels import set_ctrl, tick, to_images
+
+        cfg, setup = self.cfg, self.setup
+        model, robot = setup.model, setup.robot
+        n, per_frame = len(plans), self.per_frame
+        t0 = time.perf_counter()
+        lengths = [len(p.ctrl) for p in plans]
+        n_frames = [int(np.ceil(t / per_frame)) + 1 for t in lengths]
+        total = max(n_frames) - 1
+        steps = max(1, total * per_frame)
+        ctrl = np.empty((n, steps, model.nu), np.float32)
+        for i, p in enumerate(plans):
+            k = min(len(p.ctrl), steps)
+            ctrl[i, :k] = p.ctrl[:k]
+            ctrl[i, k:] = p.ctrl[-1]
+        q0 = np.stack([p.qpos0 for p in plans])
+        nconmax, njmax = buffer_sizes(model, q0, headroom)
+        # Template states: the CPU executor's initial state of each world (reset, qpos0,
+        # first control, forward); the parts that never change on the device come from here.
+        data = mujoco.MjData(model)
+        nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+        template = np.empty((n, nstate))
+        for i, p in enumerate(plans):
+            mujoco.mj_resetData(model, data)
+            data.qpos[:] = p.qpos0
+            data.ctrl[:] = ctrl[i, 0]
+            mujoco.mj_forward(model, data)
+            mujoco.mj_getState(model, data, template[i], STATE_SPEC)
+        mujoco.mj_resetData(model, data)
+        recs = new_recordings(n_frames, cfg, nstate)
+        ncam = len(cfg.cameras) if cfg.render else 0
+        npix = cfg.width * cfg.height
+        pick = model.body(setup.objects.pick.id).id
+        target = model.body(setup.objects.target.id).id
+        support = model.body(setup.objects.support.id).id
+        robot_geom = np.zeros(model.ngeom, bool)
+        robot_geom[robot.geoms] = True
+        allowed = np.isin(model.geom_bodyid, [pick, target, support])
+        worst = np.zeros(n)
+        with wp.ScopedDevice(self.device):
+            d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
+            d.qpos.assign(wp.array(q0.astype(np.float32), dtype=float))
+            plan_d = wp.array(ctrl, dtype=float)
+            step_d = wp.zeros(1, dtype=int)
+            wp.launch(set_ctrl, dim=(n, model.nu), inputs=[plan_d, step_d], outputs=[d.ctrl])
+            mjw.forward(self.m, d)
+            rc = self._render_context(n) if ncam else None
+            if rc is not None:
+                rgb_dev = wp.zeros((n, ncam, npix, 3), dtype=wp.uint8)
+                mm = cfg.depth == "uint16_mm"
+                mm_dev = wp.zeros((n, ncam, npix) if mm else (1, 1, 1), dtype=wp.uint16)
+                m_dev = wp.zeros((1, 1, 1) if mm else (n, ncam, npix), dtype=float)
+                rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
+                depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
+
+            def draw() -> None:
+                if rc is None:
+                    return
+                mjw.refit_bvh(self.m, d, rc)
+                mjw.render(self.m, d, rc)
+                wp.launch(
+                    to_images,
+                    dim=(n, ncam, npix),
+                    inputs=[
+                        rc.rgb_data,
+                        rc.depth_data,
+                        rgb_adr,
+                        depth_adr,
+                        npix,
+                        int(cfg.depth == "uint16_mm"),
+                    ],
+                    outputs=[rgb_dev, mm_dev, m_dev],
+                )
+
+            def period() -> None:
+                for _ in range(per_frame):
+                    wp.launch(
+                        set_ctrl, dim=(n, model.nu), inputs=[plan_d, step_d], outputs=[d.ctrl]
+                    )
+                    mjw.step(self.m, d)
+                    wp.launch(tick, dim=1, inputs=[step_d])
+                mjw.forward(self.m, d)
+                draw()
+
+            draw()
+            self.times.setup += time.perf_counter() - t0
+            captured = None
+            copy_s = frames_s = 0.0
+            for f in range(total + 1):
+                t1 = time.perf_counter()
+                if f > 0:
+                    if self.graph and captured is None:
+                        with wp.ScopedCapture() as cap:
+                            period()
+                        captured = cap.graph
+                    if captured is not None:
+                        wp.capture_launch(captured)
+                    else:
+                        period()
+                    wp.synchronize()
+                t2 = time.perf_counter()
+                frames_s += t2 - t1
+                self._record(
+                    f,
+                    d,
+                    recs,
+                    n_frames,
+                    template,
+                    plans,
+                    robot_geom,
+                    allowed,
+                    worst,
+                    (pick, target),
+                    rgb_dev if rc else None,
+                    mm_dev if rc else None,
+                    m_dev if rc else None,
+                )
+                copy_s += time.perf_counter() - t2
+            overflow = d.overflow.numpy().copy()
+        self.times.frames += frames_s
+        self.times.copy += copy_s
+        t3 = time.perf_counter()
+        finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
+        from factory.demos.task import Outcome
+
+        for i in map(int, np.flatnonzero(overflow)):
+            recs[i].outcome = Outcome(
+                False,
+                OVERFLOW,
+                {"nconmax": nconmax, "njmax": njmax, "overflow_bits": float(overflow[i])},
+            )
+        for r in recs:
+            r.sim_seconds = frames_s / n
+            r.render_seconds = copy_s / n
+        self.times.finish += time.perf_counter() - t3
+        return recs
+
+    def _record(
+        self,
+        frame: int,
+        d: Any,
+        recs: list[Recording],
+        n_frames: list[int],
+        template: np.ndarray,
+        plans: list[EpisodePlan],
+        robot_geom: np.ndarray,
+        allowed: np.ndarray,
+        worst: np.ndarray,
+        bodies: tuple[int, int],
+        rgb_dev: Any,
+        mm_dev: Any,
+        m_dev: Any,
+    ) -> None:
+        """Copies frame ``frame`` of every world from the device into the recordings."""
+        setup, cfg, lay = self.setup, self.cfg, self.layout
+        robot = setup.robot
+        n = len(recs)
+        states = template.copy()
+        parts = {
+            "time": d.time.numpy()[:, None],
+            "qpos": d.qpos.numpy(),
+            "qvel": d.qvel.numpy(),
+            "act": d.act.numpy(),
+            "qacc_warmstart": d.qacc_warmstart.numpy(),
+            "ctrl": d.ctrl.numpy(),
+        }
+        for name, arr in parts.items():
+            if name in lay and lay[name].stop > lay[name].start:
+                states[:, lay[name]] = arr.reshape(n, -1)
+        site_xpos = d.site_xpos.numpy()[:, robot.site]
+        site_quat = quat_from_mat(d.site_xmat.numpy()[:, robot.site])
+        xpos = d.xpos.numpy()
+        xquat = d.xquat.numpy()
+        # Robot penetration: the deepest contact between a robot geom and a geom that is not
+        # the pick object, the target or its support (as the CPU executor's check).
+        nacon = int(d.nacon.numpy()[0])
+        if nacon:
+            geom = d.contact.geom.numpy()[:nacon]
+            dist = d.contact.dist.numpy()[:nacon]
+            world = d.contact.worldid.numpy()[:nacon]
+            g1, g2 = geom[:, 0], geom[:, 1]
+            ok = (g1 >= 0) & (g2 >= 0)
+            g1, g2, dist, world = g1[ok], g2[ok], dist[ok], world[ok]
+            one = robot_geom[g1] != robot_geom[g2]
+            other = np.where(robot_geom[g1], g2, g1)
+            hit = one & ~allowed[other]
+            if hit.any():
+                np.maximum.at(worst, world[hit], np.maximum(0.0, -dist[hit]))
+        qpos = parts["qpos"]
+        rgb = rgb_dev.numpy() if rgb_dev is not None else None
+        depth = None
+        if rgb is not None:
+            depth = mm_dev.numpy() if cfg.depth == "uint16_mm" else m_dev.numpy()
+        h, w = cfg.height, cfg.width
+        for i in range(n):
+            if frame >= n_frames[i]:
+                continue
+            rec = recs[i]
+            rec.state[frame] = states[i]
+            rec.joint_pos[frame] = qpos[i, robot.qpos]
+            fingers = qpos[i, robot.finger_qpos]
+            rec.gripper[frame, 0] = fingers[0] - fingers[1]
+            rec.ee_pose[frame, :3] = site_xpos[i]
+            rec.ee_pose[frame, 3:] = site_quat[i]
+            rec.env_state[frame] = np.concatenate(
+                [xpos[i, bodies[0]], xquat[i, bodies[0]], xpos[i, bodies[1]], xquat[i, bodies[1]]]
+            )
+            step = min((frame + 1) * self.per_frame, len(plans[i].targets)) - 1
+            rec.action[frame] = plans[i].targets[step]
+            if rgb is not None and depth is not None:
+                for k, cam in enumerate(cfg.cameras):
+                    rec.rgb[cam][frame] = rgb[i, k].reshape(h, w, 3)
+                    rec.depth[cam][frame] = depth[i, k].reshape(h, w)

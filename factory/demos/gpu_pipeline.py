@@ -1,0 +1,186 @@
+"""``stage=demos`` with the GPU executor: planning in CPU worker processes feeding the GPU.
+
+Scenes are taken one after another. The episode slots of a scene are planned in a pool of
+``spawn``ed worker processes (one plan per task, each worker keeping the scene's planner), the
+plans are executed and recorded together as the worlds of one MuJoCo Warp model
+(:class:`~factory.demos.execute_warp.WarpExecutor`, up to ``demos.gpu_batch`` worlds per
+call), and the successful recordings are written by a few threads while the GPU goes on. While
+the GPU runs a scene, the pool already plans the next scene's episodes, so neither waits for
+the other as long as planning keeps up. Failed slots are planned again with their next seed
+(``demos.attempts``), exactly as on the CPU path: the same seeds give the same plans, so the CPU
+and GPU executors record the same episodes up to float32 physics.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import time
+from collections import Counter
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
+from typing import Any
+
+from factory.demos.stage import (
+    WorkItem,
+    _Env,
+    _setup,
+    episode_id,
+    episode_instruction,
+    episode_seed,
+    scene_planner,
+    write_episode,
+)
+from factory.errors import FactoryError
+
+log = logging.getLogger(__name__)
+
+
+def plan_slot(env: _Env, scene_id: str, slot: int, attempt: int) -> tuple[int, int, Any]:
+    """Plans one episode slot in a worker: ``(slot, seed, EpisodePlan | PlanFailure | str)``
+    (a string: the scene cannot host the task, and why)."""
+    try:
+        _, planner = _setup(env, scene_id)
+    except FactoryError as e:
+        return slot, 0, str(e)
+    seed = episode_seed(env.seed, scene_id, slot, attempt)
+    return slot, seed, planner.plan_episode(seed, env.demos.randomize)
+
+
+def _init_worker() -> None:
+    logging.basicConfig(level=logging.WARNING)
+
+
+def run_gpu(
+    env: _Env, items: list[WorkItem], workers: int, bar: Any = None, device: str | None = None
+) -> list[dict[str, Any]]:
+    """Fills the slots of ``items`` with the GPU executor; one statistics dict per scene (the
+    keys of :func:`factory.demos.stage.run_item`'s)."""
+    from factory.demos.episodes import EpisodeStore
+    from factory.demos.execute import RecordConfig
+    from factory.demos.execute_warp import WarpExecutor
+    from factory.demos.pick_place import EpisodePlan
+
+    dc = env.demos
+    rec_cfg = RecordConfig(
+        fps=dc.fps,
+        width=dc.width,
+        height=dc.height,
+        cameras=tuple(dc.cameras),
+        depth=dc.depth,
+        render=dc.render,
+    )
+    store = EpisodeStore(env.store_path)
+    by_scene: dict[str, list[int]] = {}
+    for it in items:
+        by_scene.setdefault(it.scene_id, []).extend(it.slots)
+    scenes = list(by_scene)
+    results: list[dict[str, Any]] = []
+    ctx = mp.get_context("spawn")
+    with (
+        ProcessPoolExecutor(max(1, workers), mp_context=ctx, initializer=_init_worker) as pool,
+        ThreadPoolExecutor(4) as writers,
+        ThreadPoolExecutor(1) as prep,
+    ):
+
+        def submit(scene_id: str, slots: list[int], attempt: dict[int, int]) -> list[Future[Any]]:
+            return [pool.submit(plan_slot, env, scene_id, k, attempt[k]) for k in slots]
+
+        def open_slots(scene_id: str) -> list[int]:
+            return [k for k in by_scene[scene_id] if episode_id(scene_id, k) not in store]
+
+        attempts = {s: dict.fromkeys(by_scene[s], 0) for s in scenes}
+        pending: dict[str, list[Future[Any]]] = {}
+        setups: dict[str, Future[Any]] = {}
+        if scenes:
+            pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
+            setups[scenes[0]] = prep.submit(scene_planner, env.run_dir, scenes[0], dc)
+        for idx, sid in enumerate(scenes):
+            out: dict[str, Any] = {
+                "scene_id": sid,
+                "new": 0,
+                "failures": Counter(),
+                "error": None,
+                "plan": [],
+                "segments": [],
+                "simulate": 0.0,
+                "render": 0.0,
+                "frames": 0,
+                "executor": "warp",
+            }
+            results.append(out)
+            futures = pending.pop(sid, [])
+            if idx + 1 < len(scenes):
+                nxt = scenes[idx + 1]
+                pending[nxt] = submit(nxt, open_slots(nxt), attempts[nxt])
+                setups[nxt] = prep.submit(scene_planner, env.run_dir, nxt, dc)
+            try:
+                setup, _ = setups.pop(sid).result()  # made while the GPU ran the last scene
+            except FactoryError as e:
+                for f in futures:
+                    f.cancel()
+                out["error"] = str(e)
+                out["failures"]["scene_unusable"] += len(by_scene[sid])
+                if bar is not None:
+                    bar.update(len(by_scene[sid]))
+                continue
+            out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
+            out["cleared"] = list(setup.cleared)
+            instruction = episode_instruction(setup)
+            executor = WarpExecutor(setup, rec_cfg, device=device)
+            attempt = attempts[sid]
+            writes: list[Future[Any]] = []
+            while futures:
+                planned: list[tuple[int, int, Any]] = []
+                for f in futures:
+                    k, seed, res = f.result()
+                    if isinstance(res, EpisodePlan):
+                        planned.append((k, seed, res))
+                        out["plan"].append(res.seconds)
+                        out["segments"].extend(res.plan_seconds.values())
+                    elif isinstance(res, str):
+                        out["failures"]["scene_unusable"] += 1
+                    else:
+                        out["failures"][res.reason] += 1
+                        log.info("scene %s slot %d: plan failed: %s", sid, k, res.detail)
+                done: set[int] = set()
+                for start in range(0, len(planned), dc.gpu_batch):
+                    chunk = planned[start : start + dc.gpu_batch]
+                    t0 = time.perf_counter()
+                    recs = executor.execute([p for _, _, p in chunk])
+                    out["simulate"] += time.perf_counter() - t0
+                    for (k, seed, plan), rec in zip(chunk, recs, strict=True):
+                        assert rec.outcome is not None
+                        if not rec.outcome.success:
+                            out["failures"][rec.outcome.reason] += 1
+                            continue
+                        writes.append(
+                            writers.submit(
+                                write_episode,
+                                store,
+                                env,
+                                setup,
+                                k,
+                                seed,
+                                plan,
+                                rec,
+                                rec_cfg,
+                                instruction,
+                            )
+                        )
+                        out["frames"] += len(rec.time)
+                        out["new"] += 1
+                        done.add(k)
+                retry = []
+                for k, _, res in [(k, s, r) for k, s, r in ((f.result()) for f in futures)]:
+                    if k in done or isinstance(res, str):
+                        continue
+                    attempt[k] += 1
+                    if attempt[k] < dc.attempts:
+                        retry.append(k)
+                if bar is not None:
+                    bar.update(len(futures) - len(retry))
+                futures = submit(sid, retry, attempt) if retry else []
+            for w in writes:
+                w.result()
+            out["warp_seconds"] = vars(executor.times)
+    return results
