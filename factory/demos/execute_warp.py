@@ -36,7 +36,6 @@ from factory.demos.execute import (
     RecordConfig,
     Recording,
     finish_recordings,
-    new_recordings,
 )
 from factory.demos.pick_place import EpisodePlan, SceneSetup
 from factory.demos.robot import CAMERAS
@@ -91,12 +90,65 @@ def state_layout(model: mujoco.MjModel, spec: int = int(STATE_SPEC)) -> dict[str
 def quat_from_mat(mat: np.ndarray) -> np.ndarray:
     """Unit quaternions (w, x, y, z) of rotation matrices ``mat`` (..., 3, 3), as
     ``mju_mat2Quat`` gives them."""
-    m = np.asarray(mat, np.float64)
-    flat = m.reshape(-1, 3, 3)
-    out = np.empty((len(flat), 4))
-    for i, r in enumerate(flat):
-        mujoco.mju_mat2Quat(out[i], r.reshape(9))
-    return out.reshape(*m.shape[:-2], 4)
+    m = np.asarray(mat, np.float64).reshape(-1, 9)
+    out = np.zeros((len(m), 4))
+    tr = m[:, 0] + m[:, 4] + m[:, 8]
+    c0 = tr > 0
+    c1 = ~c0 & (m[:, 0] > m[:, 4]) & (m[:, 0] > m[:, 8])
+    c2 = ~c0 & ~c1 & (m[:, 4] > m[:, 8])
+    c3 = ~c0 & ~c1 & ~c2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = 0.5 * np.sqrt(np.maximum(1 + tr, 0))
+        x = 0.5 * np.sqrt(np.maximum(1 + m[:, 0] - m[:, 4] - m[:, 8], 0))
+        y = 0.5 * np.sqrt(np.maximum(1 - m[:, 0] + m[:, 4] - m[:, 8], 0))
+        z = 0.5 * np.sqrt(np.maximum(1 - m[:, 0] - m[:, 4] + m[:, 8], 0))
+        cases = (
+            (
+                c0,
+                w,
+                (
+                    w,
+                    0.25 * (m[:, 7] - m[:, 5]) / w,
+                    0.25 * (m[:, 2] - m[:, 6]) / w,
+                    0.25 * (m[:, 3] - m[:, 1]) / w,
+                ),
+            ),
+            (
+                c1,
+                x,
+                (
+                    0.25 * (m[:, 7] - m[:, 5]) / x,
+                    x,
+                    0.25 * (m[:, 1] + m[:, 3]) / x,
+                    0.25 * (m[:, 2] + m[:, 6]) / x,
+                ),
+            ),
+            (
+                c2,
+                y,
+                (
+                    0.25 * (m[:, 2] - m[:, 6]) / y,
+                    0.25 * (m[:, 1] + m[:, 3]) / y,
+                    y,
+                    0.25 * (m[:, 5] + m[:, 7]) / y,
+                ),
+            ),
+            (
+                c3,
+                z,
+                (
+                    0.25 * (m[:, 3] - m[:, 1]) / z,
+                    0.25 * (m[:, 2] + m[:, 6]) / z,
+                    0.25 * (m[:, 5] + m[:, 7]) / z,
+                    z,
+                ),
+            ),
+        )
+        for mask, _, parts in cases:
+            for j, v in enumerate(parts):
+                out[mask, j] = v[mask]
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    return out.reshape(*np.shape(mat)[:-2], 4)
 
 
 def buffer_sizes(model: mujoco.MjModel, qpos: np.ndarray, headroom: float = 3.0) -> tuple[int, int]:
@@ -234,7 +286,12 @@ class WarpExecutor:
             mujoco.mj_forward(model, data)
             mujoco.mj_getState(model, data, template[i], STATE_SPEC)
         mujoco.mj_resetData(model, data)
-        recs = new_recordings(n_frames, cfg, nstate)
+        targets = np.empty((n, steps, 8), np.float32)
+        for i, p in enumerate(plans):
+            k = min(len(p.targets), steps)
+            targets[i, :k] = p.targets[:k]
+            targets[i, k:] = p.targets[-1]
+        frames = _Frames.allocate(total + 1, n, nstate, cfg)
         ncam = len(cfg.cameras) if cfg.render else 0
         npix = cfg.width * cfg.height
         pick = model.body(setup.objects.pick.id).id
@@ -257,6 +314,12 @@ class WarpExecutor:
                 mm = cfg.depth == "uint16_mm"
                 mm_dev = wp.zeros((n, ncam, npix) if mm else (1, 1, 1), dtype=wp.uint16)
                 m_dev = wp.zeros((1, 1, 1) if mm else (n, ncam, npix), dtype=float)
+                pinned = self.device.startswith("cuda")
+                rgb_host = wp.empty(rgb_dev.shape, dtype=wp.uint8, device="cpu", pinned=pinned)
+                depth_dev = mm_dev if mm else m_dev
+                depth_host = wp.empty(
+                    depth_dev.shape, dtype=depth_dev.dtype, device="cpu", pinned=pinned
+                )
                 rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
                 depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
 
@@ -307,26 +370,31 @@ class WarpExecutor:
                     wp.synchronize()
                 t2 = time.perf_counter()
                 frames_s += t2 - t1
+                images = None
+                if rc is not None:
+                    wp.copy(rgb_host, rgb_dev)
+                    wp.copy(depth_host, depth_dev)
+                    wp.synchronize()
+                    images = (rgb_host.numpy(), depth_host.numpy())
+                step = np.minimum((f + 1) * per_frame, np.asarray(lengths)) - 1
                 self._record(
                     f,
                     d,
-                    recs,
-                    n_frames,
+                    frames,
                     template,
-                    plans,
+                    targets[np.arange(n), step],
                     robot_geom,
                     allowed,
                     worst,
                     (pick, target),
-                    rgb_dev if rc else None,
-                    mm_dev if rc else None,
-                    m_dev if rc else None,
+                    images,
                 )
                 copy_s += time.perf_counter() - t2
             overflow = d.overflow.numpy().copy()
         self.times.frames += frames_s
         self.times.copy += copy_s
         t3 = time.perf_counter()
+        recs = frames.recordings(n_frames, cfg)
         finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
         from factory.demos.task import Outcome
 
@@ -346,41 +414,53 @@ class WarpExecutor:
         self,
         frame: int,
         d: Any,
-        recs: list[Recording],
-        n_frames: list[int],
+        frames: _Frames,
         template: np.ndarray,
-        plans: list[EpisodePlan],
+        action: np.ndarray,
         robot_geom: np.ndarray,
         allowed: np.ndarray,
         worst: np.ndarray,
         bodies: tuple[int, int],
-        rgb_dev: Any,
-        mm_dev: Any,
-        m_dev: Any,
+        images: tuple[np.ndarray, np.ndarray] | None,
     ) -> None:
-        """Copies frame ``frame`` of every world from the device into the recordings."""
-        setup, cfg, lay = self.setup, self.cfg, self.layout
-        robot = setup.robot
-        n = len(recs)
-        states = template.copy()
-        parts = {
-            "time": d.time.numpy()[:, None],
-            "qpos": d.qpos.numpy(),
-            "qvel": d.qvel.numpy(),
-            "act": d.act.numpy(),
-            "qacc_warmstart": d.qacc_warmstart.numpy(),
-            "ctrl": d.ctrl.numpy(),
-        }
-        for name, arr in parts.items():
+        """Copies frame ``frame`` of every world from the device into ``frames`` (whole-batch
+        array operations; worlds past their episode's end are recorded and never read).
+
+        Args:
+            action: (n, 8) each world's recorded action of this frame.
+            images: RGB (n, ncam, H*W, 3) and depth (n, ncam, H*W) on the host, or None.
+        """
+        lay = self.layout
+        robot = self.setup.robot
+        n = len(template)
+        states = frames.state[frame]
+        states[:] = template
+        for name, arr in (
+            ("time", d.time),
+            ("qpos", d.qpos),
+            ("qvel", d.qvel),
+            ("act", d.act),
+            ("qacc_warmstart", d.qacc_warmstart),
+            ("ctrl", d.ctrl),
+        ):
             if name in lay and lay[name].stop > lay[name].start:
-                states[:, lay[name]] = arr.reshape(n, -1)
-        site_xpos = d.site_xpos.numpy()[:, robot.site]
-        site_quat = quat_from_mat(d.site_xmat.numpy()[:, robot.site])
+                states[:, lay[name]] = arr.numpy().reshape(n, -1)
+        qpos = states[:, lay["qpos"]]
+        frames.joint_pos[frame] = qpos[:, robot.qpos]
+        fingers = qpos[:, robot.finger_qpos]
+        frames.gripper[frame, :, 0] = fingers[:, 0] - fingers[:, 1]
+        frames.ee_pose[frame, :, :3] = d.site_xpos.numpy()[:, robot.site]
+        frames.ee_pose[frame, :, 3:] = quat_from_mat(d.site_xmat.numpy()[:, robot.site])
         xpos = d.xpos.numpy()
         xquat = d.xquat.numpy()
+        a, b = bodies
+        frames.env_state[frame] = np.concatenate(
+            [xpos[:, a], xquat[:, a], xpos[:, b], xquat[:, b]], axis=1
+        )
+        frames.action[frame] = action
         # Robot penetration: the deepest contact between a robot geom and a geom that is not
         # the pick object, the target or its support (as the CPU executor's check).
-        nacon = int(d.nacon.numpy()[0])
+        nacon = min(int(d.nacon.numpy()[0]), d.naconmax)
         if nacon:
             geom = d.contact.geom.numpy()[:nacon]
             dist = d.contact.dist.numpy()[:nacon]
@@ -393,28 +473,58 @@ class WarpExecutor:
             hit = one & ~allowed[other]
             if hit.any():
                 np.maximum.at(worst, world[hit], np.maximum(0.0, -dist[hit]))
-        qpos = parts["qpos"]
-        rgb = rgb_dev.numpy() if rgb_dev is not None else None
-        depth = None
-        if rgb is not None:
-            depth = mm_dev.numpy() if cfg.depth == "uint16_mm" else m_dev.numpy()
-        h, w = cfg.height, cfg.width
-        for i in range(n):
-            if frame >= n_frames[i]:
-                continue
-            rec = recs[i]
-            rec.state[frame] = states[i]
-            rec.joint_pos[frame] = qpos[i, robot.qpos]
-            fingers = qpos[i, robot.finger_qpos]
-            rec.gripper[frame, 0] = fingers[0] - fingers[1]
-            rec.ee_pose[frame, :3] = site_xpos[i]
-            rec.ee_pose[frame, 3:] = site_quat[i]
-            rec.env_state[frame] = np.concatenate(
-                [xpos[i, bodies[0]], xquat[i, bodies[0]], xpos[i, bodies[1]], xquat[i, bodies[1]]]
+        if images is not None:
+            h, w = self.cfg.height, self.cfg.width
+            rgb, depth = images
+            for k, cam in enumerate(self.cfg.cameras):
+                frames.rgb[cam][frame] = rgb[:, k].reshape(n, h, w, 3)
+                frames.depth[cam][frame] = depth[:, k].reshape(n, h, w)
+
+
+@dataclass
+class _Frames:
+    """Every world's recorded signals, frame-major: ``state`` (F, n, nstate), ``joint_pos``
+    (F, n, 7), ... , ``rgb[cam]`` (F, n, H, W, 3); episode ``i`` is ``[:frames_i, i]``."""
+
+    state: np.ndarray
+    joint_pos: np.ndarray
+    gripper: np.ndarray
+    ee_pose: np.ndarray
+    action: np.ndarray
+    env_state: np.ndarray
+    rgb: dict[str, np.ndarray]
+    depth: dict[str, np.ndarray]
+
+    @classmethod
+    def allocate(cls, f: int, n: int, nstate: int, cfg: RecordConfig) -> _Frames:
+        depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
+        cams = cfg.cameras if cfg.render else ()
+        return cls(
+            state=np.zeros((f, n, nstate)),
+            joint_pos=np.zeros((f, n, 7)),
+            gripper=np.zeros((f, n, 1)),
+            ee_pose=np.zeros((f, n, 7)),
+            action=np.zeros((f, n, 8)),
+            env_state=np.zeros((f, n, 14)),
+            rgb={c: np.zeros((f, n, cfg.height, cfg.width, 3), np.uint8) for c in cams},
+            depth={c: np.zeros((f, n, cfg.height, cfg.width), depth_type) for c in cams},
+        )
+
+    def recordings(self, n_frames: list[int], cfg: RecordConfig) -> list[Recording]:
+        """One :class:`Recording` per world: views of its frames (no copies)."""
+        out = []
+        for i, f in enumerate(n_frames):
+            out.append(
+                Recording(
+                    time=np.arange(f) / cfg.fps,
+                    state=self.state[:f, i],
+                    joint_pos=self.joint_pos[:f, i],
+                    gripper=self.gripper[:f, i],
+                    ee_pose=self.ee_pose[:f, i],
+                    action=self.action[:f, i],
+                    env_state=self.env_state[:f, i],
+                    rgb={c: a[:f, i] for c, a in self.rgb.items()},
+                    depth={c: a[:f, i] for c, a in self.depth.items()},
+                )
             )
-            step = min((frame + 1) * self.per_frame, len(plans[i].targets)) - 1
-            rec.action[frame] = plans[i].targets[step]
-            if rgb is not None and depth is not None:
-                for k, cam in enumerate(cfg.cameras):
-                    rec.rgb[cam][frame] = rgb[i, k].reshape(h, w, 3)
-                    rec.depth[cam][frame] = depth[i, k].reshape(h, w)
+        return out

@@ -46,6 +46,10 @@ def plan_slot(env: _Env, scene_id: str, slot: int, attempt: int) -> tuple[int, i
     return slot, seed, planner.plan_episode(seed, env.demos.randomize)
 
 
+WRITERS = 8
+"""Threads writing (compressing) recorded episodes while the GPU goes on."""
+
+
 def _init_worker() -> None:
     logging.basicConfig(level=logging.WARNING)
 
@@ -78,7 +82,7 @@ def run_gpu(
     ctx = mp.get_context("spawn")
     with (
         ProcessPoolExecutor(max(1, workers), mp_context=ctx, initializer=_init_worker) as pool,
-        ThreadPoolExecutor(4) as writers,
+        ThreadPoolExecutor(WRITERS) as writers,
         ThreadPoolExecutor(1) as prep,
     ):
 
@@ -91,6 +95,7 @@ def run_gpu(
         attempts = {s: dict.fromkeys(by_scene[s], 0) for s in scenes}
         pending: dict[str, list[Future[Any]]] = {}
         setups: dict[str, Future[Any]] = {}
+        previous: list[Future[Any]] = []
         if scenes:
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
             setups[scenes[0]] = prep.submit(scene_planner, env.run_dir, scenes[0], dc)
@@ -180,7 +185,10 @@ def run_gpu(
                 if bar is not None:
                     bar.update(len(futures) - len(retry))
                 futures = submit(sid, retry, attempt) if retry else []
-            for w in writes:
+            for w in previous:  # at most two scenes' recordings wait in memory
                 w.result()
+            previous = writes
             out["warp_seconds"] = vars(executor.times)
+        for w in previous:
+            w.result()
     return results

@@ -124,3 +124,18 @@ def test_gpu_demos_stage_cli(cli, make_kitchen, tmp_path: Path) -> None:
     again = cli(*args)
     assert again.returncode == 0
     assert json.loads((run / "episodes" / "summary-0-of-1.json").read_text())["new_successes"] == 0
+
+
+def test_quat_from_mat_is_mujocos() -> None:
+    """The vectorized rotation-to-quaternion of the GPU recording equals mju_mat2Quat."""
+    from factory.demos.execute_warp import quat_from_mat
+
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(500, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    mats = np.zeros((500, 9))
+    ref = np.zeros((500, 4))
+    for i in range(500):
+        mujoco.mju_quat2Mat(mats[i], q[i])
+        mujoco.mju_mat2Quat(ref[i], mats[i])
+    assert np.allclose(quat_from_mat(mats.reshape(500, 3, 3)), ref, atol=1e-12)
