@@ -20,10 +20,10 @@ from collections import Counter
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any
 
-from factory.demos.stage import (
+from factory.demos.slots import (
+    StageEnv,
     WorkItem,
-    _Env,
-    _setup,
+    cached_setup,
     episode_id,
     episode_instruction,
     episode_seed,
@@ -35,11 +35,11 @@ from factory.errors import FactoryError
 log = logging.getLogger(__name__)
 
 
-def plan_slot(env: _Env, scene_id: str, slot: int, attempt: int) -> tuple[int, int, Any]:
+def plan_slot(env: StageEnv, scene_id: str, slot: int, attempt: int) -> tuple[int, int, Any]:
     """Plans one episode slot in a worker: ``(slot, seed, EpisodePlan | PlanFailure | str)``
     (a string: the scene cannot host the task, and why)."""
     try:
-        _, planner = _setup(env, scene_id)
+        _, planner = cached_setup(env, scene_id)
     except FactoryError as e:
         return slot, 0, str(e)
     seed = episode_seed(env.seed, scene_id, slot, attempt)
@@ -55,7 +55,7 @@ def _init_worker() -> None:
 
 
 def run_gpu(
-    env: _Env, items: list[WorkItem], workers: int, bar: Any = None, device: str | None = None
+    env: StageEnv, items: list[WorkItem], workers: int, bar: Any = None, device: str | None = None
 ) -> list[dict[str, Any]]:
     """Fills the slots of ``items`` with the GPU executor; one statistics dict per scene (the
     keys of :func:`factory.demos.stage.run_item`'s)."""

@@ -1,0 +1,172 @@
+"""Episode slots of ``stage=demos``: their seeds and ids, work items, the scene set-up each
+process keeps, and writing a recorded episode (shared by the CPU path in
+:mod:`factory.demos.stage` and the GPU pipeline in :mod:`factory.demos.gpu_pipeline`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from factory.config import DemosConfig
+
+
+def episode_seed(root: int, scene_id: str, slot: int, attempt: int) -> int:
+    """A stable per-episode seed (independent of shard layout, workers and order)."""
+    digest = hashlib.sha256(f"{root}/{scene_id}/{slot}/{attempt}".encode()).digest()
+    return int.from_bytes(digest[:4], "little")
+
+
+def episode_id(scene_id: str, slot: int) -> str:
+    return f"{scene_id}-ep{slot:03d}"
+
+
+@dataclass(frozen=True)
+class WorkItem:
+    """A scene and the episode slots to fill in it."""
+
+    scene_id: str
+    slots: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class StageEnv:
+    """What a worker needs besides the item (picklable)."""
+
+    run_dir: str
+    store_path: str
+    demos: DemosConfig
+    task: str
+    seed: int
+    nthread: int
+
+
+def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[Any, Any]:
+    """A scene of a run composed with the robot as ``stage=demos`` records it, and its planner.
+
+    The base spot, cleared objects and cameras come from
+    :func:`~factory.demos.pick_place.setup_scene` (deterministic per scene); island sleeping
+    follows ``demos.sleep``; the planner's timing, timeout and grasp count follow ``demos``.
+
+    Returns:
+        ``(SceneSetup, EpisodePlanner)``.
+
+    Raises:
+        TaskError: the scene cannot host the task (objects missing, no base spot).
+    """
+    import mujoco
+
+    from factory.demos.pick_place import EpisodePlanner, MotionConfig, setup_scene
+    from factory.demos.planner import PlannerConfig
+    from factory.store import RunStore
+
+    store = RunStore(run_dir)
+    scene = store.load_scene(scene_id)
+    setup = setup_scene(scene, store.assets_dir)
+    if not dc.sleep:
+        setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    motion = MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
+    planner = EpisodePlanner(
+        setup,
+        planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
+        motion=motion,
+        max_grasps=dc.max_grasps,
+        grasp_facing=dc.grasp_facing,
+    )
+    return setup, planner
+
+
+_SETUPS: dict[str, Any] = {}
+_KEEP_SETUPS = 3
+"""Scene setups a process keeps (the GPU pipeline's planners see the tasks of two scenes
+interleaved: the one on the GPU and the next)."""
+
+
+def cached_setup(env: StageEnv, scene_id: str) -> Any:
+    """The scene's setup and planner, made once per process and scene (the last few kept)."""
+    if scene_id in _SETUPS:
+        _SETUPS[scene_id] = _SETUPS.pop(scene_id)  # most recently used last
+    else:
+        while len(_SETUPS) >= _KEEP_SETUPS:
+            del _SETUPS[next(iter(_SETUPS))]
+        _SETUPS[scene_id] = scene_planner(env.run_dir, scene_id, env.demos)
+    return _SETUPS[scene_id]
+
+
+def episode_instruction(setup: Any) -> str:
+    """The scene's task instruction, else one made from the task objects."""
+    scene, objects = setup.scene, setup.objects
+    if scene.task and scene.task.instruction:
+        return str(scene.task.instruction)
+    return (
+        f"put the {objects.pick.category.replace('_', ' ')} {objects.relation} the "
+        f"{objects.target.category.replace('_', ' ')}"
+    )
+
+
+def write_episode(
+    store: Any,
+    env: StageEnv,
+    setup: Any,
+    k: int,
+    seed: int,
+    plan: Any,
+    rec: Any,
+    rec_cfg: Any,
+    instruction: str,
+) -> None:
+    """Stores a successful recording as episode ``k`` of its scene (meta + arrays)."""
+    from factory import __version__
+    from factory.demos.execute import STATE_SPEC
+    from factory.schema.episode import EpisodeInfo, RobotBase
+
+    dc = env.demos
+    objects = setup.objects
+    per_frame = max(1, round(1.0 / (dc.fps * setup.model.opt.timestep)))
+    scene_id = setup.scene.id
+    meta = EpisodeInfo(
+        episode_id=episode_id(scene_id, k),
+        scene_id=scene_id,
+        task=env.task,
+        instruction=instruction,
+        seed=seed,
+        success=True,
+        failure_reason="",
+        pick_id=objects.pick.id,
+        target_id=objects.target.id,
+        support_id=objects.support.id,
+        robot=RobotBase(
+            setup.placement.x, setup.placement.y, setup.placement.z, setup.placement.yaw
+        ),
+        fps=dc.fps,
+        timestep=float(setup.model.opt.timestep),
+        n_frames=len(rec.time),
+        cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
+        image_size=[dc.height, dc.width],
+        depth_format=dc.depth,
+        state_spec=int(STATE_SPEC),
+        phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
+        grasp_width=plan.grasp_width,
+        plan_seconds=plan.plan_seconds,
+        outcome=rec.outcome.details,
+        factory_version=__version__,
+        cleared=list(setup.cleared),
+    )
+    arrays: dict[str, np.ndarray] = {
+        "time": rec.time,
+        "state": rec.state,
+        "joint_pos": rec.joint_pos.astype(np.float32),
+        "gripper": rec.gripper.astype(np.float32),
+        "ee_pose": rec.ee_pose.astype(np.float32),
+        "action": rec.action.astype(np.float32),
+        "env_state": rec.env_state.astype(np.float32),
+    }
+    for cam, im in rec.rgb.items():
+        arrays[f"rgb/{cam}"] = im
+    for cam, dp in rec.depth.items():
+        arrays[f"depth/{cam}"] = dp
+    store.write(meta, arrays)
