@@ -8,6 +8,13 @@ layout, category, configuration. Every variant is checked with the strict physic
 per level and reason. A kept variant is a full scene directory ``<parent>__<levels>_<k>``
 with ``source = augment:<parent>``, its parameters and seed in ``report.json``, its
 ``model.xml`` and renders.
+
+Configuration alone (``augment.levels=[configuration]``) is batched per parent: the parents
+are sharded (each shard makes all variants of its parents), one call of
+:func:`factory.augment.levels.configurations` finds ``variants_per_scene`` distinct valid
+configurations (seed from (seed, parent)), and one batched whole-scene check
+(:func:`factory.augment.check.verify_whole_scene`, the same verdict as :func:`check_physics`)
+confirms them all.
 """
 
 from __future__ import annotations
@@ -18,7 +25,15 @@ from collections import Counter
 from typing import Any
 
 from factory.assets import AssetLibrary
-from factory.augment.levels import AugmentError, Variant, category, configuration, layout
+from factory.augment.check import PhysicsCheck, batch_sizes
+from factory.augment.levels import (
+    AugmentError,
+    Variant,
+    category,
+    configuration,
+    configurations,
+    layout,
+)
 from factory.context import StageContext
 from factory.errors import ConfigError, StoreError
 
@@ -34,6 +49,32 @@ def variant_seed(seed: int, parent: str, index: int) -> int:
     """A stable seed per (run seed, parent, variant index)."""
     h = hashlib.sha256(f"{seed}|{parent}|{index}".encode()).hexdigest()
     return int(h[:8], 16)
+
+
+def batch_seed(seed: int, parent: str) -> int:
+    """A stable seed per (run seed, parent) for the batched configuration variants."""
+    return variant_seed(seed, f"{parent}:configurations", 0)
+
+
+def physics_check(cfg: Any, assets_root: Any, backend: Any) -> PhysicsCheck:
+    """The stage's :class:`PhysicsCheck` from the ``sim`` and ``augment`` configs."""
+    from factory.sim.stability import StabilityProtocol
+
+    lo, hi = batch_sizes(backend.name)
+    if cfg.augment.batch > 0:
+        lo = hi = cfg.augment.batch
+    return PhysicsCheck(
+        assets_root=assets_root,
+        backend=backend,
+        protocol=StabilityProtocol(
+            duration=cfg.sim.duration,
+            max_translation=cfg.sim.max_translation,
+            max_rotation_deg=cfg.sim.max_rotation_deg,
+            timestep=cfg.sim.timestep,
+        ),
+        batch_min=lo,
+        batch_max=max(lo, hi),
+    )
 
 
 def check_physics(scene: Any, assets: Any, tol: float = 0.01, backend: Any = "cpu") -> str | None:
@@ -53,14 +94,14 @@ def make_variant(
     levels: list[str],
     library: AssetLibrary,
     seed: int,
-    critic: Any,
+    check: PhysicsCheck | None,
     task_ids: list[str] | None,
 ) -> Variant:
     """Applies the levels (in composition order) to the parent scene."""
     scene = parent
     params: list[dict[str, Any]] = []
     for i, name in enumerate(lv for lv in LEVELS if lv in levels):
-        v = LEVELS[name](scene, library, seed + 101 * i, critic, task_ids)
+        v = LEVELS[name](scene, library, seed + 101 * i, check, task_ids)
         scene = v.scene
         params.append(v.params)
     return Variant(scene, {"applied": params})
@@ -68,11 +109,12 @@ def make_variant(
 
 def run(ctx: StageContext) -> dict[str, Any]:
     """Stage entry point."""
+    from factory.augment.check import verify_whole_scene
+    from factory.augment.distinct import Distinctness
+    from factory.console import FILE_ONLY
     from factory.context import run_items
     from factory.scenes.build import compile_one, render_one
     from factory.schema import scene_to_json, validate
-    from factory.sim.critic import physics_critic
-    from factory.sim.stability import StabilityProtocol
     from factory.store import atomic_write_json, atomic_write_text
 
     store = ctx.require_store()
@@ -90,56 +132,102 @@ def run(ctx: StageContext) -> dict[str, Any]:
             f"no scenes to augment in {store.scenes_dir}: run stage=generate or stage=ingest first"
         )
     tag = "".join(ABBREV[lv] for lv in LEVELS if lv in acfg.levels)
-    jobs = [(p, k) for p in parents for k in range(acfg.variants_per_scene)]
-    mine = ctx.shard.select(jobs)
+    batched = list(acfg.levels) == ["configuration"]
+    if batched:  # a parent's variants are made together: shard the parents
+        jobs = [(p, k) for p in ctx.shard.select(parents) for k in range(acfg.variants_per_scene)]
+        mine = jobs
+    else:
+        jobs = [(p, k) for p in parents for k in range(acfg.variants_per_scene)]
+        mine = ctx.shard.select(jobs)
     library = AssetLibrary.from_config(ctx.cfg.assets, store.assets_dir)
 
     from factory.sim.validate import make_backend
 
     backend = make_backend(ctx.cfg.sim)
-
-    def critic(sc: Any, oid: str, poses: list[list[float]]) -> dict[str, Any]:
-        return physics_critic(
-            sc,
-            oid,
-            poses,
-            assets_root=store.assets_dir,
-            backend=backend,
-            protocol=StabilityProtocol(resettle=True),
-        )
-
+    check = physics_check(ctx.cfg, store.assets_dir, backend)
     dropped: Counter[str] = Counter()
     by_name = {f"{p}__{tag}{k}": (p, k) for p, k in mine}
+    task_ids = list(acfg.task_objects) or None
+    batches: dict[str, tuple[int, Any, list[str]]] = {}
+
+    def batch_of(parent_id: str) -> tuple[int, Any, list[str]]:
+        """``(seed, found, why_not)`` for all variants of a parent: the
+        :class:`~factory.augment.levels.ConfigurationBatch` (``None`` if none could be made)
+        and per variant index an empty string or why it is dropped."""
+        if parent_id not in batches:
+            batches.clear()  # one parent at a time: names are sorted by parent
+            parent = store.load_scene(parent_id)  # SchemaError for a broken parent
+            seed = batch_seed(ctx.cfg.seed, parent_id)
+            n = acfg.variants_per_scene
+            try:
+                found = configurations(
+                    parent,
+                    library,
+                    seed,
+                    n,
+                    check if acfg.physics_critic else None,
+                    task_ids,
+                    Distinctness(acfg.min_distance, acfg.min_yaw_deg),
+                )
+            except AugmentError as e:
+                log.info("configurations of %s: %s", parent_id, e)
+                batches[parent_id] = (seed, None, [str(e).split(":")[0]] * n)
+                return batches[parent_id]
+            verdict = verify_whole_scene(parent, found.ids, found.poses, check)
+            log.info(
+                "configurations of %s: %d found, %d pass the whole-scene check; %s",
+                parent_id,
+                len(found),
+                int(verdict.ok.sum()),
+                found.stats,
+                extra=FILE_ONLY,
+            )
+            why = ["no distinct valid configuration"] * n
+            for k in range(len(found)):
+                why[k] = "" if verdict.ok[k] else "physics"
+                if why[k]:
+                    log.info("variant %s__%s%d dropped: %s", parent_id, tag, k, verdict.reasons[k])
+            batches[parent_id] = (seed, found, why)
+        return batches[parent_id]
 
     def one(name: str) -> str:
         parent_id, k = by_name[name]
         if store.scene_json(name).is_file() and not ctx.cfg.force:
             return "skipped"
-        parent = store.load_scene(parent_id)  # SchemaError for a broken parent
-        seed = variant_seed(ctx.cfg.seed, parent_id, k)
-        try:
-            variant = make_variant(
-                parent,
-                list(acfg.levels),
-                library,
-                seed,
-                critic if acfg.physics_critic else None,
-                list(acfg.task_objects) or None,
-            )
-        except AugmentError as e:
-            dropped[f"{tag}: {str(e).split(':')[0]}"] += 1
-            log.info("variant %s dropped: %s", name, e)
-            return "skipped"
+        if batched:
+            seed, found, why = batch_of(parent_id)
+            if why[k]:
+                dropped[f"{tag}: {why[k]}"] += 1
+                return "skipped"
+            made = found.variant(k)
+            variant = Variant(made.scene, {"applied": [made.params]})
+        else:
+            parent = store.load_scene(parent_id)  # SchemaError for a broken parent
+            seed = variant_seed(ctx.cfg.seed, parent_id, k)
+            try:
+                variant = make_variant(
+                    parent,
+                    list(acfg.levels),
+                    library,
+                    seed,
+                    check if acfg.physics_critic else None,
+                    task_ids,
+                )
+            except AugmentError as e:
+                dropped[f"{tag}: {str(e).split(':')[0]}"] += 1
+                log.info("variant %s dropped: %s", name, e)
+                return "skipped"
         scene = variant.scene
         scene.id = name
         scene.source = f"augment:{parent_id}"
         scene.seed = seed
         validate(scene)
-        why = check_physics(scene, store.assets_dir, backend=backend)
-        if why is not None:
-            dropped[f"{tag}: physics"] += 1
-            log.info("variant %s dropped: %s", name, why)
-            return "skipped"
+        if not batched:
+            failed = check_physics(scene, store.assets_dir, backend=backend)
+            if failed is not None:
+                dropped[f"{tag}: physics"] += 1
+                log.info("variant %s dropped: %s", name, failed)
+                return "skipped"
         atomic_write_json(
             store.report_json(name),
             {

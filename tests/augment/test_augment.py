@@ -10,12 +10,11 @@ from pathlib import Path
 import pytest
 
 from factory.assets import AssetLibrary
+from factory.augment.check import PhysicsCheck
 from factory.augment.levels import AugmentError, category, configuration, layout
 from factory.augment.stage import check_physics
 from factory.scenes.brain import AgentConfig, generate_scene
 from factory.schema import scene_to_json, validate
-from factory.sim.critic import physics_critic
-from factory.sim.stability import StabilityProtocol
 
 TASK = "a kitchen where the robot picks up the mug and puts it in the bowl"
 
@@ -28,13 +27,8 @@ def base(tmp_path_factory: pytest.TempPathFactory):
     return scene, lib
 
 
-def _critic(lib: AssetLibrary):
-    def critic(sc, oid, poses):
-        return physics_critic(
-            sc, oid, poses, assets_root=lib.assets_dir, protocol=StabilityProtocol(resettle=True)
-        )
-
-    return critic
+def _check(lib: AssetLibrary) -> PhysicsCheck:
+    return PhysicsCheck(lib.assets_dir, backend="cpu")
 
 
 def _task(scene) -> dict:
@@ -43,7 +37,7 @@ def _task(scene) -> dict:
 
 def test_configuration_level(base) -> None:
     scene, lib = base
-    v = configuration(scene, lib, 11, _critic(lib)).scene
+    v = configuration(scene, lib, 11, _check(lib)).scene
     validate(v)
     before, after = _task(scene), _task(v)
     assert set(after) == {"pick", "place_target"}
@@ -65,7 +59,7 @@ def test_configuration_level(base) -> None:
 
 def test_category_level(base) -> None:
     scene, lib = base
-    v = category(scene, lib, 12, _critic(lib)).scene
+    v = category(scene, lib, 12, _check(lib)).scene
     validate(v)
     before, after = _task(scene), _task(v)
     for role, obj in after.items():
@@ -77,7 +71,7 @@ def test_category_level(base) -> None:
 
 def test_layout_level(base) -> None:
     scene, lib = base
-    v = layout(scene, lib, 13, _critic(lib)).scene
+    v = layout(scene, lib, 13, _check(lib)).scene
     validate(v)
     before, after = _task(scene), _task(v)
     for role, obj in after.items():
