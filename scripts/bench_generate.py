@@ -4,6 +4,11 @@
                                                       # with and without the physics critic
     python scripts/bench_generate.py quality --scenes 10   # bedroom/kitchen/living room:
                                                       # objects per room, collision %, stable %
+    python scripts/bench_generate.py time --requests "a kitchen" "a four-room apartment"
+                                                      # s per scene, cold (empty asset cache)
+                                                      # and warm (assets cached), per request
+    python scripts/bench_generate.py time --scope scene --workers 1   # the whole-scene critic,
+                                                      # rooms one after the other (before)
 
 Quality numbers are the validate stage's: MuJoCo-contact collisions (> 1 cm into another
 object) and the strict protocol (2 s, 0.2 m / 8 deg, no resettling). Results are printed and
@@ -15,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import tempfile
 import time
@@ -68,6 +74,48 @@ def speed(args: argparse.Namespace) -> dict[str, Any]:
     return {"rows": rows}
 
 
+def timing(args: argparse.Namespace) -> dict[str, Any]:
+    """Seconds per generated scene, cold (a new asset folder: every asset is built) and warm
+    (the same request and seed again on the built assets), with the scene's size and, with
+    ``--measure``, its validate-stage quality (not timed)."""
+    rows = []
+    for request in args.requests:
+        for seed in range(args.seeds):
+            with tempfile.TemporaryDirectory() as tmp:
+                lib = AssetLibrary(Path(tmp))
+                cfg = AgentConfig(critic_scope=args.scope, workers=args.workers)
+                for run in args.runs:
+                    t0 = time.perf_counter()
+                    scene, report = generate_scene(request, lib, seed=seed, config=cfg)
+                    row: dict[str, Any] = {
+                        "request": request,
+                        "seed": seed,
+                        "run": run,
+                        "scope": args.scope,
+                        "workers": report.get("workers", 1),
+                        "rooms": len(scene.rooms),
+                        "objects": len(scene.objects),
+                        "seconds": round(time.perf_counter() - t0, 2),
+                    }
+                    if run == "cold" and args.measure:
+                        m = measure(scene, Path(tmp), trimesh_test=False)
+                        row["colliding"] = len(m["collision"]["colliding"])
+                        row["unstable"] = len(m["stability"]["unstable"])
+                    rows.append(row)
+                    print(row)
+    summary: dict[str, Any] = {}
+    for request in args.requests:
+        for run in args.runs:
+            sel = [r for r in rows if r["request"] == request and r["run"] == run]
+            summary[f"{request} ({run})"] = {
+                "scenes": len(sel),
+                "seconds_mean": round(sum(r["seconds"] for r in sel) / len(sel), 2),
+                "seconds_max": max(r["seconds"] for r in sel),
+                "objects_mean": sum(r["objects"] for r in sel) / len(sel),
+            }
+    return {"cores": os.cpu_count(), "summary": summary, "rows": rows}
+
+
 def quality(args: argparse.Namespace) -> dict[str, Any]:
     from factory.scenes.render import contact_sheet, png_bytes, render_views
 
@@ -91,7 +139,7 @@ def quality(args: argparse.Namespace) -> dict[str, Any]:
                     }
                 )
                 print(room, rows[-1])
-                if seed < 3:
+                if seed < 3 and not args.no_sheets:
                     model = compile_scene(scene, Path(tmp)).model
                     images[f"{seed}"] = render_views(model, scene, ["corner_0"], 400, 300)[
                         "corner_0"
@@ -106,7 +154,7 @@ def quality(args: argparse.Namespace) -> dict[str, Any]:
             "seconds_per_scene": sum(r["seconds"] for r in rows) / len(rows),
             "rows": rows,
         }
-        if images:
+        if images and not args.no_sheets:
             path = ROOT / "docs" / "images" / f"generated_{room.replace(' ', '_')}.png"
             path.write_bytes(png_bytes(contact_sheet(images, columns=3)))
     return out
@@ -114,13 +162,22 @@ def quality(args: argparse.Namespace) -> dict[str, Any]:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("mode", choices=["speed", "quality"])
+    p.add_argument("mode", choices=["speed", "quality", "time"])
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--scenes", type=int, default=10)
     p.add_argument("--rooms", nargs="+", default=["bedroom", "kitchen", "living room"])
+    p.add_argument(
+        "--requests", nargs="+", default=["a bedroom", "a kitchen", "a four-room apartment"]
+    )
+    p.add_argument("--scope", choices=["local", "scene"], default="local")
+    p.add_argument("--workers", type=int, default=None, help="processes for a home's rooms")
+    p.add_argument("--measure", action="store_true", help="time: also collision/stability")
+    p.add_argument("--runs", nargs="+", choices=["cold", "warm"], default=["cold", "warm"])
+    p.add_argument("--no-sheets", action="store_true", help="quality: no render sheets")
     p.add_argument("--out", default=None)
     args = p.parse_args()
-    result = speed(args) if args.mode == "speed" else quality(args)
+    modes = {"speed": speed, "quality": quality, "time": timing}
+    result = modes[args.mode](args)
     doc = {
         "schema_version": 1,
         "benchmark": f"generate-{args.mode}",

@@ -47,7 +47,9 @@ def _generate_with(
     """One scene with the configured brain and transport."""
     from factory.scenes.tools import ToolSession
 
-    session = ToolSession(library, physics=agent_cfg.physics_critic)
+    session = ToolSession(
+        library, physics=agent_cfg.physics_critic, critic_scope=agent_cfg.critic_scope
+    )
     if gcfg.agent == "llm":
         from factory.scenes.agent import AgentError, LLMConfig, run_llm_agent
 

@@ -9,16 +9,17 @@ from __future__ import annotations
 
 import functools
 import logging
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from factory.assets import AssetLibrary
-from factory.errors import FactoryError
+from factory.errors import ConfigError, FactoryError
 from factory.scenes.critics import visual_critic
 from factory.scenes.placement import SceneState, place_floor, place_on, place_wall
 from factory.schema import Scene, to_dict, validate
-from factory.sim.critic import physics_critic
+from factory.sim.critic import SCOPES, physics_critic
 from factory.sim.stability import StabilityProtocol
 
 log = logging.getLogger(__name__)
@@ -73,14 +74,28 @@ class ToolSession:
         library: the asset library.
         physics: run the physics critic inside every on-top placement (the paper's loop).
         out_dir: where ``render_views`` writes images.
+        critic_scope: what the placement critic simulates: ``local`` (the candidate and what
+            it can touch, :mod:`factory.sim.local_critic`; the same verdicts, a cost that does
+            not grow with the scene) or ``scene`` (the whole scene per candidate).
+        critic_chunk: candidates simulated at a time, in order, stopping at the first chunk
+            with a good one (default: one per CPU core, the CPU backend's threads).
     """
 
     def __init__(
-        self, library: AssetLibrary, physics: bool = True, out_dir: str | Path | None = None
+        self,
+        library: AssetLibrary,
+        physics: bool = True,
+        out_dir: str | Path | None = None,
+        critic_scope: str = "local",
+        critic_chunk: int | None = None,
     ) -> None:
         self.library = library
         self.physics = physics
         self.out_dir = Path(out_dir) if out_dir else None
+        if critic_scope not in SCOPES:
+            raise ConfigError(f"critic scope {critic_scope!r} must be one of {', '.join(SCOPES)}")
+        self.critic_scope = critic_scope
+        self.critic_chunk = critic_chunk or os.cpu_count() or 1
         self.state: SceneState | None = None
 
     # ---- helpers
@@ -100,6 +115,8 @@ class ToolSession:
                 poses,
                 assets_root=self.library.assets_dir,
                 protocol=StabilityProtocol(resettle=True),
+                scope=self.critic_scope,
+                chunk=self.critic_chunk,
             )
 
         return critic

@@ -75,3 +75,20 @@ def test_critic_explains_failure(example_scene_path: Path) -> None:
     assert overlap["failures"][0]["object"] == "table"
     with pytest.raises(ConfigError):
         physics_critic(scene, "mug", [[1, 2, 3]])
+
+
+def test_critic_scope_and_chunks_keep_the_verdict(example_scene_path: Path) -> None:
+    scene = load_scene(example_scene_path)
+    poses = [[2.76, 2.5, 0.75, 0.0], [1.75, 2.75, 0.70, 0.0], [2.0, 2.6, 0.75, 45.0]]
+    protocol = StabilityProtocol(resettle=False)
+    whole = physics_critic(scene, "mug", poses, protocol=protocol)
+    for scope, chunk in (("scene", 1), ("local", None), ("local", 2)):
+        out = physics_critic(scene, "mug", poses, protocol=protocol, scope=scope, chunk=chunk)
+        assert out["ok"] and out["candidate"] == whole["candidate"] == 2
+        assert out["settled_pose"] == pytest.approx(whole["settled_pose"], abs=1e-6)
+    local = physics_critic(scene, "mug", poses, protocol=protocol, scope="local")
+    assert local["simulated"]["dynamic"] < len(scene.objects)
+    failed = physics_critic(scene, "mug", poses[:2], protocol=protocol, scope="local", chunk=1)
+    assert [f["candidate"] for f in failed["failures"]] == [0, 1]
+    with pytest.raises(ConfigError, match="scope"):
+        physics_critic(scene, "mug", poses, scope="room")
