@@ -154,8 +154,12 @@ class SimConfig:
         max_rotation_deg: an object that turned more is unstable (deg).
         penetration_tol: candidates starting deeper in each other are invalid (m).
         resettle: accept an unstable candidate if its settled pose is stable on a second run.
-        mjx_max_free_bodies: the mjx backend refuses larger models.
+        mjx_max_free_bodies: the mjx backend's JAX implementation (used without CUDA) refuses
+            larger models; on CUDA it runs MJX's Warp implementation, for any model.
         timestep: simulation step of the checks (s); empty keeps the scene model's (2 ms).
+        sleep: the warp backend lets bodies at rest sleep (MuJoCo island sleeping) and stops a
+            batch once all its worlds sleep; ``false`` gives the strict protocol (every step
+            of every body), which the benchmark compares it with.
     """
 
     backend: str = "auto"
@@ -167,6 +171,7 @@ class SimConfig:
     resettle: bool = True
     mjx_max_free_bodies: int = 8
     timestep: float | None = None
+    sleep: bool = True
 
 
 @dataclass
@@ -178,12 +183,16 @@ class ValidateConfig:
         trimesh: also run the paper's trimesh ray test for collisions.
         repair: settle unstable objects or remove them (and colliding ones), recording it.
         max_repair_rounds: repair rounds per scene.
+        batch_scenes: scenes compiled ahead and checked together: those sharing a layout
+            (configuration variants of one scene) run as the candidates of one batched call
+            (1: one call per scene).
     """
 
     collision_tol: float = 0.01
     trimesh: bool = True
     repair: bool = False
     max_repair_rounds: int = 3
+    batch_scenes: int = 64
 
 
 @dataclass
@@ -251,6 +260,12 @@ class DemosConfig:
             Recorded states replay images exactly either way; stepping the physics from a
             recorded state reproduces the next one exactly only with ``sleep=false`` (sleep
             timers are not part of MuJoCo's state), within ~1e-5 with it.
+        freeze_beyond: objects whose footprint stays farther than this from the robot's base
+            (m, horizontally; the arm reaches 0.86 m), and floor furniture, are simulated
+            static, without a free joint: a kitchen's 350 degrees of freedom become a few
+            dozen, which is what makes the GPU executor fast (its cost grows with the degrees
+            of freedom of every world, asleep or not). The task objects, and whatever stands
+            on a movable object left free, stay free. ``0`` keeps every object free.
     """
 
     episodes_per_scene: int = 4
@@ -272,6 +287,7 @@ class DemosConfig:
     max_grasps: int = 12
     grasp_facing: float = 1.0
     sleep: bool = True
+    freeze_beyond: float = 1.0
 
 
 @dataclass

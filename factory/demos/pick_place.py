@@ -99,6 +99,8 @@ class SceneSetup:
     rig: CameraRig
     cleared: tuple[str, ...] = ()
     """Objects taken out of the scene to free the base spot (with what stood on them)."""
+    frozen: tuple[str, ...] = ()
+    """Objects out of the robot's reach compiled without their free joint (static)."""
 
 
 @dataclass
@@ -138,17 +140,79 @@ class PlanFailure:
     counts: dict[str, int] = field(default_factory=dict)
 
 
+FREEZE_BEYOND = 1.0
+"""Objects whose footprint stays this far (m, horizontally) from the robot's base are static
+in the demos' model: the arm (0.86 m from the shoulder, plus the hand) cannot touch them."""
+FURNITURE_RADIUS = 0.4
+"""Floor objects with a footprint radius from this (m) up, or holding other objects, are
+furniture: static in the demos' model unless they are task objects."""
+
+
+def far_objects(scene: Scene, placement: RobotPlacement, keep: set[str], radius: float) -> set[str]:
+    """Movable objects the robot cannot move: they are compiled static for the demos.
+
+    Static are (unless in ``keep``): objects whose footprint disc lies wholly more than
+    ``radius`` (m) from the robot's base horizontally, and floor furniture (tables, counters,
+    cabinets: a footprint radius of :data:`FURNITURE_RADIUS` or more, or something stands on
+    it), which the arm may brush but not shift. Objects standing on a movable object that stays
+    free (a box on a chair) stay free too.
+
+    Args:
+        scene: the scene.
+        placement: the robot's base pose (world frame).
+        keep: ids that must stay free bodies (the task's objects).
+        radius: reach radius (m); ``<= 0`` freezes nothing.
+
+    Returns:
+        the ids to compile without a free joint.
+    """
+    if radius <= 0:
+        return set()
+    base = np.array([placement.x, placement.y])
+    by_id = {o.id: o for o in scene.objects}
+    holds = {o.placement.support_id for o in scene.objects if o.placement.support_id}
+    free: set[str] = set(keep)
+    for o in scene.objects:
+        if o.is_static or o.id in keep:
+            continue
+        r = 0.5 * float(np.hypot(o.dimensions.width, o.dimensions.length))
+        far = np.linalg.norm(np.array([o.position.x, o.position.y]) - base) - r > radius
+        furniture = o.placement.kind == "floor" and (r >= FURNITURE_RADIUS or o.id in holds)
+        if not far and not furniture:
+            free.add(o.id)
+
+    def on_free(o: SceneObject) -> bool:
+        seen: set[str] = set()
+        sid = o.placement.support_id
+        while sid and sid in by_id and sid not in seen:
+            if sid in free:
+                return True
+            seen.add(sid)
+            sid = by_id[sid].placement.support_id
+        return False
+
+    return {o.id for o in scene.objects if not o.is_static and o.id not in free and not on_free(o)}
+
+
 def compose(
-    scene: Scene, assets_root: str | Path | None, placement: RobotPlacement, rig: CameraRig
+    scene: Scene,
+    assets_root: str | Path | None,
+    placement: RobotPlacement,
+    rig: CameraRig,
+    frozen: set[str] | frozenset[str] = frozenset(),
 ) -> mujoco.MjModel:
     """Compiles a scene with the robot at ``placement`` (scene masses as in compile).
 
     Island sleeping is on: bodies at rest stop being simulated until touched (MuJoCo's
-    ``mjENBL_SLEEP``), which makes the furniture of a large scene almost free.
+    ``mjENBL_SLEEP``), which makes the furniture of a large scene almost free. Objects named
+    in ``frozen`` lose their free joint (static at their scene pose): the simulation, the
+    recorded state and the GPU executor's per-world cost shrink with them.
     """
     from factory.sim.compile import compile_scene
 
     compiled = compile_scene(scene, assets_root)
+    for oid in sorted(frozen):
+        compiled.spec.delete(compiled.spec.joint(f"{oid}/free"))
     add_robot(compiled.spec, placement, rig)
     # Objects at rest sleep until something touches them: 4x faster, same outcome.
     compiled.spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
@@ -167,6 +231,7 @@ def setup_scene(
     rig: CameraRig | None = None,
     ik: IKSolver | None = None,
     max_spots: int = 24,
+    freeze_beyond: float = FREEZE_BEYOND,
 ) -> SceneSetup:
     """Chooses the robot's base spot and composes the scene with the robot there.
 
@@ -177,7 +242,8 @@ def setup_scene(
     is preferred where the episodes' sampler finds room for the task objects within reach
     (:func:`has_room`); where no spot has room, the objects crowding the support nearest to
     the robot are taken off it (:func:`clear_clutter`). The setup's ``cleared`` names every
-    object taken out.
+    object taken out; its ``frozen`` the objects beyond ``freeze_beyond`` (m) of the base,
+    compiled static (:func:`far_objects`; ``<= 0``: none).
 
     Raises:
         TaskError: the scene lacks task objects, or no spot around the support works.
@@ -205,8 +271,18 @@ def setup_scene(
         if cleared:
             log.info("scene %s: cleared %s %s", scene.id, sorted(cleared), why)
         cams = aim_cameras(sc, assets_root, spot, rig)
-        out = compose(sc, assets_root, spot, cams)
-        return SceneSetup(sc, objects, spot, out, RobotIndex.of(out), cams, tuple(sorted(cleared)))
+        frozen = far_objects(sc, spot, {objects.pick.id, objects.target.id}, freeze_beyond)
+        out = compose(sc, assets_root, spot, cams, frozen)
+        return SceneSetup(
+            sc,
+            objects,
+            spot,
+            out,
+            RobotIndex.of(out),
+            cams,
+            tuple(sorted(cleared)),
+            tuple(sorted(frozen)),
+        )
 
     def room(sc: Scene, spot: RobotPlacement) -> bool:
         return has_room(checker.model, qpos, sc, objects, spot, ws)

@@ -66,7 +66,7 @@ def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[
 
     store = RunStore(run_dir)
     scene = store.load_scene(scene_id)
-    setup = setup_scene(scene, store.assets_dir)
+    setup = setup_scene(scene, store.assets_dir, freeze_beyond=dc.freeze_beyond)
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     motion = MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
@@ -155,6 +155,7 @@ def write_episode(
         outcome=rec.outcome.details,
         factory_version=__version__,
         cleared=list(setup.cleared),
+        frozen=list(getattr(setup, "frozen", ())),
     )
     arrays: dict[str, np.ndarray] = {
         "time": rec.time,

@@ -87,6 +87,11 @@ def check_config(dc: DemosConfig, task: str) -> None:
         )
     if dc.gpu_batch < 1:
         raise ConfigError("demos.gpu_batch must be >= 1")
+    if not dc.freeze_beyond >= 0:
+        raise ConfigError(
+            f"demos.freeze_beyond must be >= 0 m (0 keeps every object free), "
+            f"got {dc.freeze_beyond}"
+        )
     if dc.depth not in ("uint16_mm", "float32"):
         raise ConfigError(f"demos.depth must be uint16_mm or float32, got {dc.depth!r}")
     unknown = [c for c in dc.cameras if c not in ("left", "right", "wrist")]

@@ -62,6 +62,8 @@ class EpisodeInfo:
         outcome: numbers of the success check.
         factory_version: version of factory that recorded it.
         cleared: objects of the scene taken out to free the robot's base spot.
+        frozen: objects out of the robot's reach that were simulated static (no free joint):
+            ``state`` holds no coordinates for them.
     """
 
     episode_id: str
@@ -88,6 +90,7 @@ class EpisodeInfo:
     outcome: dict[str, float] = field(default_factory=dict)
     factory_version: str = ""
     cleared: list[str] = field(default_factory=list)
+    frozen: list[str] = field(default_factory=list)
     schema_version: int = EPISODE_SCHEMA_VERSION
 
 

@@ -7,6 +7,14 @@
   per-world ``overflow`` bitmask) is re-run with doubled buffers, and reported ``invalid``
   (never stable) if it still overflows after ``max_grow`` doublings.
 * Steps are captured once into a CUDA graph of ``graph_steps`` steps and replayed.
+* Island sleeping (``sleep=True``, MuJoCo's ``mjENBL_SLEEP``): bodies at rest stop being
+  simulated until touched, and the run stops early once every world of a launch is asleep
+  (checked between graph replays): nothing can move after that, so the final poses are those
+  of the full ``nstep``. Sleeping freezes a body whose speed stays under MuJoCo's sleep
+  tolerance, so a candidate creeping slower than that stops where it is; the benchmark
+  (``scripts/bench_stability.py --agree``) compares these verdicts with the strict ones
+  (``sleep=False``). Only on CUDA: on Warp's CPU device MuJoCo Warp 4.0's sleeping solver path
+  crashes, so sleeping is off there.
 * Warp keeps compiled kernels in its kernel cache (``WARP_CACHE_PATH`` or ``~/.cache/warp``)
   between runs, so only the first run on a machine pays the cold compile.
 * MuJoCo Warp computes in float32 (the CPU backend in float64): verdicts agree except for
@@ -36,6 +44,7 @@ class WarpBackend:
         chunk: worlds per launch (bounds GPU memory).
         graph_steps: steps per captured CUDA graph.
         max_grow: how many times buffers may double after an overflow.
+        sleep: island sleeping, and an early stop once every world is asleep.
     """
 
     name = "warp"
@@ -46,6 +55,7 @@ class WarpBackend:
         chunk: int = 8192,
         graph_steps: int = 50,
         max_grow: int = 2,
+        sleep: bool = True,
     ) -> None:
         import warp as wp
 
@@ -56,7 +66,12 @@ class WarpBackend:
         self.chunk = chunk
         self.graph_steps = graph_steps
         self.max_grow = max_grow
+        # MuJoCo Warp 4.0's sleeping solver path crashes on Warp's CPU device (a segfault in
+        # smooth_solve_compact): sleeping is a CUDA-only speed-up here.
+        self.sleep = sleep and self.device.startswith("cuda")
         self._models: dict[int, Any] = {}
+        self.steps_run: list[int] = []
+        """Steps each launch of the last :meth:`settle` ran before all its worlds slept."""
 
     # ---- sizing
     @staticmethod
@@ -79,8 +94,14 @@ class WarpBackend:
 
         key = id(model)
         if key not in self._models:
-            with self.wp.ScopedDevice(self.device):
-                m = mjw.put_model(model)
+            flags = int(model.opt.enableflags)
+            sleep = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+            model.opt.enableflags = flags | sleep if self.sleep else flags & ~sleep
+            try:
+                with self.wp.ScopedDevice(self.device):
+                    m = mjw.put_model(model)
+            finally:
+                model.opt.enableflags = flags
             bits = mjw.OverflowType
             m.opt.warn_overflow = int(
                 bits.NEFC
@@ -107,20 +128,31 @@ class WarpBackend:
             d = mjw.put_data(model, mjd, nworld=n, nconmax=nconmax, njmax=njmax)
             d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
             t0 = time.perf_counter()
+            # A captured graph is only recorded, not run: every step below is launched once.
+            use_graph = self.device.startswith("cuda")
+            graph = None
             left = nstep
-            if self.device.startswith("cuda") and nstep >= self.graph_steps:
-                with wp.ScopedCapture() as cap:
-                    for _ in range(self.graph_steps):
+            while left > 0 and not self._all_asleep(d):
+                k = min(self.graph_steps, left)
+                if use_graph and k == self.graph_steps:
+                    if graph is None:
+                        with wp.ScopedCapture() as cap:
+                            for _ in range(k):
+                                mjw.step(m, d)
+                        graph = cap.graph
+                    wp.capture_launch(graph)
+                else:
+                    for _ in range(k):
                         mjw.step(m, d)
-                left -= self.graph_steps
-                while left >= self.graph_steps:
-                    wp.capture_launch(cap.graph)
-                    left -= self.graph_steps
-            for _ in range(left):
-                mjw.step(m, d)
+                left -= k
+            self.steps_run.append(nstep - left)
             wp.synchronize()
             seconds = time.perf_counter() - t0
             return d.qpos.numpy().astype(np.float64), d.overflow.numpy().copy(), seconds
+
+    def _all_asleep(self, d: Any) -> bool:
+        """Whether every world's every tree sleeps (nothing can move any more)."""
+        return self.sleep and int(d.ntree_awake.numpy().max()) == 0
 
     def settle(
         self,
@@ -138,6 +170,7 @@ class WarpBackend:
         if len(run) == 0:
             return Rollout(out, invalid, reasons, 0.0)
         nconmax, njmax = self.initial_sizes(model, q[run])
+        self.steps_run = []
         todo = run
         for attempt in range(self.max_grow + 1):
             overflowed = []

@@ -144,6 +144,24 @@ class StabilityResult:
         """``(n,)`` bool: stable, or accepted at its settled pose by the resettle rule."""
         return (self.stable | self.resettled) & ~self.invalid
 
+    def rows(self, ids: np.ndarray | list[int]) -> StabilityResult:
+        """The candidates ``ids`` only (a result of ``len(ids)`` candidates)."""
+        ids = np.asarray(ids, dtype=int)
+        return StabilityResult(
+            object_ids=list(self.object_ids),
+            translation=self.translation[ids],
+            rotation_deg=self.rotation_deg[ids],
+            stable_object=self.stable_object[ids],
+            penetration=self.penetration[ids],
+            invalid=self.invalid[ids],
+            reasons=[self.reasons[i] for i in ids],
+            resettled=self.resettled[ids],
+            settled_qpos=self.settled_qpos[ids],
+            backend=self.backend,
+            seconds=self.seconds * len(ids) / max(1, len(self.invalid)),
+            extra=dict(self.extra),
+        )
+
     def candidate(self, i: int) -> dict[str, Any]:
         """One candidate's verdict as a JSON-ready dict."""
         return {

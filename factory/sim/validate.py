@@ -25,6 +25,7 @@ from factory.context import StageContext, run_items
 from factory.schema import Euler, Scene, Vec3, scene_to_json
 from factory.sim.backend import get_backend, resolve_backend_name
 from factory.sim.compile import CompileOptions, compile_scene, model_xml
+from factory.sim.layout_batch import check_by_layout
 from factory.sim.metrics import scene_metrics
 from factory.sim.stability import FreeBodies, StabilityProtocol, StabilityResult, check_stability
 from factory.store import RunStore, atomic_write_json, atomic_write_text, file_lock, sha256_bytes
@@ -55,6 +56,8 @@ def make_backend(sim: Any) -> Any:
         options = {"nthread": sim.nthread}
     elif name == "mjx":
         options = {"max_free_bodies": sim.mjx_max_free_bodies}
+    elif name == "warp":
+        options = {"sleep": sim.sleep}
     return get_backend(name, **options)
 
 
@@ -130,8 +133,17 @@ def validate_scene(
     assets_root: Any,
     cfg: Any,
     backend: Any,
+    first: StabilityResult | None = None,
 ) -> tuple[Scene, dict[str, Any]]:
     """Validates (and with ``cfg.validate.repair`` repairs) one scene.
+
+    Args:
+        scene: the scene.
+        assets_root: where its assets are.
+        cfg: the run config.
+        backend: a physics backend instance.
+        first: the scene's stability result as it is, when already checked in a batch of
+            its layout (:func:`~factory.sim.layout_batch.check_by_layout`).
 
     Returns:
         the (possibly repaired) scene and its report dict.
@@ -142,7 +154,10 @@ def validate_scene(
     rounds = cfg.validate.max_repair_rounds if cfg.validate.repair else 0
     for r in range(rounds + 1):
         model = compile_scene(scene, assets_root, options).model
-        result = check_stability(model, backend=backend, protocol=protocol)
+        if r == 0 and first is not None:
+            result = first
+        else:
+            result = check_stability(model, backend=backend, protocol=protocol)
         metrics = scene_metrics(
             scene, model, result, cfg.validate.collision_tol, cfg.validate.trimesh
         )
@@ -244,16 +259,41 @@ def run(ctx: StageContext) -> dict[str, Any]:
         sort_keys=True,
     ).encode()
 
+    def digest_of(scene_id: str) -> str:
+        return sha256_bytes(store.scene_json(scene_id).read_bytes() + b"\0" + settings)
+
+    def pending(scene_id: str) -> bool:
+        return cfg.force or not store.is_done(
+            store.scene_dir(scene_id), "validate", digest_of(scene_id)
+        )
+
+    checked: dict[str, StabilityResult] = {}
+    order = list(mine)
+
+    def prefetch(scene_id: str) -> None:
+        """Checks the next ``validate.batch_scenes`` pending scenes, layouts batched."""
+        at = order.index(scene_id)
+        todo = [s for s in order[at:] if pending(s)][: max(1, cfg.validate.batch_scenes)]
+        options = CompileOptions(**vars(cfg.compile))
+        models = {
+            s: compile_scene(store.load_scene(s), store.assets_dir, options).model for s in todo
+        }
+        checked.clear()
+        checked.update(check_by_layout(models, backend, protocol_of(cfg.sim)))
+
     def one(scene_id: str) -> str:
         scene_dir = store.scene_dir(scene_id)
-        scene_bytes = store.scene_json(scene_id).read_bytes()
-        digest = sha256_bytes(scene_bytes + b"\0" + settings)
+        digest = digest_of(scene_id)
         report_path = store.report_json(scene_id)
         if not cfg.force and store.is_done(scene_dir, "validate", digest):
             rows.append(_row(scene_id, json.loads(report_path.read_text())["validate"]["metrics"]))
             return "skipped"
+        if cfg.validate.batch_scenes > 1 and scene_id not in checked:
+            prefetch(scene_id)
         scene = store.load_scene(scene_id)
-        repaired, report = validate_scene(scene, store.assets_dir, cfg, backend)
+        repaired, report = validate_scene(
+            scene, store.assets_dir, cfg, backend, first=checked.pop(scene_id, None)
+        )
         if report["repair"]:
             text = scene_to_json(repaired)
             store.save_scene(repaired)

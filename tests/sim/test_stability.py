@@ -228,6 +228,43 @@ def test_warp_on_cpu_device_agrees_with_cpu() -> None:
     assert np.allclose(cpu.translation, warp.translation, atol=5e-3)
 
 
+def _sleep_case(device: str | None) -> None:
+    from factory.sim.backend_warp import WarpBackend
+
+    model = compile_scene(_table_and_mug()).model
+    protocol = StabilityProtocol(resettle=False)
+    nstep = protocol.nstep(model)
+    mixed = _mixed_batch(model, 6, seed=2)
+    strict = check_stability(
+        model, mixed, backend=WarpBackend(device, sleep=False), protocol=protocol
+    )
+    asleep = check_stability(
+        model, mixed, backend=WarpBackend(device, sleep=True), protocol=protocol
+    )
+    assert np.array_equal(strict.stable, asleep.stable)
+    assert np.allclose(strict.translation, asleep.translation, atol=5e-3)
+    # A scene at rest falls asleep: the run stops early, with the same final poses.
+    rest = np.stack([model.qpos0] * 4)
+    engine = WarpBackend(device, sleep=True, graph_steps=25)
+    early = check_stability(model, rest, backend=engine, protocol=protocol)
+    assert early.stable.all() and engine.steps_run and max(engine.steps_run) < nstep
+    full = check_stability(model, rest, backend=WarpBackend(device, sleep=False), protocol=protocol)
+    assert np.allclose(early.settled_qpos, full.settled_qpos, atol=2e-3)
+
+
+def test_warp_sleep_is_cuda_only() -> None:
+    """MuJoCo Warp's sleeping solver path crashes on Warp's CPU device: off there."""
+    from factory.sim.backend_warp import WarpBackend
+
+    assert not WarpBackend("cpu", sleep=True).sleep
+
+
+@pytest.mark.gpu
+def test_warp_sleep_stops_early_with_the_strict_verdicts_on_gpu() -> None:
+    """Island sleeping: the verdicts of sleeping off, and an early stop of a scene at rest."""
+    _sleep_case("cuda:0")
+
+
 def test_rotation_angle() -> None:
     q0 = np.array([1.0, 0, 0, 0])
     q1 = np.array([math.cos(math.radians(10)), 0, 0, math.sin(math.radians(10))])
