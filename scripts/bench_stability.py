@@ -12,6 +12,12 @@ throughput (a second call on the same batch). Results are printed and saved as J
     python scripts/bench_stability.py                         # cpu (and warp/mjx if usable)
     python scripts/bench_stability.py --backends warp --objects 20 --batches 1024 8192
     python scripts/bench_stability.py --agree 1000            # cpu vs warp verdicts
+    python scripts/bench_stability.py --backends warp warp-strict mjx --objects 20 --raw
+
+``warp`` lets bodies at rest sleep and stops a batch once all its worlds sleep (the default);
+``warp-strict`` simulates every step of every body (``sim.sleep=false``); ``mjx`` is MJX's Warp
+implementation on CUDA. ``--raw`` times bare graph-captured ``mujoco_warp.step`` calls on the
+same model and batch (sleeping off and on), the engine rate the checks are compared with.
 """
 
 from __future__ import annotations
@@ -161,8 +167,11 @@ def run_case(
     opts: dict[str, Any] = {"nthread": nthread} if backend_name == "cpu" else {}
     if backend_name == "mjx":
         opts = {"max_free_bodies": 64}
+    engine_name = backend_name
+    if backend_name == "warp-strict":
+        engine_name, opts = "warp", {"sleep": False}
     t0 = time.perf_counter()
-    backend = get_backend(backend_name, **opts)
+    backend = get_backend(engine_name, **opts)
     q = candidates(model, batch)
     cold = time.perf_counter()
     r1 = check_stability(model, q, backend=backend, protocol=protocol)
@@ -171,39 +180,114 @@ def run_case(
     r2 = check_stability(model, q, backend=backend, protocol=protocol)
     warm = time.perf_counter() - warm
     nstep = protocol.nstep(model)
+    steps_run = getattr(backend, "steps_run", None)
     return {
         "backend": backend_name,
+        "impl": getattr(backend, "impl", None),
+        "steps_run_per_launch": list(steps_run) if steps_run else None,
         "batch": batch,
         "cold_s": round(cold, 3),
         "warm_s": round(warm, 3),
         "warm_sim_s": round(r2.seconds, 3),
         "checks_per_s": round(batch / warm, 2),
-        "world_steps_per_s": round(batch * nstep / warm, 1),
+        "protocol_world_steps_per_s": round(batch * nstep / warm, 1),
         "stable_fraction": float(r2.stable.mean()),
         "invalid": int(r2.invalid.sum()),
         "same_verdicts_cold_warm": bool(np.array_equal(r1.stable, r2.stable)),
     }
 
 
-def agreement(model: Any, n: int, protocol: StabilityProtocol, spread: float) -> dict[str, Any]:
-    """cpu vs warp verdicts on the same n candidates (wide jitter: a mix of outcomes)."""
+def raw_rate(model: Any, batch: int, nstep: int, sleep: bool) -> dict[str, Any]:
+    """World-steps/s of bare graph-captured ``mujoco_warp.step`` calls on ``batch`` worlds."""
+    import mujoco
+    import mujoco_warp as mjw
+    import warp as wp
+
+    from factory.sim.backend_warp import WarpBackend
+
+    m_cpu = model
+    flags = int(m_cpu.opt.enableflags)
+    bit = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    m_cpu.opt.enableflags = flags | bit if sleep else flags & ~bit
+    try:
+        m = mjw.put_model(m_cpu)
+    finally:
+        m_cpu.opt.enableflags = flags
+    q = candidates(model, batch)
+    nconmax, njmax = WarpBackend.initial_sizes(model, q)
+    d = mjw.put_data(model, mujoco.MjData(model), nworld=batch, nconmax=nconmax, njmax=njmax)
+    d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
+    chunk = 50
+    with wp.ScopedCapture() as cap:
+        for _ in range(chunk):
+            mjw.step(m, d)
+    wp.capture_launch(cap.graph)  # warm-up
+    wp.synchronize()
+    d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
+    t0 = time.perf_counter()
+    for _ in range(nstep // chunk):
+        wp.capture_launch(cap.graph)
+    wp.synchronize()
+    sec = time.perf_counter() - t0
+    steps = chunk * (nstep // chunk)
+    return {
+        "batch": batch,
+        "sleep": sleep,
+        "steps": steps,
+        "seconds": round(sec, 3),
+        "world_steps_per_s": round(batch * steps / sec, 1),
+    }
+
+
+def agreement(
+    model: Any, n: int, protocol: StabilityProtocol, spread: float, other: str = "warp"
+) -> dict[str, Any]:
+    """cpu vs ``other`` verdicts on the same n candidates (wide jitter: a mix of outcomes)."""
     q = candidates(model, n, seed=7, spread=spread)
     cpu = check_stability(model, q, backend="cpu", protocol=protocol)
-    warp = check_stability(model, q, backend="warp", protocol=protocol)
+    engine = get_backend("warp", sleep=False) if other == "warp-strict" else get_backend(other)
+    warp = check_stability(model, q, backend=engine, protocol=protocol)
     same = cpu.stable == warp.stable
     return {
+        "other": other,
         "candidates": n,
         "agreement_pct": round(100.0 * float(same.mean()), 3),
         "cpu_stable": int(cpu.stable.sum()),
-        "warp_stable": int(warp.stable.sum()),
+        "other_stable": int(warp.stable.sum()),
         "disagreeing": int((~same).sum()),
         "invalid_cpu": int(cpu.invalid.sum()),
-        "invalid_warp": int(warp.invalid.sum()),
+        "invalid_other": int(warp.invalid.sum()),
         "max_translation_diff_m": float(
             np.max(
                 np.abs(
                     np.nan_to_num(cpu.translation, posinf=9)
                     - np.nan_to_num(warp.translation, posinf=9)
+                )
+            )
+        ),
+    }
+
+
+def sleep_agreement(
+    model: Any, n: int, protocol: StabilityProtocol, spread: float
+) -> dict[str, Any]:
+    """warp with sleeping vs the strict warp verdicts (sleeping off) on n candidates."""
+    q = candidates(model, n, seed=11, spread=spread)
+    strict = check_stability(model, q, backend=get_backend("warp", sleep=False), protocol=protocol)
+    asleep = check_stability(model, q, backend=get_backend("warp", sleep=True), protocol=protocol)
+    same = strict.stable == asleep.stable
+    return {
+        "candidates": n,
+        "spread_m": spread,
+        "agreement_pct": round(100.0 * float(same.mean()), 3),
+        "strict_stable": int(strict.stable.sum()),
+        "sleep_stable": int(asleep.stable.sum()),
+        "disagreeing": int((~same).sum()),
+        "max_translation_diff_m": float(
+            np.max(
+                np.abs(
+                    np.nan_to_num(strict.translation, posinf=9)
+                    - np.nan_to_num(asleep.translation, posinf=9)
                 )
             )
         ),
@@ -227,11 +311,19 @@ def main() -> None:
     p.add_argument("--agree-objects", type=int, default=20)
     p.add_argument("--timestep", type=float, default=None, help="check step (s); default 2 ms")
     p.add_argument("--spread", type=float, default=0.21, help="agreement jitter (m)")
+    p.add_argument("--agree-with", nargs="+", default=["warp"], help="backends compared to cpu")
+    p.add_argument("--sleep-agree", type=int, default=0, help="warp sleep vs strict on N")
+    p.add_argument("--raw", action="store_true", help="bare mujoco_warp step rate per batch")
     p.add_argument("--out", default=None)
     args = p.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     protocol = StabilityProtocol(resettle=False, timestep=args.timestep)
-    defaults = {"cpu": [8, 32], "warp": [1024, 4096, 8192], "mjx": [64]}
+    defaults = {
+        "cpu": [8, 32],
+        "warp": [1024, 4096, 8192],
+        "warp-strict": [1024, 4096, 8192],
+        "mjx": [64],
+    }
     results: dict[str, Any] = {
         "schema_version": 1,
         "benchmark": "stability",
@@ -246,8 +338,8 @@ def main() -> None:
             scene = bench_scene(n_obj, assets)
             model = compile_scene(scene, assets).model
             for name in args.backends:
-                if name == "mjx" and n_obj > 5:
-                    continue  # MJX compiles for minutes at scene sizes: see backend_mjx
+                if name == "mjx" and n_obj > 5 and not cuda_available():
+                    continue  # MJX-JAX compiles for minutes at scene sizes: see backend_mjx
                 for batch in args.batches or defaults[name]:
                     case = {
                         "objects": n_obj,
@@ -255,15 +347,36 @@ def main() -> None:
                     }
                     log.info("%s", case)
                     results["cases"].append(case)
+            if args.raw:
+                nstep = protocol.nstep(model)
+                for batch in args.batches or defaults["warp"]:
+                    for sleep in (False, True):
+                        row = {"objects": n_obj, **raw_rate(model, batch, nstep, sleep)}
+                        log.info("raw %s", row)
+                        results.setdefault("raw", []).append(row)
         if args.agree:
             scene = bench_scene(args.agree_objects, assets)
             model = compile_scene(scene, assets).model
-            results["agreement"] = {
-                "objects": args.agree_objects,
-                "spread_m": args.spread,
-                **agreement(model, args.agree, protocol, args.spread),
-            }
+            results["agreement"] = [
+                {
+                    "objects": args.agree_objects,
+                    "spread_m": args.spread,
+                    **agreement(model, args.agree, protocol, args.spread, other),
+                }
+                for other in args.agree_with
+            ]
             log.info("agreement: %s", results["agreement"])
+        if args.sleep_agree:
+            scene = bench_scene(args.agree_objects, assets)
+            model = compile_scene(scene, assets).model
+            results["sleep_agreement"] = [
+                {
+                    "objects": args.agree_objects,
+                    **sleep_agreement(model, args.sleep_agree, protocol, sp),
+                }
+                for sp in (0.05, args.spread)
+            ]
+            log.info("sleep agreement: %s", results["sleep_agreement"])
     print(json.dumps(results, indent=2))
     out = (
         Path(args.out)

@@ -134,8 +134,14 @@ def run_gpu(
             executor = WarpExecutor(setup, rec_cfg, device=device)
             attempt = attempts[sid]
             writes: list[Future[Any]] = []
+            t_scene = time.perf_counter()
+            waited = {"plans": 0.0, "writes": 0.0}
             while futures:
                 planned: list[tuple[int, int, Any]] = []
+                t_wait = time.perf_counter()
+                for f in futures:
+                    f.result()
+                waited["plans"] += time.perf_counter() - t_wait
                 for f in futures:
                     k, seed, res = f.result()
                     if isinstance(res, EpisodePlan):
@@ -185,10 +191,23 @@ def run_gpu(
                 if bar is not None:
                     bar.update(len(futures) - len(retry))
                 futures = submit(sid, retry, attempt) if retry else []
+            t_wait = time.perf_counter()
             for w in previous:  # at most two scenes' recordings wait in memory
                 w.result()
+            waited["writes"] += time.perf_counter() - t_wait
             previous = writes
             out["warp_seconds"] = vars(executor.times)
+            out["waited_s"] = waited
+            log.info(
+                "scene %s: %d new, %.1f s (GPU %.1f s, waiting for plans %.1f s, for the "
+                "previous scene's writes %.1f s)",
+                sid,
+                out["new"],
+                time.perf_counter() - t_scene,
+                out["simulate"],
+                waited["plans"],
+                waited["writes"],
+            )
         for w in previous:
             w.result()
     return results

@@ -205,8 +205,10 @@ def test_per_candidate_models() -> None:
 def test_mjx_agrees_with_cpu() -> None:
     model = compile_scene(_table_and_mug()).model
     q = _mixed_batch(model, 12, seed=1)
+    from factory.sim.backend_mjx import MjxBackend
+
     cpu = check_stability(model, q, backend="cpu")
-    mjx = check_stability(model, q, backend="mjx")
+    mjx = check_stability(model, q, backend=MjxBackend(impl="jax"))
     assert np.array_equal(cpu.stable, mjx.stable)
     assert np.array_equal(cpu.invalid, mjx.invalid)
 
@@ -214,8 +216,10 @@ def test_mjx_agrees_with_cpu() -> None:
 @pytest.mark.slow
 def test_mjx_refuses_large_models() -> None:
     scene = load_scene("factory/data/examples/kitchen_pick_place/scene.json")
+    from factory.sim.backend_mjx import MjxBackend
+
     with pytest.raises(ConfigError, match=r"sim\.backend=warp"):
-        check_stability(compile_scene(scene).model, backend="mjx")
+        check_stability(compile_scene(scene).model, backend=MjxBackend(impl="jax"))
 
 
 @pytest.mark.slow
@@ -263,6 +267,25 @@ def test_warp_sleep_is_cuda_only() -> None:
 def test_warp_sleep_stops_early_with_the_strict_verdicts_on_gpu() -> None:
     """Island sleeping: the verdicts of sleeping off, and an early stop of a scene at rest."""
     _sleep_case("cuda:0")
+
+
+@pytest.mark.gpu
+def test_mjx_on_warp_agrees_with_cpu_and_takes_any_model() -> None:
+    """On CUDA, sim.backend=mjx runs MJX's Warp implementation: same verdicts as the CPU
+    reference, and a kitchen with dozens of free bodies is accepted."""
+    from factory.sim.backend_mjx import MjxBackend
+
+    engine = MjxBackend()
+    assert engine.impl == "warp"
+    model = compile_scene(_table_and_mug()).model
+    q = _mixed_batch(model, 12, seed=1)
+    protocol = StabilityProtocol(resettle=False)
+    cpu = check_stability(model, q, backend="cpu", protocol=protocol)
+    mjx = check_stability(model, q, backend=engine, protocol=protocol)
+    assert np.array_equal(cpu.stable, mjx.stable)
+    kitchen = compile_scene(load_scene("factory/data/examples/kitchen_pick_place/scene.json"))
+    big = check_stability(kitchen.model, backend=engine, protocol=protocol)
+    assert len(big.object_ids) > 8 and not big.invalid.any()
 
 
 def test_rotation_angle() -> None:
