@@ -18,6 +18,7 @@ FLOORS: dict[str, int] = {
     "store": 1,
     "sim": 2,
     "assets": 3,
+    "nav": 3,
     "scenes": 4,
     "augment": 5,
     "demos": 5,
@@ -34,7 +35,7 @@ FLOORS: dict[str, int] = {
 """Top-level module or package -> floor. A module may import its own floor or lower ones,
 except the listed siblings (same floor, independent)."""
 
-INDEPENDENT: set[frozenset[str]] = {frozenset({"augment", "demos"})}
+INDEPENDENT: set[frozenset[str]] = {frozenset({"augment", "demos"}), frozenset({"assets", "nav"})}
 
 
 def _modules() -> dict[str, Path]:
