@@ -199,23 +199,22 @@ def run_case(
 
 def raw_rate(model: Any, batch: int, nstep: int, sleep: bool) -> dict[str, Any]:
     """World-steps/s of bare graph-captured ``mujoco_warp.step`` calls on ``batch`` worlds."""
+    import copy
+
     import mujoco
     import mujoco_warp as mjw
     import warp as wp
 
     from factory.sim.backend_warp import WarpBackend
 
-    m_cpu = model
-    flags = int(m_cpu.opt.enableflags)
+    m_cpu = copy.copy(model)
     bit = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    flags = int(model.opt.enableflags)
     m_cpu.opt.enableflags = flags | bit if sleep else flags & ~bit
-    try:
-        m = mjw.put_model(m_cpu)
-    finally:
-        m_cpu.opt.enableflags = flags
+    m = mjw.put_model(m_cpu)
     q = candidates(model, batch)
     nconmax, njmax = WarpBackend.initial_sizes(model, q)
-    d = mjw.put_data(model, mujoco.MjData(model), nworld=batch, nconmax=nconmax, njmax=njmax)
+    d = mjw.put_data(m_cpu, mujoco.MjData(m_cpu), nworld=batch, nconmax=nconmax, njmax=njmax)
     d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
     chunk = 50
     with wp.ScopedCapture() as cap:

@@ -23,6 +23,7 @@
 
 from __future__ import annotations
 
+import copy
 import logging
 import time
 from collections.abc import Sequence
@@ -94,14 +95,14 @@ class WarpBackend:
 
         key = id(model)
         if key not in self._models:
+            # A copy with this backend's sleep flag: put_model and put_data must both see it
+            # (put_data sizes the sleeping arrays from the model's flags).
+            flagged = copy.copy(model)
+            bit = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
             flags = int(model.opt.enableflags)
-            sleep = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
-            model.opt.enableflags = flags | sleep if self.sleep else flags & ~sleep
-            try:
-                with self.wp.ScopedDevice(self.device):
-                    m = mjw.put_model(model)
-            finally:
-                model.opt.enableflags = flags
+            flagged.opt.enableflags = flags | bit if self.sleep else flags & ~bit
+            with self.wp.ScopedDevice(self.device):
+                m = mjw.put_model(flagged)
             bits = mjw.OverflowType
             m.opt.warn_overflow = int(
                 bits.NEFC
@@ -111,8 +112,8 @@ class WarpBackend:
                 | bits.CCD
                 | bits.EPA_HORIZON
             )
-            self._models = {key: (model, m)}
-        return self._models[key][1]
+            self._models = {key: (model, flagged, m)}
+        return self._models[key][2]
 
     # ---- stepping
     def _run(
@@ -122,10 +123,11 @@ class WarpBackend:
 
         wp = self.wp
         m = self._warp_model(model)
+        flagged = self._models[id(model)][1]
         n = len(q)
         with wp.ScopedDevice(self.device):
-            mjd = mujoco.MjData(model)
-            d = mjw.put_data(model, mjd, nworld=n, nconmax=nconmax, njmax=njmax)
+            mjd = mujoco.MjData(flagged)
+            d = mjw.put_data(flagged, mjd, nworld=n, nconmax=nconmax, njmax=njmax)
             d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
             t0 = time.perf_counter()
             # A captured graph is only recorded, not run: every step below is launched once.
