@@ -50,6 +50,33 @@ WRITERS = 8
 """Threads writing (compressing) recorded episodes while the GPU goes on."""
 
 
+HOST_MEMORY_SHARE = 0.2
+"""Share of the host's available memory one GPU call's recordings may take: the frame-major
+buffers, the per-episode recordings and the previous call's recordings still being written
+exist at once."""
+
+
+def worlds_that_fit(plans: list[Any], rec_cfg: Any, timestep: float) -> int:
+    """How many of ``plans`` one GPU call may record without exhausting host memory.
+
+    A world's recording holds ``frames x cameras x height x width`` pixels of RGB (3 bytes) and
+    depth (2 or 4 bytes) plus small per-frame signals; frames come from the longest plan.
+    """
+    import os
+
+    if not plans:
+        return 1
+    frames = max(len(p.ctrl) for p in plans) * timestep * rec_cfg.fps + 2
+    depth_bytes = 2 if rec_cfg.depth == "uint16_mm" else 4
+    pixels = len(rec_cfg.cameras) * rec_cfg.height * rec_cfg.width if rec_cfg.render else 0
+    per_world = frames * (pixels * (3 + depth_bytes) + 4096)
+    try:
+        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError):  # pragma: no cover - non-POSIX
+        return len(plans)
+    return max(1, int(HOST_MEMORY_SHARE * avail // per_world))
+
+
 def _init_worker() -> None:
     logging.basicConfig(level=logging.WARNING)
 
@@ -154,8 +181,18 @@ def run_gpu(
                         out["failures"][res.reason] += 1
                         log.info("scene %s slot %d: plan failed: %s", sid, k, res.detail)
                 done: set[int] = set()
-                for start in range(0, len(planned), dc.gpu_batch):
-                    chunk = planned[start : start + dc.gpu_batch]
+                fit = worlds_that_fit([p for _, _, p in planned], rec_cfg, setup.model.opt.timestep)
+                step = max(1, min(dc.gpu_batch, fit))
+                if step < min(dc.gpu_batch, len(planned)):
+                    log.info(
+                        "scene %s: %d worlds per GPU call (host memory for the recordings; "
+                        "demos.gpu_batch=%d)",
+                        sid,
+                        step,
+                        dc.gpu_batch,
+                    )
+                for start in range(0, len(planned), step):
+                    chunk = planned[start : start + step]
                     t0 = time.perf_counter()
                     recs = executor.execute([p for _, _, p in chunk])
                     out["simulate"] += time.perf_counter() - t0

@@ -6,7 +6,10 @@
   candidates' initial contacts with headroom; a world whose buffers overflow (MuJoCo Warp's
   per-world ``overflow`` bitmask) is re-run with doubled buffers, and reported ``invalid``
   (never stable) if it still overflows after ``max_grow`` doublings.
-* Steps are captured once into a CUDA graph of ``graph_steps`` steps and replayed.
+* Steps are captured once into a CUDA graph of ``graph_steps`` steps and replayed. The device
+  data and the graph of the last batch shape are kept: a next call of the same shape (the
+  chunks of a large batch, repeated checks of one scene) resets them (``reset_data``) instead
+  of uploading a new data set and capturing again.
 * Island sleeping (``sleep=True``, MuJoCo's ``mjENBL_SLEEP``): bodies at rest stop being
   simulated until touched, and the run stops early once every world of a launch is asleep
   (checked between graph replays): nothing can move after that, so the final poses are those
@@ -71,6 +74,7 @@ class WarpBackend:
         # smooth_solve_compact): sleeping is a CUDA-only speed-up here.
         self.sleep = sleep and self.device.startswith("cuda")
         self._models: dict[int, Any] = {}
+        self._data: dict[tuple[int, int, int, int], Any] = {}
         self.steps_run: list[int] = []
         """Steps each launch of the last :meth:`settle` ran before all its worlds slept."""
 
@@ -113,6 +117,7 @@ class WarpBackend:
                 | bits.EPA_HORIZON
             )
             self._models = {key: (model, flagged, m)}
+            self._data = {}
         return self._models[key][2]
 
     # ---- stepping
@@ -126,13 +131,19 @@ class WarpBackend:
         flagged = self._models[id(model)][1]
         n = len(q)
         with wp.ScopedDevice(self.device):
-            mjd = mujoco.MjData(flagged)
-            d = mjw.put_data(flagged, mjd, nworld=n, nconmax=nconmax, njmax=njmax)
+            key = (id(model), n, nconmax, njmax)
+            if key in self._data:  # the same batch shape again: reset, keep the graph
+                d, graph = self._data[key]
+                mjw.reset_data(m, d)
+                d.overflow.zero_()
+            else:
+                mjd = mujoco.MjData(flagged)
+                d = mjw.put_data(flagged, mjd, nworld=n, nconmax=nconmax, njmax=njmax)
+                graph = None
             d.qpos.assign(wp.array(q.astype(np.float32), dtype=float))
             t0 = time.perf_counter()
             # A captured graph is only recorded, not run: every step below is launched once.
             use_graph = self.device.startswith("cuda")
-            graph = None
             left = nstep
             while left > 0 and not self._all_asleep(d):
                 k = min(self.graph_steps, left)
@@ -147,6 +158,7 @@ class WarpBackend:
                     for _ in range(k):
                         mjw.step(m, d)
                 left -= k
+            self._data = {key: (d, graph)}  # one batch shape kept (bounds GPU memory)
             self.steps_run.append(nstep - left)
             wp.synchronize()
             seconds = time.perf_counter() - t0

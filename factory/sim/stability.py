@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 import logging
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -209,36 +210,57 @@ def body_penetration(
         deepest pair (``"a|b"``) for each of the ``k`` bodies (empty if none; the error where
         MuJoCo failed).
     """
-    data = mujoco.MjData(model)
-    slot = {int(b): j for j, b in enumerate(bodies)}
-    depth = np.zeros((len(qpos), len(bodies)))
-    pairs: list[list[str]] = []
-    for i, q in enumerate(qpos):
-        names = [""] * len(bodies)
-        if not np.isfinite(q).all():
-            pairs.append(names)
-            continue
-        data.qpos[:] = q
-        data.qvel[:] = 0
-        try:
-            mujoco.mj_forward(model, data)
-        except mujoco.FatalError as e:
-            depth[i] = np.nan
-            names[:] = [f"MuJoCo error: {' '.join(str(e).split())}"] * len(bodies)
-            pairs.append(names)
-            continue
-        for c in data.contact[: data.ncon]:
-            if c.dist >= 0:
+    n, k = len(qpos), len(bodies)
+    depth = np.zeros((n, k))
+    pairs: list[list[str]] = [[""] * k for _ in range(n)]
+    slot = np.full(model.nbody, -1, dtype=int)
+    slot[np.asarray(bodies, dtype=int)] = np.arange(k)
+    allowed = np.ones(model.nbody, dtype=bool)
+    if partners is not None:
+        allowed[:] = False
+        allowed[list(partners)] = True
+
+    def name(b: int) -> str:
+        return model.body(b).name or "world"
+
+    def chunk(lo: int, hi: int) -> None:
+        data = mujoco.MjData(model)
+        for i in range(lo, hi):
+            q = qpos[i]
+            if not np.isfinite(q).all():
                 continue
-            b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
-            for b, other in ((b1, b2), (b2, b1)):
-                j = slot.get(b)
-                if partners is not None and other not in partners:
-                    continue
-                if j is not None and -c.dist > depth[i, j]:
-                    depth[i, j] = -c.dist
-                    names[j] = f"{model.body(b).name}|{model.body(other).name or 'world'}"
-        pairs.append(names)
+            data.qpos[:] = q
+            data.qvel[:] = 0
+            try:
+                mujoco.mj_forward(model, data)
+            except mujoco.FatalError as e:
+                depth[i] = np.nan
+                pairs[i] = [f"MuJoCo error: {' '.join(str(e).split())}"] * k
+                continue
+            if data.ncon == 0:
+                continue
+            con = data.contact
+            pen = -np.asarray(con.dist[: data.ncon])
+            ba = model.geom_bodyid[np.asarray(con.geom1[: data.ncon])]
+            bb = model.geom_bodyid[np.asarray(con.geom2[: data.ncon])]
+            for mine, other in ((ba, bb), (bb, ba)):
+                j = slot[mine]
+                use = (j >= 0) & (pen > 0) & allowed[other]
+                for c in np.flatnonzero(use):
+                    jj = j[c]
+                    if pen[c] > depth[i, jj]:
+                        depth[i, jj] = pen[c]
+                        pairs[i][jj] = f"{name(int(mine[c]))}|{name(int(other[c]))}"
+
+    threads = max(1, min(8, os.cpu_count() or 1, n // 256))
+    if threads == 1:
+        chunk(0, n)
+    else:  # mj_forward releases the GIL: chunks of candidates run side by side
+        from concurrent.futures import ThreadPoolExecutor
+
+        bounds = np.linspace(0, n, threads + 1).astype(int)
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(chunk, bounds[:-1], bounds[1:]))
     return depth, pairs
 
 

@@ -139,3 +139,23 @@ def test_quat_from_mat_is_mujocos() -> None:
         mujoco.mju_quat2Mat(mats[i], q[i])
         mujoco.mju_mat2Quat(ref[i], mats[i])
     assert np.allclose(quat_from_mat(mats.reshape(500, 3, 3)), ref, atol=1e-12)
+
+
+def test_worlds_per_call_fit_in_host_memory(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A GPU call records no more worlds than a share of the available host memory holds."""
+    import os
+    from types import SimpleNamespace
+
+    from factory.demos import gpu_pipeline
+    from factory.demos.execute import RecordConfig
+
+    plans = [SimpleNamespace(ctrl=np.zeros((5000, 9))) for _ in range(512)]  # 10 s at 2 ms
+    cfg = RecordConfig(fps=20.0, width=128, height=128, cameras=("left", "right", "wrist"))
+    page = os.sysconf("SC_PAGE_SIZE")
+    monkeypatch.setattr(os, "sysconf", lambda k: 4 * 2**30 // page if "PAGES" in k else page)
+    per_world = 202 * (3 * 128 * 128 * 5 + 4096)  # 202 frames, RGB + uint16 depth
+    n = gpu_pipeline.worlds_that_fit(plans, cfg, 0.002)
+    assert n == int(gpu_pipeline.HOST_MEMORY_SHARE * 4 * 2**30 // per_world)
+    assert 1 <= n < 512
+    off = RecordConfig(fps=20.0, cameras=("left",), render=False)
+    assert gpu_pipeline.worlds_that_fit(plans, off, 0.002) >= 512

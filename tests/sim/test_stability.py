@@ -256,6 +256,22 @@ def _sleep_case(device: str | None) -> None:
     assert np.allclose(early.settled_qpos, full.settled_qpos, atol=2e-3)
 
 
+@pytest.mark.slow
+def test_warp_reuses_device_data_with_the_same_results() -> None:
+    """A second call of the same batch shape resets the kept device data (and graph)."""
+    from factory.sim.backend_warp import WarpBackend
+
+    model = compile_scene(_table_and_mug()).model
+    q = _mixed_batch(model, 4, seed=3)
+    engine = WarpBackend("cpu")
+    protocol = StabilityProtocol(resettle=False)
+    first = check_stability(model, q, backend=engine, protocol=protocol)
+    assert len(engine._data) == 1
+    again = check_stability(model, q, backend=engine, protocol=protocol)
+    np.testing.assert_allclose(first.settled_qpos, again.settled_qpos, atol=1e-6)
+    assert np.array_equal(first.stable, again.stable)
+
+
 def test_warp_sleep_is_cuda_only() -> None:
     """MuJoCo Warp's sleeping solver path crashes on Warp's CPU device: off there."""
     from factory.sim.backend_warp import WarpBackend
