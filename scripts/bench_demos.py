@@ -65,6 +65,12 @@ def main() -> None:
     p.add_argument("--executor", default="cpu", choices=["cpu", "warp", "auto"])
     p.add_argument("--gpu-batch", type=int, default=512)
     p.add_argument("--workers", type=int, default=0, help="0: --cores (cpu), cores - 1 (warp)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        help="extra CLI override (repeatable), e.g. demos.freeze_beyond=0",
+    )
     args = p.parse_args()
     env = dict(os.environ)
     env["LP_NUM_THREADS"] = str(args.cores)  # Mesa llvmpipe render threads
@@ -98,6 +104,7 @@ def main() -> None:
                 f"demos.batch={args.batch}",
                 f"demos.executor={args.executor}",
                 f"demos.gpu_batch={args.gpu_batch}",
+                *args.set,
             ],
             args.cores,
             env,
