@@ -50,7 +50,10 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-TASKS: dict[str, str] = {"pick_place": "pick up an object and put it in or on a target"}
+TASKS: dict[str, str] = {
+    "pick_place": "pick up an object and put it in or on a target",
+    "mobile_pick_place": "drive to an object, pick it, carry it to another support, place it",
+}
 """Robot tasks ``stage=demos`` can record (``task=<name>``)."""
 
 EXECUTORS: dict[str, str] = {
@@ -112,6 +115,10 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     from factory.demos.execute import FrameRenderer, RecordConfig, execute
     from factory.demos.pick_place import EpisodePlan
 
+    if env.task == "mobile_pick_place":  # CPU path, one episode at a time
+        from factory.demos.mobile_stage import run_mobile_item
+
+        return run_mobile_item(env, item)
     dc = env.demos
     out: dict[str, Any] = {
         "scene_id": item.scene_id,
@@ -223,6 +230,8 @@ def run(ctx: StageContext) -> dict[str, Any]:
             items.append(WorkItem(sid, tuple(todo[start : start + dc.batch])))
     cores = os.cpu_count() or 1
     executor = resolve_executor(dc.executor)
+    if cfg.task == "mobile_pick_place":
+        executor = "cpu"  # the mobile task has no GPU executor yet
     if executor == "warp":
         workers = dc.workers or max(1, cores - 1)
     else:

@@ -1,0 +1,200 @@
+"""``stage=demos task=mobile_pick_place``: one work item of the mobile task on the CPU path.
+
+:func:`run_mobile_item` is what :func:`factory.demos.stage.run_item` runs for the mobile task:
+per scene it composes the scene with the mobile robot (:func:`~factory.demos.mobile_pick_place.
+mobile_setup`), plans each open slot with the slot's stable seed, executes and records it one
+episode at a time (:func:`~factory.demos.mobile_pick_place.execute_mobile`, one ``MjData``),
+and stores the successes in the same episode store as the fixed task.
+
+Stored episodes keep the fixed task's :class:`~factory.schema.episode.EpisodeInfo` fields
+(nothing new in the metadata): ``task`` is ``mobile_pick_place``, ``pick_id`` the object,
+``support_id`` the pick support, ``target_id`` the place support, ``robot`` the spawn pose
+(z = 0), ``phases`` the first frame of each phase (sub-tasks included), ``cameras`` the pinhole
+cameras then ``fisheye_front``/``fisheye_back``. Arrays: as the fixed task (``time``,
+``state``, ``joint_pos``, ``gripper``, ``ee_pose``, ``rgb/<camera>``, ``depth/<camera>``), with
+``action`` of 11 columns (arm 7, gripper, base x, y, yaw) instead of 8, and in addition
+``base_pose`` (F, 3), ``subtask`` (F,) int8 (index into ``SUBTASKS``) and ``subtask_done``
+(F,) bool. There is no ``env_state``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from factory.demos.mobile_pick_place import (
+        MobileEpisodePlan,
+        MobileRecordConfig,
+        MobileRecording,
+        MobileSetup,
+    )
+    from factory.demos.slots import StageEnv, WorkItem
+
+log = logging.getLogger(__name__)
+
+TASK = "mobile_pick_place"
+
+
+def _write(
+    store: Any,
+    env: StageEnv,
+    setup: MobileSetup,
+    k: int,
+    seed: int,
+    plan: MobileEpisodePlan,
+    rec: MobileRecording,
+    cfg: MobileRecordConfig,
+) -> None:
+    """Stores a successful mobile recording as episode ``k`` of its scene."""
+    from factory import __version__
+    from factory.demos.mobile_pick_place import STATE_SPEC
+    from factory.demos.slots import episode_id
+    from factory.schema.episode import EpisodeInfo, RobotBase
+
+    objs = setup.objects
+    per_frame = max(1, round(1.0 / (cfg.fps * setup.model.opt.timestep)))
+    scene = setup.scene
+    instruction = (
+        scene.task.instruction
+        if scene.task is not None and scene.task.instruction
+        else f"pick up the {objs.pick.category} and put it on the {objs.place_support.category}"
+    )
+    assert rec.outcome is not None
+    meta = EpisodeInfo(
+        episode_id=episode_id(scene.id, k),
+        scene_id=scene.id,
+        task=TASK,
+        instruction=instruction,
+        seed=seed,
+        success=True,
+        failure_reason="",
+        pick_id=objs.pick.id,
+        target_id=objs.place_support.id,
+        support_id=objs.pick_support.id,
+        robot=RobotBase(float(plan.spawn[0]), float(plan.spawn[1]), 0.0, float(plan.spawn[2])),
+        fps=cfg.fps,
+        timestep=float(setup.model.opt.timestep),
+        n_frames=len(rec.time),
+        cameras=list(cfg.cameras) if cfg.render else [],
+        image_size=[cfg.height, cfg.width],
+        depth_format=cfg.depth,
+        state_spec=int(STATE_SPEC),
+        phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
+        grasp_width=plan.grasp_width,
+        plan_seconds=plan.plan_seconds,
+        outcome=rec.outcome.details,
+        factory_version=__version__,
+    )
+    arrays: dict[str, np.ndarray] = {
+        "time": rec.time,
+        "state": rec.state,
+        "joint_pos": rec.joint_pos.astype(np.float32),
+        "gripper": rec.gripper.astype(np.float32),
+        "ee_pose": rec.ee_pose.astype(np.float32),
+        "action": rec.action.astype(np.float32),
+        "base_pose": rec.base_pose.astype(np.float32),
+        "subtask": rec.subtask.astype(np.int8),
+        "subtask_done": rec.subtask_done.astype(bool),
+    }
+    for cam, im in rec.rgb.items():
+        arrays[f"rgb/{cam}"] = im
+    for cam, dp in rec.depth.items():
+        arrays[f"depth/{cam}"] = dp
+    store.write(meta, arrays)
+
+
+def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
+    """Fills the item's slots with mobile episodes; returns ``run_item``'s statistics.
+
+    The cameras are ``demos.cameras`` (pinhole, on the robot) plus both fisheye cameras;
+    ``demos.randomize``, ``demos.batch`` (episodes run one by one) and the GPU executor do
+    not apply.
+    """
+    from factory.demos.episodes import EpisodeStore
+    from factory.demos.mobile_pick_place import (
+        FISHEYE_CAMERAS,
+        MobileEpisodePlan,
+        MobileMotionConfig,
+        MobilePlanner,
+        MobileRecordConfig,
+        MobileRenderer,
+        execute_mobile,
+        mobile_setup,
+    )
+    from factory.demos.pick_place import MotionConfig
+    from factory.demos.planner import PlannerConfig
+    from factory.demos.slots import episode_id, episode_seed
+    from factory.errors import FactoryError
+    from factory.store import RunStore
+
+    dc = env.demos
+    out: dict[str, Any] = {
+        "scene_id": item.scene_id,
+        "new": 0,
+        "failures": Counter(),
+        "error": None,
+        "plan": [],
+        "segments": [],
+        "simulate": 0.0,
+        "render": 0.0,
+        "frames": 0,
+    }
+    try:
+        run_store = RunStore(env.run_dir)
+        setup = mobile_setup(run_store.load_scene(item.scene_id), run_store.assets_dir)
+        motion = MobileMotionConfig(
+            arm=MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
+        )
+        planner = MobilePlanner(
+            setup,
+            motion,
+            planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
+            max_grasps=dc.max_grasps,
+            grasp_facing=dc.grasp_facing,
+        )
+    except FactoryError as e:
+        out["error"] = str(e)
+        out["failures"]["scene_unusable"] += len(item.slots)
+        return out
+    cfg = MobileRecordConfig(
+        fps=dc.fps,
+        width=dc.width,
+        height=dc.height,
+        cameras=(*dc.cameras, *FISHEYE_CAMERAS),
+        depth=dc.depth,
+        render=dc.render,
+    )
+    store = EpisodeStore(env.store_path)
+    renderer = MobileRenderer(setup.model, cfg) if cfg.render else None
+    try:
+        for k in item.slots:
+            if episode_id(item.scene_id, k) in store:
+                continue
+            for attempt in range(dc.attempts):
+                seed = episode_seed(env.seed, item.scene_id, k, attempt)
+                res = planner.plan_episode(seed)
+                if not isinstance(res, MobileEpisodePlan):
+                    out["failures"][res.reason] += 1
+                    log.info("scene %s slot %d: plan failed: %s", item.scene_id, k, res.detail)
+                    continue
+                out["plan"].append(res.seconds)
+                out["segments"].extend(res.plan_seconds.values())
+                rec = execute_mobile(setup, res, cfg, renderer)
+                out["simulate"] += rec.sim_seconds
+                out["render"] += rec.render_seconds
+                assert rec.outcome is not None
+                if not rec.outcome.success:
+                    out["failures"][rec.outcome.reason] += 1
+                    continue
+                _write(store, env, setup, k, seed, res, rec, cfg)
+                out["frames"] += len(rec.time)
+                out["new"] += 1
+                break
+    finally:
+        if renderer is not None:
+            renderer.close()
+    return out

@@ -1,0 +1,198 @@
+"""Mobile pick-and-place: a can from a coffee table onto a desk across a hand-built living room."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("robosuite")
+pytest.importorskip("ruckig")
+pytest.importorskip("ompl")
+pytest.importorskip("mink")
+
+from factory.demos.mobile_pick_place import (
+    ALL_CAMERAS,
+    SUBTASKS,
+    MobileEpisodePlan,
+    MobilePlanFailure,
+    MobilePlanner,
+    MobileRecordConfig,
+    MobileTaskError,
+    execute_mobile,
+    mobile_setup,
+    mobile_task_objects,
+    replay,
+)
+from factory.schema import Physics, Placement, Room, Scene, SceneObject, Size3, Vec3, Wall
+
+ROOM_W, ROOM_L = 6.0, 5.0
+TABLE = (1.6, 2.5)
+DESK = (4.6, 1.2)
+
+
+def _living_room(enclose_desk: bool = False) -> Scene:
+    """A 6 x 5 m living room: a coffee table with a can on it and a desk 3.3 m away; with
+    ``enclose_desk`` static panels close the desk in."""
+    corners = [(0.0, 0.0), (ROOM_W, 0.0), (ROOM_W, ROOM_L), (0.0, ROOM_L)]
+    walls = [
+        Wall(id=f"w{i}", start=Vec3(*a, 0.0), end=Vec3(*b, 0.0), height=2.5)
+        for i, (a, b) in enumerate(zip(corners, corners[1:] + corners[:1], strict=True))
+    ]
+    room = Room(
+        id="living",
+        room_type="living_room",
+        position=Vec3(0, 0, 0),
+        dimensions=Size3(ROOM_W, ROOM_L, 2.7),
+        walls=walls,
+    )
+    objects = [
+        SceneObject(
+            id="coffee_table",
+            room_id="living",
+            category="coffee_table",
+            position=Vec3(*TABLE, 0.0),
+            dimensions=Size3(1.0, 0.6, 0.45),
+            physics=Physics(mass=15.0),
+        ),
+        SceneObject(
+            id="can",
+            room_id="living",
+            category="can",
+            position=Vec3(TABLE[0], TABLE[1] - 0.1, 0.45),
+            dimensions=Size3(0.066, 0.066, 0.12),
+            placement=Placement(kind="on_top", support_id="coffee_table"),
+            physics=Physics(mass=0.3),
+            task_role="pick",
+        ),
+        SceneObject(
+            id="desk",
+            room_id="living",
+            category="desk",
+            position=Vec3(*DESK, 0.0),
+            dimensions=Size3(1.2, 0.6, 0.75),
+            physics=Physics(mass=30.0),
+            task_role="place_target",
+        ),
+    ]
+    if enclose_desk:  # a closed pen of static panels 0.9 m around the desk
+        x, y = DESK
+        hx, hy, t = 0.6 + 0.9, 0.3 + 0.9, 0.06
+        for k, (cx, cy, w, ln) in enumerate(
+            (
+                (x, y - hy - t / 2, 2 * hx + 2 * t, t),
+                (x, y + hy + t / 2, 2 * hx + 2 * t, t),
+                (x - hx - t / 2, y, t, 2 * hy),
+                (x + hx + t / 2, y, t, 2 * hy),
+            )
+        ):
+            objects.append(
+                SceneObject(
+                    id=f"panel{k}",
+                    room_id="living",
+                    category="partition",
+                    position=Vec3(cx, cy, 0.0),
+                    dimensions=Size3(w, ln, 1.2),
+                    physics=Physics(mass=20.0, static=True),
+                )
+            )
+    return Scene(id="living", rooms=[room], objects=objects, source="example")
+
+
+def _near_box(xy: np.ndarray, centre: tuple[float, float], half: tuple[float, float]) -> float:
+    """Distance (m) from a point to an axis-aligned box's footprint."""
+    d = np.maximum(np.abs(xy - np.asarray(centre)) - np.asarray(half), 0.0)
+    return float(np.linalg.norm(d))
+
+
+def test_task_objects_from_roles() -> None:
+    objs = mobile_task_objects(_living_room())
+    assert (objs.pick.id, objs.pick_support.id, objs.place_support.id) == (
+        "can",
+        "coffee_table",
+        "desk",
+    )
+    with pytest.raises(MobileTaskError) as e:
+        mobile_task_objects(_living_room(), place_support="coffee_table")
+    assert e.value.reason == "no_place_support"
+
+
+@pytest.mark.slow
+def test_full_episode_succeeds_and_replays() -> None:
+    setup = mobile_setup(_living_room())
+    plan = MobilePlanner(setup).plan_episode(0)
+    assert isinstance(plan, MobileEpisodePlan), plan
+    cfg = MobileRecordConfig(fps=5.0, width=64, height=64)
+    rec = execute_mobile(setup, plan, cfg)
+    assert rec.outcome is not None and rec.outcome.success, rec.outcome
+    n = len(rec.time)
+    # sub-tasks in order, each ending once, on its own last frame
+    firsts = [int(np.flatnonzero(rec.subtask == k)[0]) for k in range(len(SUBTASKS))]
+    assert firsts == sorted(firsts) and firsts[0] == 0
+    assert (np.diff(rec.subtask) >= 0).all()
+    done = np.flatnonzero(rec.subtask_done)
+    assert len(done) == len(SUBTASKS)
+    assert list(rec.subtask[done]) == list(range(len(SUBTASKS)))
+    assert list(done[:-1] + 1) == firsts[1:] and done[-1] == n - 1
+    # the base drives from near the coffee table to near the desk
+    arrive_pick = rec.base_pose[firsts[1]]
+    assert _near_box(arrive_pick[:2], TABLE, (0.5, 0.3)) < 0.8
+    assert np.linalg.norm(arrive_pick[:2] - plan.pick_base[:2]) < 0.05
+    end = rec.base_pose[-1]
+    assert _near_box(end[:2], DESK, (0.6, 0.3)) < 0.8
+    assert np.linalg.norm(end[:2] - plan.place_base[:2]) < 0.05
+    assert np.linalg.norm(end[:2] - arrive_pick[:2]) > 1.0
+    # signals and images
+    assert rec.action.shape == (n, 11) and rec.joint_pos.shape == (n, 7)
+    assert set(rec.rgb) == set(ALL_CAMERAS) == set(rec.depth)
+    for c in ALL_CAMERAS:
+        assert rec.rgb[c].shape == (n, 64, 64, 3) and rec.rgb[c].dtype == np.uint8
+        assert rec.depth[c].shape == (n, 64, 64) and rec.depth[c].dtype == np.uint16
+        assert rec.rgb[c].any() and rec.depth[c].any()
+    # replaying the recorded controls reproduces the states and the images
+    again = replay(setup, rec, cfg)
+    assert np.array_equal(again.state, rec.state)
+    for c in ALL_CAMERAS:
+        assert np.array_equal(again.rgb[c], rec.rgb[c]), c
+        assert np.array_equal(again.depth[c], rec.depth[c]), c
+
+
+def test_enclosed_place_support_fails_with_nav_failed() -> None:
+    setup = mobile_setup(_living_room(enclose_desk=True))
+    result = MobilePlanner(setup).plan_episode(0)
+    assert isinstance(result, MobilePlanFailure)
+    assert result.reason == "nav_failed", result
+    assert "desk" in result.detail  # the pick was planned; the route to the desk is closed
+
+
+@pytest.mark.slow
+def test_mobile_stage_cli(cli, tmp_path) -> None:
+    """``stage=demos task=mobile_pick_place`` stores a mobile episode in the episode store."""
+    from factory.demos.episodes import EpisodeStore
+    from factory.schema import scene_to_json
+
+    scene = _living_room()
+    run = tmp_path / "run"
+    (run / "scenes" / scene.id).mkdir(parents=True)
+    (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    out = cli(
+        "stage=demos",
+        f"run_dir={run}",
+        "task=mobile_pick_place",
+        "demos.episodes_per_scene=1",
+        "demos.width=32",
+        "demos.height=32",
+        "demos.fps=5",
+        "demos.workers=1",
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    store = EpisodeStore(run / "episodes" / "shard-0.zarr")
+    (eid,) = store.episode_ids()
+    info = store.info(eid)
+    assert info.task == "mobile_pick_place" and info.success
+    assert (info.pick_id, info.support_id, info.target_id) == ("can", "coffee_table", "desk")
+    g = store.arrays(eid)
+    n = info.n_frames
+    assert g["action"].shape == (n, 11) and g["base_pose"].shape == (n, 3)
+    assert list(np.unique(g["subtask"][:])) == [0, 1, 2, 3] and int(g["subtask_done"][:].sum()) == 4
+    for cam in ALL_CAMERAS:
+        assert g[f"rgb/{cam}"].shape == (n, 32, 32, 3)
