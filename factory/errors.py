@@ -19,6 +19,10 @@ class StoreError(FactoryError):
     """The run directory is unusable (wrong manifest version, unwritable, missing inputs)."""
 
 
+class MixedLayoutError(StoreError):
+    """Fixed-base and mobile episodes were asked for in one dataset (their features differ)."""
+
+
 class CompileError(FactoryError):
     """A scene cannot be compiled into a MuJoCo model."""
 
@@ -39,6 +43,7 @@ __all__ = [
     "CompileError",
     "ConfigError",
     "FactoryError",
+    "MixedLayoutError",
     "PolicyError",
     "RenderError",
     "SchemaError",

@@ -3,6 +3,8 @@
 It names what a reader of the Hub page needs to use the data without factory: the task, the
 scenes and seeds, the factory version, what each feature holds (units, frames), how depth is
 packed, and what ``extras/`` holds. ``meta/factory.json`` keeps the full per-episode listing.
+Mobile datasets (``layout: mobile`` in it) describe their own fields: the base pose in the
+state, the 11 action columns, the sub-task labels and done flags.
 """
 
 from __future__ import annotations
@@ -10,8 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from factory.dataset.mobile_features import MOBILE, meta_layout, mobile_card_lines
+
 CARD_FILE = "README.md"
 TAGS = ["factory", "mujoco", "simulation", "franka-panda", "pick-and-place"]
+MOBILE_TAGS = ["mobile-manipulation"]
 MAX_LISTED = 20  # scenes or instructions named on the card; all are in meta/ files
 
 
@@ -40,6 +45,8 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
         (v for k, v in videos.items() if k.startswith("observation.images.")), {}
     )
     seed_text = f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]} to {seeds[-1]}"
+    if meta_layout(meta) == MOBILE:
+        return _mobile_card_text(meta, info, instructions, cams, rgb, seed_text)
     return "\n".join(
         [
             f"Franka Panda demonstrations planned and recorded in physically validated MuJoCo "
@@ -74,6 +81,40 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
     )
 
 
+def _mobile_card_text(
+    meta: dict[str, Any],
+    info: dict[str, Any],
+    instructions: list[str],
+    cams: list[str],
+    rgb: dict[str, Any],
+    seed_text: str,
+) -> str:
+    """:func:`card_text` of a mobile dataset (``meta['layout'] == 'mobile'``)."""
+    episodes = meta["episodes"]
+    return "\n".join(
+        [
+            "Mobile manipulation demonstrations (a Franka Panda on an Omron mobile base) "
+            "planned and recorded in physically validated MuJoCo scenes by factory "
+            f"{meta['factory_version'] or '(unknown version)'}. Each episode runs the "
+            "sub-tasks " + ", ".join(f"`{t}`" for t in meta.get("subtasks", [])) + " in order.",
+            "",
+            f"- **Task:** `{meta['task']}`; instruction(s): "
+            + _listing([f'"{t}"' for t in instructions], "; "),
+            f"- **Episodes:** {len(episodes)} ({info['total_frames']} frames at {info['fps']} fps) "
+            f"from {len(meta['scenes'])} scene(s): "
+            + _listing(
+                [f"`{n}`" for n in meta["scenes"]], more_note=" (all in `meta/factory.json`)"
+            ),
+            f"- **Seeds:** {seed_text} (each episode's scene, seed and length are in "
+            "`meta/factory.json`)",
+            *mobile_card_lines(meta, cams, rgb),
+            "- **`extras/<episode_id>/`:** `scene.json` (the scene), `model.xml` (the MuJoCo "
+            "model of the scene; meshes in `extras/assets`), `robot.json` (the base's spawn "
+            "pose) and `states.npz` (full MuJoCo states per frame, for exact replay)",
+        ]
+    )
+
+
 def write_card(root: Path, meta: dict[str, Any], lerobot_meta: Any) -> None:
     """Writes ``<root>/README.md`` with lerobot's dataset-card template.
 
@@ -86,7 +127,7 @@ def write_card(root: Path, meta: dict[str, Any], lerobot_meta: Any) -> None:
 
     instructions = [str(t) for t in lerobot_meta.tasks.index]
     card = create_lerobot_dataset_card(
-        tags=TAGS,
+        tags=TAGS + MOBILE_TAGS if meta_layout(meta) == MOBILE else TAGS,
         dataset_info=lerobot_meta.info,
         repo_id=lerobot_meta.repo_id,
         dataset_description=card_text(meta, lerobot_meta.info, instructions),

@@ -23,6 +23,10 @@ with a codec per feature), so no frame is written as a PNG on the way.
 placement, cameras, objects cleared) and ``states.npz`` (MuJoCo integration states, exact
 replay); ``meta/factory.json`` names the scenes, seeds, episode ids (by dataset episode index)
 and the factory version.
+
+Mobile episodes (``task=mobile_pick_place``) get the features of
+:mod:`factory.dataset.mobile_features` instead (base pose in the state, 11 action columns,
+sub-task labels); one dataset holds one layout.
 """
 
 from __future__ import annotations
@@ -37,6 +41,20 @@ from typing import Any
 
 import numpy as np
 
+from factory.dataset.mobile_features import (
+    MOBILE,
+    MOBILE_ROBOT_TYPE,
+    MOBILE_SUBTASKS,
+    check_mobile_shapes,
+    layout_of,
+    mobile_columns,
+    mobile_features,
+    mobile_meta,
+    mobile_meta_of,
+    one_layout,
+    one_meta_layout,
+    scalar_buffer,
+)
 from factory.dataset.video import VideoCodec, frame_encoder, lossless_codec, rgb_codec
 from factory.errors import StoreError
 
@@ -337,6 +355,17 @@ class _ExtrasWriter:
         np.savez_compressed(ep / "states.npz", state=group["state"][:], time=group["time"][:])
 
 
+def _episode_entry(index: int, info: Any) -> dict[str, Any]:
+    """An episode's entry in ``meta/factory.json``."""
+    return {
+        "episode_index": index,
+        "episode_id": info.episode_id,
+        "scene_id": info.scene_id,
+        "seed": info.seed,
+        "n_frames": info.n_frames,
+    }
+
+
 def export_store(
     store: Any,
     dest: Path,
@@ -366,6 +395,7 @@ def export_store(
 
     Raises:
         StoreError: an episode has wrong shapes, a scene is missing, or the store is empty.
+        MixedLayoutError: the episodes mix fixed-base and mobile ones.
     """
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
@@ -381,8 +411,13 @@ def export_store(
                 f"episode {info.episode_id!r} differs from {first.episode_id!r} in image size, "
                 "cameras or fps: one dataset needs one shape"
             )
-    tmp = _fresh_tmp(dest)
+    layout = one_layout(layout_of(i, store.arrays(i.episode_id)) for i in infos)
+    mobile = layout == MOBILE
     features = features_for(first)
+    if mobile:
+        features = mobile_features(first, store.arrays(first.episode_id), features)
+        log.info("dataset %s: mobile episodes (%s)", dest.name, ", ".join(MOBILE_SUBTASKS))
+    tmp = _fresh_tmp(dest)
     rgb = rgb or rgb_codec()
     codecs = {
         key: lossless_codec() if key.startswith("observation.depth.") else rgb
@@ -394,7 +429,7 @@ def export_store(
         fps=round(first.fps),
         features=features,
         root=tmp,
-        robot_type="franka_panda",
+        robot_type=MOBILE_ROBOT_TYPE if mobile else "franka_panda",
         use_videos=True,
         vcodec="h264",
         streaming_encoding=True,
@@ -416,6 +451,23 @@ def export_store(
         )
         for index, info in enumerate(bar):
             group = store.arrays(info.episode_id)
+            if mobile:
+                check_mobile_shapes(info, group, features)
+                columns = mobile_columns(info, group)
+                rgb_frames = {c: group[f"rgb/{c}"][:] for c in info.cameras}
+                depth = {c: pack_depth_mm(depth_mm(group[f"depth/{c}"][:])) for c in info.cameras}
+                for f in range(info.n_frames):
+                    row: dict[str, Any] = {key: col[f] for key, col in columns.items()}
+                    row["task"] = info.instruction
+                    for c in info.cameras:
+                        row[f"observation.images.{c}"] = rgb_frames[c][f]
+                        row[f"observation.depth.{c}"] = depth[c][f]
+                    ds.add_frame(row)
+                scalar_buffer(ds.episode_buffer)
+                ds.save_episode()
+                extras.write(info, group)
+                episodes.append(_episode_entry(index, info))
+                continue
             _check_shapes(info, group)
             state = np.concatenate(
                 [
@@ -460,7 +512,7 @@ def export_store(
             episodes,
             {key: codec.__dict__ for key, codec in codecs.items()},
             first.state_spec,
-            extra_meta,
+            {**mobile_meta(), **(extra_meta or {})} if mobile else extra_meta,
         )
         (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
     except BaseException:
@@ -493,6 +545,7 @@ def merge_datasets(
 
     Raises:
         StoreError: two shards hold the same episode, or a shard is not a finished export.
+        MixedLayoutError: fixed-base and mobile shards are mixed.
     """
     from lerobot.datasets.aggregate import aggregate_datasets
     from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
@@ -505,6 +558,7 @@ def merge_datasets(
         if not path.is_file():
             raise StoreError(f"{d} is not a finished shard dataset (no {FACTORY_META})")
         metas.append(json.loads(path.read_text()))
+    one_meta_layout(metas, [str(d) for d in shard_dirs])
     seen: dict[str, Path] = {}
     for d, meta in zip(shard_dirs, metas, strict=True):
         for ep in meta["episodes"]:
@@ -546,7 +600,11 @@ def merge_datasets(
             episodes,
             metas[0].get("video", {}),
             metas[0]["state_spec"],
-            {"shards": [d.name for d in shard_dirs], **(extra_meta or {})},
+            {
+                **mobile_meta_of(metas[0]),
+                "shards": [d.name for d in shard_dirs],
+                **(extra_meta or {}),
+            },
         )
         (tmp / FACTORY_META).write_text(json.dumps(merged, indent=1))
         write_card(tmp, merged, check)
