@@ -155,6 +155,9 @@ class Brain:
         if spec is None:
             return None
         objects = self.call("get_scene_info")["objects"]
+        if spec.source:
+            self.two_supports(spec, objects)
+            return spec
         tables = [o for o in objects if o["category"] in TABLES]
         if not tables:
             res = self.place(text="dining table", placement="floor", rule="center")
@@ -164,6 +167,33 @@ class Brain:
             for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
                 self.place(text=text, placement="on_top", target=table["id"], task_role=role)
         return spec
+
+    def two_supports(self, spec: TaskSpec, objects: list[dict[str, Any]]) -> None:
+        """ "Move X from A to B": X on support A, and B a support of its own away from A
+        (about 2.5 m: the ``facing`` rule), marked ``place_support`` for the mobile task."""
+
+        def named(text: str) -> dict[str, Any] | None:
+            key = text.replace(" ", "_")
+            hits = [o for o in objects if o["category"] == key or o["category"].endswith(key)]
+            return max(hits, key=lambda o: o["size"][0] * o["size"][1]) if hits else None
+
+        source = named(spec.source)
+        if source is None:
+            res = self.place(text=spec.source, placement="floor", rule="wall")
+            source = {"id": res["placed"][0]} if res.get("ok") else None
+        if source is None:
+            return
+        self.place(text=spec.pick, placement="on_top", target=source["id"], task_role="pick")
+        for rule in ("facing", "wall", "free"):  # away from A first, then anywhere free
+            res = self.place(
+                text=spec.target,
+                placement="floor",
+                rule=rule,
+                target=source["id"],
+                task_role="place_support",
+            )
+            if res.get("ok"):
+                return
 
     def small_objects(self) -> None:
         """Step 4: small objects on surfaces, multi-level, each judged by the physics critic."""

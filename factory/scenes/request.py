@@ -40,19 +40,25 @@ __all__ = [
 
 @dataclass
 class TaskSpec:
-    """A pick-and-place task read from text: what to pick and where to put it."""
+    """A pick-and-place task read from text: what to pick and where to put it.
+
+    ``source`` is the support named by "from the <source>" ("move the can from the coffee
+    table to the desk"): the object starts there and goes to ``target``, another support (the
+    mobile task's two places); empty when the text names no start.
+    """
 
     pick: str
     target: str
     relation: str = "in"
     instruction: str = ""
+    source: str = ""
 
 
 def parse_task(text: str) -> TaskSpec | None:
     """Reads "pick up the mug and put it in the bowl" style instructions (English)."""
     m = re.search(
         r"(?:pick(?:s)?(?: up)?|grab(?:s)?|move(?:s)?|take(?:s)?)\s+(?:the|a|an)\s+([a-z ]+?)"
-        r"\s+(?:and\s+(?:put|place|drop)s?\s+it\s+|from\s+the\s+[a-z ]+?\s+)?"
+        r"\s+(?:and\s+(?:put|place|drop)s?\s+it\s+|from\s+(?:the|a|an)\s+([a-z ]+?)\s+)?"
         r"(in|into|on|onto|to)\s+(?:the|a|an)\s+([a-z ]+)",
         text.lower(),
     )
@@ -60,9 +66,10 @@ def parse_task(text: str) -> TaskSpec | None:
         return None
     return TaskSpec(
         pick=m.group(1).strip(),
-        target=m.group(3).strip().rstrip("."),
-        relation=m.group(2),
+        target=m.group(4).strip().rstrip("."),
+        relation=m.group(3),
         instruction=text,
+        source=(m.group(2) or "").strip(),
     )
 
 

@@ -76,8 +76,32 @@ def test_parse_task() -> None:
     t = parse_task("pick up the mug and put it in the bowl")
     assert t is not None and (t.pick, t.target, t.relation) == ("mug", "bowl", "in")
     t = parse_task("move the can from the table to the desk")
-    assert t is not None and (t.pick, t.target) == ("can", "desk")
+    assert t is not None and (t.pick, t.target, t.source) == ("can", "desk", "table")
+    assert parse_task("pick up the mug and put it in the bowl").source == ""  # type: ignore[union-attr]
     assert parse_task("a cozy bedroom") is None
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_from_a_to_b_places_two_supports_apart(tmp_path: Path, seed: int) -> None:
+    """ "Move X from A to B": X stands on A, and B is another floor support, marked
+    place_support, away from A (the mobile task's two places)."""
+    import math
+
+    lib = AssetLibrary(tmp_path / "assets")
+    scene, _ = generate_scene(
+        "a living room where the robot moves the coke can from the coffee table to the desk",
+        lib,
+        seed=seed,
+        config=AgentConfig(physics_critic=False),
+    )
+    roles = {o.task_role: o for o in scene.objects if o.task_role}
+    assert set(roles) == {"pick", "place_support"}
+    pick, place = roles["pick"], roles["place_support"]
+    assert pick.category == "can" and place.category == "desk"
+    source = scene.object(str(pick.placement.support_id))
+    assert source.category == "coffee_table" and place.placement.kind == "floor"
+    far = math.hypot(place.position.x - source.position.x, place.position.y - source.position.y)
+    assert far >= 1.2
 
 
 def test_absurd_room_is_refused() -> None:
