@@ -32,7 +32,6 @@ import functools
 import logging
 import math
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,7 +46,8 @@ from factory.demos.robot import (
     SQUEEZE,
     VISUAL_FACES,
     _look_quat,
-    _simplify_obj,
+    cached_mjcf,
+    export_mjcf,
     yaw_quat,
 )
 from factory.nav.base_trajectory import BaseLimits
@@ -164,50 +164,16 @@ def _robosuite_xml() -> str:
 
 
 def export_mobile_robot(cache: Path) -> None:
-    """Writes robosuite's composed mobile Panda MJCF with the files it references under
-    ``cache`` (``robot.xml`` with relative paths, files under ``files/``), atomically; visual
-    meshes are simplified to ``VISUAL_FACES`` faces as for the fixed robot."""
-    import xml.etree.ElementTree as ET
-
-    root = ET.fromstring(_robosuite_xml())
-    tmp = cache.with_name(cache.name + f".tmp-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    for k, el in enumerate(root.iter()):
-        src = el.get("file")
-        if not src:
-            continue
-        rel = f"files/{k:04d}_{Path(src).name}"
-        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        if el.tag == "mesh" and src.endswith(".obj") and "_vis" in el.get("name", ""):
-            _simplify_obj(src, tmp / rel, VISUAL_FACES)
-        else:
-            shutil.copyfile(src, tmp / rel)
-        el.set("file", rel)
-    (tmp / "robot.xml").write_text(ET.tostring(root, encoding="unicode"))
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        os.rename(tmp, cache)
-    except OSError:  # another process wrote it first
-        shutil.rmtree(tmp, ignore_errors=True)
+    """Writes robosuite's composed mobile Panda MJCF and its files under ``cache``
+    (:func:`~factory.demos.robot.export_mjcf`: visual meshes simplified as for the fixed
+    robot)."""
+    export_mjcf(_robosuite_xml(), cache)
 
 
 @functools.lru_cache(maxsize=1)
 def _mobile_xml() -> str:
     """The mobile robot MJCF with absolute file paths: from the cache, made once."""
-    import xml.etree.ElementTree as ET
-
-    cache = mobile_cache_dir()
-    if not (cache / "robot.xml").is_file():
-        try:
-            export_mobile_robot(cache)
-        except OSError as e:  # unwritable cache: use robosuite's paths directly
-            log.info("robot cache %s not writable (%s); using robosuite's files", cache, e)
-            return _robosuite_xml()
-    root = ET.fromstring((cache / "robot.xml").read_text())
-    for el in root.iter():
-        if el.get("file"):
-            el.set("file", str(cache / el.get("file", "")))
-    return ET.tostring(root, encoding="unicode")
+    return cached_mjcf(mobile_cache_dir(), _robosuite_xml)
 
 
 def _pose3(pose: tuple[float, float, float] | np.ndarray) -> tuple[float, float, float]:

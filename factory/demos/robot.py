@@ -18,6 +18,7 @@ import logging
 import math
 import os
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -202,12 +203,13 @@ def _robosuite_xml() -> str:
     return str(robot.get_xml())
 
 
-def export_robot(cache: Path) -> None:
-    """Writes robosuite's composed Panda MJCF with the files it references under ``cache``
-    (``robot.xml`` with relative paths, files under ``files/``), atomically."""
+def export_mjcf(xml: str, cache: Path) -> None:
+    """Writes a robosuite MJCF ``xml`` (absolute file paths) with the files it references under
+    ``cache`` (``robot.xml`` with relative paths, files under ``files/``), atomically; visual
+    meshes are simplified to :data:`VISUAL_FACES` faces."""
     import xml.etree.ElementTree as ET
 
-    root = ET.fromstring(_robosuite_xml())
+    root = ET.fromstring(xml)
     tmp = cache.with_name(cache.name + f".tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     for k, el in enumerate(root.iter()):
@@ -229,23 +231,34 @@ def export_robot(cache: Path) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-@functools.lru_cache(maxsize=1)
-def _robot_xml() -> str:
-    """The Panda MJCF with absolute file paths: from the cache, made from robosuite once."""
+def cached_mjcf(cache: Path, make_xml: Callable[[], str]) -> str:
+    """The MJCF kept in ``cache`` with absolute file paths, exported from ``make_xml()`` (a
+    robosuite composition) the first time; ``make_xml()`` itself where the cache is not
+    writable."""
     import xml.etree.ElementTree as ET
 
-    cache = robot_cache_dir()
     if not (cache / "robot.xml").is_file():
         try:
-            export_robot(cache)
+            export_mjcf(make_xml(), cache)
         except OSError as e:  # unwritable cache: use robosuite's paths directly
             log.info("robot cache %s not writable (%s); using robosuite's files", cache, e)
-            return _robosuite_xml()
+            return make_xml()
     root = ET.fromstring((cache / "robot.xml").read_text())
     for el in root.iter():
         if el.get("file"):
             el.set("file", str(cache / el.get("file", "")))
     return ET.tostring(root, encoding="unicode")
+
+
+def export_robot(cache: Path) -> None:
+    """Writes robosuite's composed Panda MJCF and its files under ``cache``."""
+    export_mjcf(_robosuite_xml(), cache)
+
+
+@functools.lru_cache(maxsize=1)
+def _robot_xml() -> str:
+    """The Panda MJCF with absolute file paths: from the cache, made from robosuite once."""
+    return cached_mjcf(robot_cache_dir(), _robosuite_xml)
 
 
 def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco.MjSpec:
