@@ -16,7 +16,6 @@ from __future__ import annotations
 import logging
 import multiprocessing as mp
 import time
-from collections import Counter
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any
 
@@ -27,6 +26,8 @@ from factory.demos.slots import (
     episode_id,
     episode_instruction,
     episode_seed,
+    item_stats,
+    record_config,
     scene_planner,
     write_episode,
 )
@@ -87,19 +88,11 @@ def run_gpu(
     """Fills the slots of ``items`` with the GPU executor; one statistics dict per scene (the
     keys of :func:`factory.demos.stage.run_item`'s)."""
     from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import RecordConfig
     from factory.demos.execute_warp import WarpExecutor
     from factory.demos.pick_place import EpisodePlan
 
     dc = env.demos
-    rec_cfg = RecordConfig(
-        fps=dc.fps,
-        width=dc.width,
-        height=dc.height,
-        cameras=tuple(dc.cameras),
-        depth=dc.depth,
-        render=dc.render,
-    )
+    rec_cfg = record_config(dc)
     store = EpisodeStore(env.store_path)
     by_scene: dict[str, list[int]] = {}
     for it in items:
@@ -127,18 +120,7 @@ def run_gpu(
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
             setups[scenes[0]] = prep.submit(scene_planner, env.run_dir, scenes[0], dc)
         for idx, sid in enumerate(scenes):
-            out: dict[str, Any] = {
-                "scene_id": sid,
-                "new": 0,
-                "failures": Counter(),
-                "error": None,
-                "plan": [],
-                "segments": [],
-                "simulate": 0.0,
-                "render": 0.0,
-                "frames": 0,
-                "executor": "warp",
-            }
+            out: dict[str, Any] = item_stats(sid, executor="warp")
             results.append(out)
             futures = pending.pop(sid, [])
             if idx + 1 < len(scenes):

@@ -20,7 +20,6 @@ cameras then ``fisheye_front``/``fisheye_back``. Arrays: as the fixed task (``ti
 from __future__ import annotations
 
 import logging
-from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -127,22 +126,12 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     )
     from factory.demos.pick_place import MotionConfig
     from factory.demos.planner import PlannerConfig
-    from factory.demos.slots import episode_id, episode_seed
+    from factory.demos.slots import episode_id, episode_seed, item_stats
     from factory.errors import FactoryError
     from factory.store import RunStore
 
     dc = env.demos
-    out: dict[str, Any] = {
-        "scene_id": item.scene_id,
-        "new": 0,
-        "failures": Counter(),
-        "error": None,
-        "plan": [],
-        "segments": [],
-        "simulate": 0.0,
-        "render": 0.0,
-        "frames": 0,
-    }
+    out: dict[str, Any] = item_stats(item.scene_id)
     try:
         run_store = RunStore(env.run_dir)
         setup = mobile_setup(run_store.load_scene(item.scene_id), run_store.assets_dir)

@@ -45,6 +45,38 @@ class StageEnv:
     nthread: int
 
 
+def item_stats(scene_id: str, **extra: Any) -> dict[str, Any]:
+    """A fresh statistics dict of one work item (what :func:`factory.demos.stage.run` sums)."""
+    from collections import Counter
+
+    return {
+        "scene_id": scene_id,
+        "new": 0,
+        "failures": Counter(),
+        "error": None,
+        "plan": [],
+        "segments": [],
+        "simulate": 0.0,
+        "render": 0.0,
+        "frames": 0,
+        **extra,
+    }
+
+
+def record_config(dc: DemosConfig) -> Any:
+    """The recording settings of ``demos.*`` (a :class:`~factory.demos.execute.RecordConfig`)."""
+    from factory.demos.execute import RecordConfig
+
+    return RecordConfig(
+        fps=dc.fps,
+        width=dc.width,
+        height=dc.height,
+        cameras=tuple(dc.cameras),
+        depth=dc.depth,
+        render=dc.render,
+    )
+
+
 def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[Any, Any]:
     """A scene of a run composed with the robot as ``stage=demos`` records it, and its planner.
 

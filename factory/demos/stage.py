@@ -32,6 +32,8 @@ from factory.demos.slots import (
     episode_id,
     episode_instruction,
     episode_seed,
+    item_stats,
+    record_config,
     scene_planner,
     write_episode,
 )
@@ -112,7 +114,7 @@ def check_config(dc: DemosConfig, task: str) -> None:
 def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     """Fills the item's slots (in a worker process or inline); returns its statistics."""
     from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import FrameRenderer, RecordConfig, execute
+    from factory.demos.execute import FrameRenderer, execute
     from factory.demos.pick_place import EpisodePlan
 
     if env.task == "mobile_pick_place":  # CPU path, one episode at a time
@@ -120,17 +122,7 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
 
         return run_mobile_item(env, item)
     dc = env.demos
-    out: dict[str, Any] = {
-        "scene_id": item.scene_id,
-        "new": 0,
-        "failures": Counter(),
-        "error": None,
-        "plan": [],
-        "segments": [],
-        "simulate": 0.0,
-        "render": 0.0,
-        "frames": 0,
-    }
+    out: dict[str, Any] = item_stats(item.scene_id)
     try:
         setup, planner = cached_setup(env, item.scene_id)
     except FactoryError as e:
@@ -139,14 +131,7 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
         return out
     out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
     out["cleared"] = list(setup.cleared)
-    rec_cfg = RecordConfig(
-        fps=dc.fps,
-        width=dc.width,
-        height=dc.height,
-        cameras=tuple(dc.cameras),
-        depth=dc.depth,
-        render=dc.render,
-    )
+    rec_cfg = record_config(dc)
     store = EpisodeStore(env.store_path)
     renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
     instruction = episode_instruction(setup)
