@@ -184,32 +184,45 @@ def _union_exit(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where lines leave the union of pieces after entering at ``t ~ 0``.
 
+    Each line's intervals are visited in order of entry (a stable sort, vectorised over the
+    lines): consecutive overlapping intervals form one component of the union; the component
+    holding ``start`` is the one the line is inside just after 0.
+
+    Args:
+        t_in, t_out: (n, P) entry/exit parameters per line and piece (``t_in >= t_out``: the
+            line misses the piece).
+
     Returns:
         ``t_exit (n,)`` (NaN where the line is not inside the union just after 0), the piece
         index defining the exit ``(n,)``, and the start of the next material after the exit
         ``(n,)`` (inf if none).
     """
-    n = len(t_in)
-    t_exit = np.full(n, np.nan)
-    which = np.zeros(n, dtype=int)
+    n, pieces = t_in.shape
+    valid = t_in < t_out
+    order = np.argsort(np.where(valid, t_in, np.inf), axis=1, kind="stable")
+    a_all = np.take_along_axis(t_in, order, 1)
+    b_all = np.take_along_axis(t_out, order, 1)
+    v_all = np.take_along_axis(valid, order, 1)
+    comp_end = np.full(n, -np.inf)
+    comp_arg = np.full(n, -1)
+    found = np.zeros(n, bool)
+    stopped = np.zeros(n, bool)
     nxt = np.full(n, np.inf)
-    for i in range(n):
-        ks = np.flatnonzero(t_in[i] < t_out[i])
-        ks = ks[np.argsort(t_in[i, ks])]
-        comp_end, comp_arg, found = -np.inf, -1, False
-        for k in ks:
-            a, b = t_in[i, k], t_out[i, k]
-            if a > comp_end + 1e-6:  # a new component starts
-                if found:
-                    nxt[i] = a
-                    break
-                comp_end, comp_arg = b, int(k)
-            elif b > comp_end:
-                comp_end, comp_arg = b, int(k)
-            if not found and t_in[i, k] <= start < comp_end:
-                found = True
-        if found:
-            t_exit[i], which[i] = comp_end, comp_arg
+    for j in range(pieces):
+        a, b, k = a_all[:, j], b_all[:, j], order[:, j]
+        active = v_all[:, j] & ~stopped
+        new_comp = active & (a > comp_end + 1e-6)
+        stop = new_comp & found  # the next material after the component holding ``start``
+        nxt[stop] = a[stop]
+        stopped |= stop
+        begin = new_comp & ~found
+        grow = active & ~new_comp & (b > comp_end)
+        take = begin | grow
+        comp_end = np.where(take, b, comp_end)
+        comp_arg = np.where(take, k, comp_arg)
+        found |= active & ~stop & (a <= start) & (start < comp_end)
+    t_exit = np.where(found, comp_end, np.nan)
+    which = np.where(found, comp_arg, 0)
     return t_exit, which, nxt
 
 
@@ -238,30 +251,54 @@ def _sample_surface(
     return pts[keep], nrm[pick][keep]
 
 
-def pad_contact(
+def pad_contacts(
     pieces: list[Piece],
-    point: np.ndarray,
-    axis: np.ndarray,
-    approach: np.ndarray,
-    width: float,
+    points: np.ndarray,
+    axes: np.ndarray,
+    approaches: np.ndarray,
+    widths: np.ndarray,
     half: float,
     tol: float = 0.003,
-) -> float:
-    """Share of a finger-pad patch around a contact that grips material at the same span.
+) -> np.ndarray:
+    """Share of a finger-pad patch around each contact that grips material at the same span.
 
-    Lines parallel to the closing ``axis`` through a 3x3 patch (``half`` m around ``point`` in
-    the plane of ``approach`` and ``axis x approach``) must enter the object within ``tol`` of
+    Lines parallel to the closing axis through a 3x3 patch (``half`` m around the contact in
+    the plane of the approach and ``axis x approach``) must enter the object within ``tol`` of
     the contact plane and leave it within ``tol`` of the other finger.
+
+    Args:
+        pieces: the object's convex pieces (object frame).
+        points: (n, 3) contacts of the first finger (object frame, m).
+        axes: (n, 3) closing axes (unit).
+        approaches: (n, 3) approach directions (unit, perpendicular to the axes).
+        widths: (n,) spans between the fingers' contacts (m).
+        half: half size of the patch (m).
+        tol: allowed mismatch (m).
+
+    Returns:
+        (n,) shares in [0, 1].
     """
-    side = np.cross(axis, approach)
-    offs = np.array([(u, v) for u in (-half, 0.0, half) for v in (-half, 0.0, half)])
-    origin = point[None] + offs[:, :1] * approach + offs[:, 1:] * side - axis * 0.01
-    t_in, t_out, _ = _line_intervals(pieces, origin, np.broadcast_to(axis, origin.shape))
+    points, axes = np.asarray(points, float), np.asarray(axes, float)
+    approaches, widths = np.asarray(approaches, float), np.asarray(widths, float)
+    n = len(points)
+    if n == 0:
+        return np.zeros(0)
+    side = np.cross(axes, approaches)
+    offs = np.array([(u, v) for u in (-half, 0.0, half) for v in (-half, 0.0, half)])  # (9, 2)
+    origin = (
+        points[:, None]
+        + offs[None, :, :1] * approaches[:, None]
+        + offs[None, :, 1:] * side[:, None]
+        - axes[:, None] * 0.01
+    ).reshape(-1, 3)
+    axis = np.repeat(axes, len(offs), axis=0)
+    t_in, t_out, _ = _line_intervals(pieces, origin, axis)
     t_exit, _, _ = _union_exit(t_in - 0.01, t_out - 0.01, start=tol)
     hits = t_in < t_out
     first = np.where(hits, t_in - 0.01, np.inf).min(1)
+    width = np.repeat(widths, len(offs))
     good = (np.abs(first) <= tol) & (np.abs(t_exit - width) <= tol)
-    return float(good.mean())
+    return np.asarray(good.reshape(n, len(offs)).mean(1))
 
 
 def antipodal_candidates(
@@ -300,40 +337,45 @@ def antipodal_candidates(
     com = np.zeros(3) if com_in_obj is None else np.asarray(com_in_obj)
     down_obj = rot_obj_in_world.T @ np.array([0.0, 0.0, -1.0])
     min_down = np.cos(np.radians(cfg.max_tilt_deg))
+    # Every (pair, approach) at once, in the order (pair, approach angle).
+    a = axis[idx]  # (m, 3)
+    width = t_exit[idx]
+    centre = pts[idx] + a * width[:, None] / 2
+    helper = np.where(
+        (np.abs(a[:, 2]) < 0.9)[:, None], np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    )
+    u = np.cross(a, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(a, u)
+    th = np.linspace(0, 2 * np.pi, cfg.approaches, endpoint=False)
+    d = np.cos(th)[None, :, None] * u[:, None] + np.sin(th)[None, :, None] * v[:, None]
+    pair = np.repeat(np.arange(len(idx)), len(th))
+    d = d.reshape(-1, 3)
+    down = d @ down_obj
+    keep = down >= min_down
+    pair, d, down = pair[keep], d[keep], down[keep]
+    contact = pad_contacts(pieces, pts[idx][pair], a[pair], d, width[pair], cfg.pad_half)
+    keep = contact >= cfg.min_contact
+    pair, d, down, contact = pair[keep], d[keep], down[keep], contact[keep]
+    off = np.linalg.norm(np.cross(centre[pair] - com, d), axis=1)
+    q = quality[pair]
+    score = 0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width[pair] / open_w)
     out: list[Grasp] = []
-    for i, q in zip(idx, quality, strict=True):
-        a = axis[i]
-        width = float(t_exit[i])
-        centre = pts[i] + a * width / 2
-        helper = np.array([0.0, 0.0, 1.0]) if abs(a[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-        u = np.cross(a, helper)
-        u /= np.linalg.norm(u)
-        v = np.cross(a, u)
-        for th in np.linspace(0, 2 * np.pi, cfg.approaches, endpoint=False):
-            d = np.cos(th) * u + np.sin(th) * v
-            down = float(d @ down_obj)
-            if down < min_down:
-                continue
-            # Prefer the approach most nearly straight down: rotate d towards down within the
-            # plane perpendicular to a.
-            y = np.cross(d, a)
-            pose = np.eye(4)
-            pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = a, y, d, centre
-            contact = pad_contact(pieces, pts[i], a, d, width, cfg.pad_half)
-            if contact < cfg.min_contact:
-                continue
-            off = np.linalg.norm(np.cross(centre - com, d))
-            score = 0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width / open_w)
-            out.append(
-                Grasp(
-                    pose,
-                    width,
-                    float(q),
-                    contact,
-                    float(score),
-                    np.stack([pts[i], pts[i] + a * width]),
-                )
+    for j, p in enumerate(pair):
+        ai, dj = a[p], d[j]
+        pose = np.eye(4)
+        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = ai, np.cross(dj, ai), dj, centre[p]
+        i = idx[p]
+        out.append(
+            Grasp(
+                pose,
+                float(width[p]),
+                float(q[j]),
+                float(contact[j]),
+                float(score[j]),
+                np.stack([pts[i], pts[i] + ai * width[p]]),
             )
+        )
     # Many samples give nearly the same approach: keep the best per (centre, approach) cell.
     out.sort(key=lambda g: -g.score)
     seen: set[tuple[int, ...]] = set()

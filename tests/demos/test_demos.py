@@ -24,6 +24,7 @@ from factory.demos.grasps import (
     collision_pieces,
     facing_order,
     gripper_clear,
+    pad_contacts,
 )
 from factory.demos.ik import IKSolver
 from factory.demos.pick_place import (
@@ -127,6 +128,33 @@ def test_grasp_rejects_object_wider_than_hand() -> None:
     model = spec.compile()
     pieces = collision_pieces(model, model.body("crate").id)
     assert antipodal_candidates(pieces, np.eye(3), GraspConfig(), np.random.default_rng(0)) == []
+
+
+def test_pad_contacts_on_a_box_and_across_two_touching_pieces() -> None:
+    """The batched pad check: full contact mid-face, half at an edge, none beyond it; a span
+    through two touching boxes is one piece of material (the union's exit, not the first
+    box's), and a gap between two boxes ends the span at the first."""
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="bar")
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02, 0.05, 0.05], pos=[-0.02, 0, 0])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02, 0.05, 0.05], pos=[0.02, 0, 0])
+    far = spec.worldbody.add_body(name="gap")
+    far.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.01, 0.05, 0.05], pos=[-0.03, 0, 0])
+    far.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.01, 0.05, 0.05], pos=[0.03, 0, 0])
+    model = spec.compile()
+    bar = collision_pieces(model, model.body("bar").id)
+    x, z = np.array([1.0, 0, 0]), np.array([0, 0, 1.0])
+    points = np.array([[-0.04, 0, 0], [-0.04, 0, 0.05], [-0.04, 0, 0.07], [-0.04, 0, 0]])
+    share = pad_contacts(
+        bar, points, np.tile(x, (4, 1)), np.tile(z, (4, 1)), np.array([0.08] * 3 + [0.04]), 0.007
+    )
+    assert share[0] == 1.0  # mid-face, the far finger at the union's far side (8 cm)
+    assert share[1] == pytest.approx(6 / 9)  # on the top edge: the upper row of the patch misses
+    assert share[2] == 0.0  # beyond the box
+    assert share[3] == 0.0  # 4 cm is the first box's side, inside the union: no grip there
+    gap = collision_pieces(model, model.body("gap").id)
+    share = pad_contacts(gap, points[:1], x[None], z[None], np.array([0.02]), 0.007)
+    assert share[0] == 1.0  # the span ends where the first box ends
 
 
 def test_grasps_face_the_robot_in_one_orientation(setup) -> None:
