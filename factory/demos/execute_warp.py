@@ -314,12 +314,7 @@ class WarpExecutor:
                 mm = cfg.depth == "uint16_mm"
                 mm_dev = wp.zeros((n, ncam, npix) if mm else (1, 1, 1), dtype=wp.uint16)
                 m_dev = wp.zeros((1, 1, 1) if mm else (n, ncam, npix), dtype=float)
-                pinned = self.device.startswith("cuda")
-                rgb_host = wp.empty(rgb_dev.shape, dtype=wp.uint8, device="cpu", pinned=pinned)
                 depth_dev = mm_dev if mm else m_dev
-                depth_host = wp.empty(
-                    depth_dev.shape, dtype=depth_dev.dtype, device="cpu", pinned=pinned
-                )
                 rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
                 depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
 
@@ -353,12 +348,41 @@ class WarpExecutor:
                 draw()
 
             draw()
+            # Pinned host mirrors of what a frame records; a frame's copies are taken right
+            # after its GPU work, and the host files them while the GPU computes the next one.
+            pinned = self.device.startswith("cuda")
+            sources = {
+                name: getattr(d, name)
+                for name in (*DYNAMIC, "site_xpos", "site_xmat", "xpos", "xquat", "nacon")
+            }
+            sources.update(
+                contact_geom=d.contact.geom,
+                contact_dist=d.contact.dist,
+                contact_world=d.contact.worldid,
+            )
+            if rc is not None:
+                sources.update(rgb=rgb_dev, depth=depth_dev)
+            sources = {k: a for k, a in sources.items() if a.size}
+            mirrors = {
+                k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
+                for k, a in sources.items()
+            }
+
+            def grab() -> dict[str, np.ndarray]:
+                for k, a in sources.items():
+                    wp.copy(mirrors[k], a)
+                wp.synchronize()
+                return {k: a.numpy() for k, a in mirrors.items()}
+
             self.times.setup += time.perf_counter() - t0
             captured = None
             copy_s = frames_s = 0.0
+            t1 = time.perf_counter()
+            host = grab()
+            frames_s += time.perf_counter() - t1
             for f in range(total + 1):
                 t1 = time.perf_counter()
-                if f > 0:
+                if f < total:  # frame f + 1 runs on the GPU while frame f is filed
                     if self.graph and captured is None:
                         with wp.ScopedCapture() as cap:
                             period()
@@ -367,19 +391,11 @@ class WarpExecutor:
                         wp.capture_launch(captured)
                     else:
                         period()
-                    wp.synchronize()
                 t2 = time.perf_counter()
-                frames_s += t2 - t1
-                images = None
-                if rc is not None:
-                    wp.copy(rgb_host, rgb_dev)
-                    wp.copy(depth_host, depth_dev)
-                    wp.synchronize()
-                    images = (rgb_host.numpy(), depth_host.numpy())
                 step = np.minimum((f + 1) * per_frame, np.asarray(lengths)) - 1
                 self._record(
                     f,
-                    d,
+                    host,
                     frames,
                     template,
                     targets[np.arange(n), step],
@@ -387,9 +403,13 @@ class WarpExecutor:
                     allowed,
                     worst,
                     (pick, target),
-                    images,
+                    rc is not None,
                 )
-                copy_s += time.perf_counter() - t2
+                t3 = time.perf_counter()
+                if f < total:
+                    host = grab()
+                frames_s += (t2 - t1) + (time.perf_counter() - t3)
+                copy_s += t3 - t2
             overflow = d.overflow.numpy().copy()
         self.times.frames += frames_s
         self.times.copy += copy_s
@@ -413,7 +433,7 @@ class WarpExecutor:
     def _record(
         self,
         frame: int,
-        d: Any,
+        host: dict[str, np.ndarray],
         frames: _Frames,
         template: np.ndarray,
         action: np.ndarray,
@@ -421,38 +441,32 @@ class WarpExecutor:
         allowed: np.ndarray,
         worst: np.ndarray,
         bodies: tuple[int, int],
-        images: tuple[np.ndarray, np.ndarray] | None,
+        images: bool,
     ) -> None:
-        """Copies frame ``frame`` of every world from the device into ``frames`` (whole-batch
-        array operations; worlds past their episode's end are recorded and never read).
+        """Files frame ``frame`` of every world into ``frames`` (whole-batch array operations;
+        worlds past their episode's end are recorded and never read).
 
         Args:
+            host: host copies of the frame's device arrays (``qpos``, ``xpos``, ``rgb``, ...,
+                ``contact_*``; world-major).
             action: (n, 8) each world's recorded action of this frame.
-            images: RGB (n, ncam, H*W, 3) and depth (n, ncam, H*W) on the host, or None.
+            images: whether ``host`` holds RGB (n, ncam, H*W, 3) and depth (n, ncam, H*W).
         """
         lay = self.layout
         robot = self.setup.robot
         n = len(template)
         states = frames.state[frame]
         states[:] = template
-        for name, arr in (
-            ("time", d.time),
-            ("qpos", d.qpos),
-            ("qvel", d.qvel),
-            ("act", d.act),
-            ("qacc_warmstart", d.qacc_warmstart),
-            ("ctrl", d.ctrl),
-        ):
-            if name in lay and lay[name].stop > lay[name].start:
-                states[:, lay[name]] = arr.numpy().reshape(n, -1)
+        for name in DYNAMIC:
+            if name in lay and lay[name].stop > lay[name].start and name in host:
+                states[:, lay[name]] = host[name].reshape(n, -1)
         qpos = states[:, lay["qpos"]]
         frames.joint_pos[frame] = qpos[:, robot.qpos]
         fingers = qpos[:, robot.finger_qpos]
         frames.gripper[frame, :, 0] = fingers[:, 0] - fingers[:, 1]
-        frames.ee_pose[frame, :, :3] = d.site_xpos.numpy()[:, robot.site]
-        frames.ee_pose[frame, :, 3:] = quat_from_mat(d.site_xmat.numpy()[:, robot.site])
-        xpos = d.xpos.numpy()
-        xquat = d.xquat.numpy()
+        frames.ee_pose[frame, :, :3] = host["site_xpos"][:, robot.site]
+        frames.ee_pose[frame, :, 3:] = quat_from_mat(host["site_xmat"][:, robot.site])
+        xpos, xquat = host["xpos"], host["xquat"]
         a, b = bodies
         frames.env_state[frame] = np.concatenate(
             [xpos[:, a], xquat[:, a], xpos[:, b], xquat[:, b]], axis=1
@@ -460,11 +474,11 @@ class WarpExecutor:
         frames.action[frame] = action
         # Robot penetration: the deepest contact between a robot geom and a geom that is not
         # the pick object, the target or its support (as the CPU executor's check).
-        nacon = min(int(d.nacon.numpy()[0]), d.naconmax)
+        nacon = min(int(host["nacon"][0]), len(host.get("contact_dist", ())))
         if nacon:
-            geom = d.contact.geom.numpy()[:nacon]
-            dist = d.contact.dist.numpy()[:nacon]
-            world = d.contact.worldid.numpy()[:nacon]
+            geom = host["contact_geom"][:nacon]
+            dist = host["contact_dist"][:nacon]
+            world = host["contact_world"][:nacon]
             g1, g2 = geom[:, 0], geom[:, 1]
             ok = (g1 >= 0) & (g2 >= 0)
             g1, g2, dist, world = g1[ok], g2[ok], dist[ok], world[ok]
@@ -473,9 +487,9 @@ class WarpExecutor:
             hit = one & ~allowed[other]
             if hit.any():
                 np.maximum.at(worst, world[hit], np.maximum(0.0, -dist[hit]))
-        if images is not None:
+        if images:
             h, w = self.cfg.height, self.cfg.width
-            rgb, depth = images
+            rgb, depth = host["rgb"], host["depth"]
             for k, cam in enumerate(self.cfg.cameras):
                 frames.rgb[cam][frame] = rgb[:, k].reshape(n, h, w, 3)
                 frames.depth[cam][frame] = depth[:, k].reshape(n, h, w)

@@ -51,10 +51,10 @@ WRITERS = 8
 """Threads writing (compressing) recorded episodes while the GPU goes on."""
 
 
-HOST_MEMORY_SHARE = 0.2
-"""Share of the host's available memory one GPU call's recordings may take: the frame-major
-buffers, the per-episode recordings and the previous call's recordings still being written
-exist at once."""
+HOST_MEMORY_SHARE = 0.25
+"""Share of the host's available memory one GPU call's recordings may take (the frame-major
+buffers; the episodes' recordings are views into them). The previous call's recordings may
+still be in memory while they are written, so two calls take at most half of it."""
 
 
 def worlds_that_fit(plans: list[Any], rec_cfg: Any, timestep: float) -> int:
@@ -76,6 +76,51 @@ def worlds_that_fit(plans: list[Any], rec_cfg: Any, timestep: float) -> int:
     except (ValueError, OSError):  # pragma: no cover - non-POSIX
         return len(plans)
     return max(1, int(HOST_MEMORY_SHARE * avail // per_world))
+
+
+def length_chunks(
+    planned: list[tuple[int, int, Any]],
+    gpu_batch: int,
+    rec_cfg: Any,
+    timestep: float,
+    scene_id: str = "",
+) -> list[list[tuple[int, int, Any]]]:
+    """The planned episodes of a scene in GPU calls of similar length.
+
+    A call runs until its longest episode ends; shorter ones hold their last control and are
+    still simulated and rendered. Sorting the episodes by length before cutting them into calls
+    keeps that padding small when a scene has more episodes than one call takes. Calls are of
+    equal size (at most ``gpu_batch`` worlds, and at most what host memory holds for their
+    recordings, :func:`worlds_that_fit`), so no call is left with a handful of worlds.
+
+    Args:
+        planned: ``(slot, seed, EpisodePlan)`` of one scene.
+        gpu_batch: most worlds per call.
+        rec_cfg: the recording config (frames, cameras, image size).
+        timestep: physics step (s).
+
+    Returns:
+        the calls, each a list of ``planned`` items, shortest episodes first.
+    """
+    if not planned:
+        return []
+    order = sorted(planned, key=lambda item: len(item[2].ctrl))
+    size = max(1, min(gpu_batch, len(order)))
+    while size > 1:
+        calls = -(-len(order) // size)
+        size = -(-len(order) // calls)
+        chunks = [order[i : i + size] for i in range(0, len(order), size)]
+        fit = min(worlds_that_fit([p for _, _, p in c], rec_cfg, timestep) for c in chunks)
+        if fit >= size:
+            break
+        size = fit
+        log.info(
+            "scene %s: %d worlds per GPU call (host memory for the recordings; demos.gpu_batch=%d)",
+            scene_id,
+            size,
+            gpu_batch,
+        )
+    return [order[i : i + size] for i in range(0, len(order), size)]
 
 
 def _init_worker() -> None:
@@ -115,7 +160,7 @@ def run_gpu(
         attempts = {s: dict.fromkeys(by_scene[s], 0) for s in scenes}
         pending: dict[str, list[Future[Any]]] = {}
         setups: dict[str, Future[Any]] = {}
-        previous: list[Future[Any]] = []
+        in_flight: list[list[Future[Any]]] = []  # each GPU call's writes, oldest first
         if scenes:
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
             setups[scenes[0]] = prep.submit(scene_planner, env.run_dir, scenes[0], dc)
@@ -142,7 +187,6 @@ def run_gpu(
             instruction = episode_instruction(setup)
             executor = WarpExecutor(setup, rec_cfg, device=device)
             attempt = attempts[sid]
-            writes: list[Future[Any]] = []
             t_scene = time.perf_counter()
             waited = {"plans": 0.0, "writes": 0.0}
             while futures:
@@ -163,21 +207,20 @@ def run_gpu(
                         out["failures"][res.reason] += 1
                         log.info("scene %s slot %d: plan failed: %s", sid, k, res.detail)
                 done: set[int] = set()
-                fit = worlds_that_fit([p for _, _, p in planned], rec_cfg, setup.model.opt.timestep)
-                step = max(1, min(dc.gpu_batch, fit))
-                if step < min(dc.gpu_batch, len(planned)):
-                    log.info(
-                        "scene %s: %d worlds per GPU call (host memory for the recordings; "
-                        "demos.gpu_batch=%d)",
-                        sid,
-                        step,
-                        dc.gpu_batch,
-                    )
-                for start in range(0, len(planned), step):
-                    chunk = planned[start : start + step]
+                for chunk in length_chunks(
+                    planned, dc.gpu_batch, rec_cfg, setup.model.opt.timestep, sid
+                ):
+                    # At most two calls' recordings in memory: this one's and the last one's
+                    # (still being written).
+                    t_wait = time.perf_counter()
+                    while len(in_flight) > 1:
+                        for w in in_flight.pop(0):
+                            w.result()
+                    waited["writes"] += time.perf_counter() - t_wait
                     t0 = time.perf_counter()
                     recs = executor.execute([p for _, _, p in chunk])
                     out["simulate"] += time.perf_counter() - t0
+                    writes: list[Future[Any]] = []
                     for (k, seed, plan), rec in zip(chunk, recs, strict=True):
                         assert rec.outcome is not None
                         if not rec.outcome.success:
@@ -200,6 +243,8 @@ def run_gpu(
                         out["frames"] += len(rec.time)
                         out["new"] += 1
                         done.add(k)
+                    in_flight.append(writes)
+                    del recs
                 retry = []
                 for k, _, res in [(k, s, r) for k, s, r in ((f.result()) for f in futures)]:
                     if k in done or isinstance(res, str):
@@ -210,16 +255,11 @@ def run_gpu(
                 if bar is not None:
                     bar.update(len(futures) - len(retry))
                 futures = submit(sid, retry, attempt) if retry else []
-            t_wait = time.perf_counter()
-            for w in previous:  # at most two scenes' recordings wait in memory
-                w.result()
-            waited["writes"] += time.perf_counter() - t_wait
-            previous = writes
             out["warp_seconds"] = vars(executor.times)
             out["waited_s"] = waited
             log.info(
-                "scene %s: %d new, %.1f s (GPU %.1f s, waiting for plans %.1f s, for the "
-                "previous scene's writes %.1f s)",
+                "scene %s: %d new, %.1f s (GPU %.1f s, waiting for plans %.1f s, for earlier "
+                "writes %.1f s)",
                 sid,
                 out["new"],
                 time.perf_counter() - t_scene,
@@ -227,6 +267,7 @@ def run_gpu(
                 waited["plans"],
                 waited["writes"],
             )
-        for w in previous:
-            w.result()
+        for writes in in_flight:
+            for w in writes:
+                w.result()
     return results

@@ -159,3 +159,35 @@ def test_worlds_per_call_fit_in_host_memory(monkeypatch: pytest.MonkeyPatch) -> 
     assert 1 <= n < 512
     off = RecordConfig(fps=20.0, cameras=("left",), render=False)
     assert gpu_pipeline.worlds_that_fit(plans, off, 0.002) >= 512
+
+
+def test_gpu_calls_group_episodes_of_similar_length(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scene's episodes go to the GPU sorted by length, in calls of equal size within
+    ``gpu_batch`` and the host-memory cap, so a call's padding to its longest episode is small."""
+    import os
+    from types import SimpleNamespace
+
+    from factory.demos import gpu_pipeline
+    from factory.demos.execute import RecordConfig
+
+    rng = np.random.default_rng(0)
+    steps = rng.integers(3000, 9000, 1100)
+    planned = [(k, k, SimpleNamespace(ctrl=np.zeros((int(t), 9)))) for k, t in enumerate(steps)]
+    cfg = RecordConfig(fps=20.0, width=64, height=64, cameras=("left", "right", "wrist"))
+    page = os.sysconf("SC_PAGE_SIZE")
+    monkeypatch.setattr(os, "sysconf", lambda k: 2**40 // page if "PAGES" in k else page)
+    calls = gpu_pipeline.length_chunks(planned, 512, cfg, 0.002)
+    assert [len(c) for c in calls] == [367, 367, 366]  # 3 calls of 512 at most, balanced
+    assert sorted(k for c in calls for k, _, _ in c) == list(range(1100))
+    lengths = [len(p.ctrl) for c in calls for _, _, p in c]
+    assert lengths == sorted(lengths)
+    padded = sum(len(c) * max(len(p.ctrl) for _, _, p in c) for c in calls)
+    unsorted = 512 * steps[:512].max() + 512 * steps[512:1024].max() + 76 * steps[1024:].max()
+    assert padded < 0.8 * unsorted
+    # Host memory caps the calls: 4 GiB available, 128 px images.
+    monkeypatch.setattr(os, "sysconf", lambda k: 4 * 2**30 // page if "PAGES" in k else page)
+    big = RecordConfig(fps=20.0, width=128, height=128, cameras=("left", "right", "wrist"))
+    calls = gpu_pipeline.length_chunks(planned, 512, big, 0.002)
+    most = max(gpu_pipeline.worlds_that_fit([p for _, _, p in c], big, 0.002) for c in calls)
+    assert all(len(c) <= most for c in calls) and len(calls) > 3
+    assert gpu_pipeline.length_chunks([], 512, cfg, 0.002) == []
