@@ -22,6 +22,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -53,6 +54,33 @@ def _gpu_name() -> str | None:
     return out.stdout.strip() or None
 
 
+SCENE_LINE = re.compile(
+    r"scene (\S+): (\d+) new, ([\d.]+) s \(GPU ([\d.]+) s, waiting for plans ([\d.]+) s, "
+    r"for earlier writes ([\d.]+) s\)"
+)
+
+
+def _per_scene(run: Path) -> list[dict[str, float | str]]:
+    """The GPU pipeline's per-scene lines of the stage log, with demos per hour of each
+    scene's wall time (the first scene's includes the kernel compile)."""
+    rows: list[dict[str, float | str]] = []
+    for log in sorted((run / "logs").glob("demos-*.log")):
+        for m in SCENE_LINE.finditer(log.read_text()):
+            new, wall, gpu = int(m[2]), float(m[3]), float(m[4])
+            rows.append(
+                {
+                    "scene": m[1],
+                    "new": new,
+                    "wall_s": wall,
+                    "gpu_s": gpu,
+                    "wait_plans_s": float(m[5]),
+                    "wait_writes_s": float(m[6]),
+                    "demos_per_hour": new / wall * 3600 if wall else 0.0,
+                }
+            )
+    return rows
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", type=int, default=2)
@@ -65,6 +93,13 @@ def main() -> None:
     p.add_argument("--executor", default="cpu", choices=["cpu", "warp", "auto"])
     p.add_argument("--gpu-batch", type=int, default=512)
     p.add_argument("--workers", type=int, default=0, help="0: --cores (cpu), cores - 1 (warp)")
+    p.add_argument(
+        "--runs",
+        nargs="+",
+        default=["cold", "warm"],
+        choices=["cold", "warm"],
+        help="which runs (a long GPU run: 'cold' alone, its later scenes are warm)",
+    )
     p.add_argument(
         "--set",
         action="append",
@@ -93,8 +128,9 @@ def main() -> None:
         )
     workers = args.workers or (max(1, args.cores - 1) if args.executor == "warp" else args.cores)
     results = {}
-    for label in ("cold", "warm"):
+    for label in args.runs:
         shutil.rmtree(run / "episodes", ignore_errors=True)
+        shutil.rmtree(run / "logs", ignore_errors=True)
         wall = _cli(
             [
                 "stage=demos",
@@ -139,6 +175,7 @@ def main() -> None:
             "sim_seconds_simulated": frames / infos[0]["fps"] if infos else 0,
             "executor": summary.get("executor", "cpu"),
             "gpu_seconds": sec.get("gpu"),
+            "per_scene": _per_scene(run),
         }
         r = results[label]
         print(
