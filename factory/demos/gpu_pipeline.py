@@ -25,11 +25,12 @@ from factory.demos.slots import (
     cached_setup,
     episode_id,
     episode_instruction,
+    episode_payload,
     episode_seed,
     item_stats,
     record_config,
     scene_planner,
-    write_episode,
+    store_episode,
 )
 from factory.errors import FactoryError
 
@@ -47,14 +48,16 @@ def plan_slot(env: StageEnv, scene_id: str, slot: int, attempt: int) -> tuple[in
     return slot, seed, planner.plan_episode(seed, env.demos.randomize)
 
 
-WRITERS = 8
-"""Threads writing (compressing) recorded episodes while the GPU goes on."""
+WRITERS = 6
+"""Processes writing (compressing) recorded episodes while the GPU goes on. Threads do not
+help: zarr runs every write of a process on one event loop, about 6 times the cost of the
+compression itself."""
 
 
-HOST_MEMORY_SHARE = 0.25
+HOST_MEMORY_SHARE = 0.35
 """Share of the host's available memory one GPU call's recordings may take (the frame-major
 buffers; the episodes' recordings are views into them). The previous call's recordings may
-still be in memory while they are written, so two calls take at most half of it."""
+still be in memory while they are written, so two calls take at most 70 % of it."""
 
 
 def worlds_that_fit(plans: list[Any], rec_cfg: Any, timestep: float) -> int:
@@ -91,7 +94,8 @@ def length_chunks(
     still simulated and rendered. Sorting the episodes by length before cutting them into calls
     keeps that padding small when a scene has more episodes than one call takes. Calls are of
     equal size (at most ``gpu_batch`` worlds, and at most what host memory holds for their
-    recordings, :func:`worlds_that_fit`), so no call is left with a handful of worlds.
+    recordings, :func:`worlds_that_fit`, which lets calls of shorter episodes take more
+    worlds), so no call is left with a handful of worlds.
 
     Args:
         planned: ``(slot, seed, EpisodePlan)`` of one scene.
@@ -105,22 +109,28 @@ def length_chunks(
     if not planned:
         return []
     order = sorted(planned, key=lambda item: len(item[2].ctrl))
-    size = max(1, min(gpu_batch, len(order)))
-    while size > 1:
-        calls = -(-len(order) // size)
-        size = -(-len(order) // calls)
-        chunks = [order[i : i + size] for i in range(0, len(order), size)]
-        fit = min(worlds_that_fit([p for _, _, p in c], rec_cfg, timestep) for c in chunks)
-        if fit >= size:
-            break
-        size = fit
+    out: list[list[tuple[int, int, Any]]] = []
+    start, capped = 0, False
+    while start < len(order):
+        rest = len(order) - start
+        size = min(gpu_batch, rest)
+        fit = worlds_that_fit([p for _, _, p in order[start : start + size]], rec_cfg, timestep)
+        while fit < size:  # fewer, shorter episodes: fits better
+            size = max(1, fit)
+            capped = True
+            fit = worlds_that_fit([p for _, _, p in order[start : start + size]], rec_cfg, timestep)
+        calls = -(-rest // size)
+        size = -(-rest // calls)  # the calls left of equal size
+        out.append(order[start : start + size])
+        start += size
+    if capped:
         log.info(
-            "scene %s: %d worlds per GPU call (host memory for the recordings; demos.gpu_batch=%d)",
+            "scene %s: %s worlds per GPU call (host memory for the recordings; demos.gpu_batch=%d)",
             scene_id,
-            size,
+            "/".join(str(len(c)) for c in out),
             gpu_batch,
         )
-    return [order[i : i + size] for i in range(0, len(order), size)]
+    return out
 
 
 def _init_worker() -> None:
@@ -147,7 +157,7 @@ def run_gpu(
     ctx = mp.get_context("spawn")
     with (
         ProcessPoolExecutor(max(1, workers), mp_context=ctx, initializer=_init_worker) as pool,
-        ThreadPoolExecutor(WRITERS) as writers,
+        ProcessPoolExecutor(WRITERS, mp_context=ctx, initializer=_init_worker) as writers,
         ThreadPoolExecutor(1) as prep,
     ):
 
@@ -226,20 +236,10 @@ def run_gpu(
                         if not rec.outcome.success:
                             out["failures"][rec.outcome.reason] += 1
                             continue
-                        writes.append(
-                            writers.submit(
-                                write_episode,
-                                store,
-                                env,
-                                setup,
-                                k,
-                                seed,
-                                plan,
-                                rec,
-                                rec_cfg,
-                                instruction,
-                            )
+                        meta, arrays = episode_payload(
+                            env, setup, k, seed, plan, rec, rec_cfg, instruction
                         )
+                        writes.append(writers.submit(store_episode, str(store.path), meta, arrays))
                         out["frames"] += len(rec.time)
                         out["new"] += 1
                         done.add(k)

@@ -152,6 +152,28 @@ def write_episode(
     instruction: str,
 ) -> None:
     """Stores a successful recording as episode ``k`` of its scene (meta + arrays)."""
+    store.write(*episode_payload(env, setup, k, seed, plan, rec, rec_cfg, instruction))
+
+
+def store_episode(store_path: str, meta: Any, arrays: dict[str, np.ndarray]) -> None:
+    """Writes one episode into the store at ``store_path`` (run in writer processes: each has
+    its own zarr event loop, so episodes compress and write in parallel)."""
+    from factory.demos.episodes import EpisodeStore
+
+    EpisodeStore(store_path).write(meta, arrays)
+
+
+def episode_payload(
+    env: StageEnv,
+    setup: Any,
+    k: int,
+    seed: int,
+    plan: Any,
+    rec: Any,
+    rec_cfg: Any,
+    instruction: str,
+) -> tuple[Any, dict[str, np.ndarray]]:
+    """The metadata and arrays a successful recording is stored as (episode ``k``)."""
     from factory import __version__
     from factory.demos.execute import STATE_SPEC
     from factory.schema.episode import EpisodeInfo, RobotBase
@@ -202,4 +224,4 @@ def write_episode(
         arrays[f"rgb/{cam}"] = im
     for cam, dp in rec.depth.items():
         arrays[f"depth/{cam}"] = dp
-    store.write(meta, arrays)
+    return meta, arrays
