@@ -1,9 +1,12 @@
 """The GPU demo executor (MuJoCo Warp): state layout and config on the CPU; agreement with the
 CPU executor on the GPU machine (``gpu`` marker).
 
-CPU twin in CI: the CPU executor's own tests (tests/demos/test_demos.py) cover the recording,
+CPU twins in CI: the CPU executor's own tests (tests/demos/test_demos.py) cover the recording,
 success check and replay that both executors share
-(:func:`factory.demos.execute.finish_recordings`).
+(:func:`factory.demos.execute.finish_recordings`), and the GPU pipeline itself runs on Warp's
+CPU device (``test_gpu_pipeline_on_warp_cpu``: planning processes, length-sorted calls, the
+executor, writer processes; sleeping off, since MuJoCo Warp's sleeping solver path does not
+run on the CPU device).
 """
 
 from __future__ import annotations
@@ -96,6 +99,33 @@ def test_gpu_executor_agrees_with_cpu(setup) -> None:
         assert s["rgb_mean_abs"][cam] < RGB_TOLERANCE, s
         assert s["depth_median_abs_mm"][cam] < DEPTH_TOLERANCE_MM, s
     assert all(len(a.time) == len(b.time) for a, b in zip(cpu, gpu, strict=True))
+
+
+@pytest.mark.slow
+def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
+    """The GPU pipeline end to end on Warp's CPU device (kernels compile in about 2-3 min):
+    three slots in two calls of the executor, stored by the writer processes, replayable."""
+    from factory.demos.episodes import EpisodeStore
+    from factory.demos.gpu_pipeline import run_gpu
+    from factory.demos.slots import StageEnv, WorkItem
+    from factory.schema import scene_to_json
+
+    run = tmp_path / "run"
+    scene = make_kitchen(run / "assets")
+    (run / "scenes" / scene.id).mkdir(parents=True)
+    (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    dc = DemosConfig(sleep=False, width=32, height=32, gpu_batch=2)
+    store_path = run / "episodes" / "shard-0.zarr"
+    env = StageEnv(str(run), str(store_path), dc, "pick_place", 0, 1)
+    (out,) = run_gpu(env, [WorkItem(scene.id, (0, 1, 2))], 1, device="cpu")
+    assert out["executor"] == "warp" and out["error"] is None
+    assert out["new"] + sum(out["failures"].values()) >= 3
+    assert out["new"] >= 2, dict(out["failures"])
+    store = EpisodeStore(store_path)
+    assert len(store.episode_ids()) == out["new"]
+    info = store.info(store.episode_ids()[0])
+    assert info.success and info.n_frames > 50
+    assert store.arrays(info.episode_id)["rgb/wrist"].shape == (info.n_frames, 32, 32, 3)
 
 
 @pytest.mark.gpu
