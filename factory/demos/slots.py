@@ -140,21 +140,6 @@ def episode_instruction(setup: Any) -> str:
     )
 
 
-def write_episode(
-    store: Any,
-    env: StageEnv,
-    setup: Any,
-    k: int,
-    seed: int,
-    plan: Any,
-    rec: Any,
-    rec_cfg: Any,
-    instruction: str,
-) -> None:
-    """Stores a successful recording as episode ``k`` of its scene (meta + arrays)."""
-    store.write(*episode_payload(env, setup, k, seed, plan, rec, rec_cfg, instruction))
-
-
 def store_episode(store_path: str, meta: Any, arrays: dict[str, np.ndarray]) -> None:
     """Writes one episode into the store at ``store_path`` (run in writer processes: each has
     its own zarr event loop, so episodes compress and write in parallel)."""

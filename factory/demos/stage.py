@@ -31,11 +31,11 @@ from factory.demos.slots import (
     cached_setup,
     episode_id,
     episode_instruction,
+    episode_payload,
     episode_seed,
     item_stats,
     record_config,
     scene_planner,
-    write_episode,
 )
 from factory.errors import ConfigError, FactoryError, StoreError
 from factory.store import atomic_write_json
@@ -159,7 +159,7 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
                 if not rec.outcome.success:
                     out["failures"][rec.outcome.reason] += 1
                     continue
-                write_episode(store, env, setup, k, seed, plan, rec, rec_cfg, instruction)
+                store.write(*episode_payload(env, setup, k, seed, plan, rec, rec_cfg, instruction))
                 out["frames"] += len(rec.time)
                 done.add(k)
                 out["new"] += 1
