@@ -51,6 +51,7 @@ from factory.demos.robot import (
     yaw_quat,
 )
 from factory.nav.base_trajectory import BaseLimits
+from factory.nav.footprint import Footprint
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +72,8 @@ FINGER_JOINTS: tuple[str, str] = (
 )
 TOOL_SITE = f"{PREFIX}gripper0_grip_site"
 HAND_BODY = f"{PREFIX}robot0_right_hand"
+HAND_GEOM = f"{PREFIX}gripper0_hand_collision"
+"""The collision geom of the hand's palm (the fingers have their own)."""
 
 ARM_MOUNT: tuple[float, float, float] = (0.20, 0.0, 0.70)
 """Position of the arm's base (link0) in the base frame (m)."""
@@ -79,6 +82,12 @@ BASE_HALF_EXTENTS: tuple[float, float, float] = (0.35, 0.25, 0.19)
 FOOTPRINT_RADIUS = 0.45
 """Radius (m) of a disc about the base origin that holds the robot's footprint in the stowed
 pose: the box's circumscribed radius is 0.430 m, plus 2 cm. Inflate the occupancy grid by it."""
+
+BASE_FOOTPRINT = Footprint(rear=0.35, front=0.40, half_width=0.25, margin=0.04)
+"""The robot's outline from above with the arm stowed (base frame, m): the wheeled body's box
+(0.70 x 0.50 m) and, ahead of it, the stowed hand (to x = 0.397 m), with 4 cm all round;
+navigation checks poses and motions with it (:class:`factory.nav.Footprint`). Carrying, the
+planner lengthens its front by the object."""
 
 BASE_LIMITS = BaseLimits()
 """Conservative driving limits of the Omron LD-60 (0.5 m/s, 0.5 m/s^2, 1 rad/s, 1 rad/s^2; the

@@ -87,6 +87,7 @@ def _write(
         plan_seconds=plan.plan_seconds,
         outcome=rec.outcome.details,
         factory_version=__version__,
+        cleared=list(setup.cleared),
     )
     arrays: dict[str, np.ndarray] = {
         "time": rec.time,
@@ -111,8 +112,12 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
 
     The cameras are ``demos.cameras`` (pinhole, on the robot) plus both fisheye cameras;
     ``demos.randomize``, ``demos.batch`` (episodes run one by one) and the GPU executor do
-    not apply.
+    not apply. Each episode logs one INFO line (slot, attempt, outcome, seconds of planning,
+    simulation and rendering); a scene where the base cannot reach both supports logs one
+    warning and counts its open slots as ``scene_unusable``.
     """
+    import time
+
     from factory.demos.episodes import EpisodeStore
     from factory.demos.mobile_pick_place import (
         FISHEYE_CAMERAS,
@@ -132,6 +137,11 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
 
     dc = env.demos
     out: dict[str, Any] = item_stats(item.scene_id)
+    store = EpisodeStore(env.store_path)
+    open_slots = [k for k in item.slots if episode_id(item.scene_id, k) not in store]
+    if not open_slots:
+        return out
+    t0 = time.perf_counter()
     try:
         run_store = RunStore(env.run_dir)
         setup = mobile_setup(run_store.load_scene(item.scene_id), run_store.assets_dir)
@@ -147,8 +157,19 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
         )
     except FactoryError as e:
         out["error"] = str(e)
-        out["failures"]["scene_unusable"] += len(item.slots)
+        out["failures"]["scene_unusable"] += len(open_slots)
         return out
+    out["cleared"] = list(setup.cleared)
+    if planner.unusable:
+        out["error"] = f"the robot's base cannot work there: {planner.unusable}"
+        out["failures"]["scene_unusable"] += len(open_slots)
+        return out
+    log.info(
+        "scene %s: set up in %.1f s%s",
+        item.scene_id,
+        time.perf_counter() - t0,
+        f", took out {', '.join(setup.cleared)} for the base" if setup.cleared else "",
+    )
     cfg = MobileRecordConfig(
         fps=dc.fps,
         width=dc.width,
@@ -157,18 +178,24 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
         depth=dc.depth,
         render=dc.render,
     )
-    store = EpisodeStore(env.store_path)
     renderer = MobileRenderer(setup.model, cfg) if cfg.render else None
     try:
-        for k in item.slots:
-            if episode_id(item.scene_id, k) in store:
-                continue
+        for k in open_slots:
             for attempt in range(dc.attempts):
+                t_ep = time.perf_counter()
                 seed = episode_seed(env.seed, item.scene_id, k, attempt)
                 res = planner.plan_episode(seed)
                 if not isinstance(res, MobileEpisodePlan):
                     out["failures"][res.reason] += 1
-                    log.info("scene %s slot %d: plan failed: %s", item.scene_id, k, res.detail)
+                    log.info(
+                        "scene %s slot %d attempt %d: %s after %.1f s of planning: %s",
+                        item.scene_id,
+                        k,
+                        attempt,
+                        res.reason,
+                        res.seconds,
+                        res.detail,
+                    )
                     continue
                 out["plan"].append(res.seconds)
                 out["segments"].extend(res.plan_seconds.values())
@@ -176,8 +203,24 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
                 out["simulate"] += rec.sim_seconds
                 out["render"] += rec.render_seconds
                 assert rec.outcome is not None
+                verdict = "success" if rec.outcome.success else rec.outcome.reason
+                log.info(
+                    "scene %s slot %d attempt %d: %s in %.1f s (plan %.1f s, simulate %.1f s, "
+                    "render %.1f s; %d frames, %.1f s of motion)",
+                    item.scene_id,
+                    k,
+                    attempt,
+                    verdict,
+                    time.perf_counter() - t_ep,
+                    res.seconds,
+                    rec.sim_seconds,
+                    rec.render_seconds,
+                    len(rec.time),
+                    float(rec.time[-1]),
+                )
                 if not rec.outcome.success:
                     out["failures"][rec.outcome.reason] += 1
+                    log.debug("scene %s slot %d: %s", item.scene_id, k, rec.outcome.details)
                     continue
                 _write(store, env, setup, k, seed, res, rec, cfg)
                 out["frames"] += len(rec.time)

@@ -10,14 +10,18 @@ pytest.importorskip("ruckig")
 pytest.importorskip("ompl")
 pytest.importorskip("mink")
 
+from factory.demos.grasps import Grasp
 from factory.demos.mobile_pick_place import (
     ALL_CAMERAS,
+    PLAN_TIMEOUT,
     SUBTASKS,
     MobileEpisodePlan,
+    MobileMotionConfig,
     MobilePlanFailure,
     MobilePlanner,
     MobileRecordConfig,
     MobileTaskError,
+    carry_order,
     execute_mobile,
     mobile_setup,
     mobile_task_objects,
@@ -28,11 +32,14 @@ from factory.schema import Physics, Placement, Room, Scene, SceneObject, Size3, 
 ROOM_W, ROOM_L = 6.0, 5.0
 TABLE = (1.6, 2.5)
 DESK = (4.6, 1.2)
+DOOR = (2.0, 3.0)
+"""The doorway of the partition of ``_living_room(stool_in_door=True)`` (y from, y to; m)."""
 
 
-def _living_room(enclose_desk: bool = False) -> Scene:
+def _living_room(enclose_desk: bool = False, stool_in_door: bool = False) -> Scene:
     """A 6 x 5 m living room: a coffee table with a can on it and a desk 3.3 m away; with
-    ``enclose_desk`` static panels close the desk in."""
+    ``enclose_desk`` static panels close the desk in; with ``stool_in_door`` a static
+    partition at x = 3 m splits the room, its 1 m doorway blocked by a light stool."""
     corners = [(0.0, 0.0), (ROOM_W, 0.0), (ROOM_W, ROOM_L), (0.0, ROOM_L)]
     walls = [
         Wall(id=f"w{i}", start=Vec3(*a, 0.0), end=Vec3(*b, 0.0), height=2.5)
@@ -95,6 +102,28 @@ def _living_room(enclose_desk: bool = False) -> Scene:
                     physics=Physics(mass=20.0, static=True),
                 )
             )
+    if stool_in_door:
+        for k, (y0, y1) in enumerate(((0.0, DOOR[0]), (DOOR[1], ROOM_L))):
+            objects.append(
+                SceneObject(
+                    id=f"partition{k}",
+                    room_id="living",
+                    category="partition",
+                    position=Vec3(3.0, (y0 + y1) / 2, 0.0),
+                    dimensions=Size3(0.06, y1 - y0, 1.2),
+                    physics=Physics(mass=20.0, static=True),
+                )
+            )
+        objects.append(
+            SceneObject(
+                id="stool",
+                room_id="living",
+                category="stool",
+                position=Vec3(3.0, (DOOR[0] + DOOR[1]) / 2, 0.0),
+                dimensions=Size3(0.45, 0.45, 0.5),
+                physics=Physics(mass=4.0),
+            )
+        )
     return Scene(id="living", rooms=[room], objects=objects, source="example")
 
 
@@ -196,3 +225,47 @@ def test_mobile_stage_cli(cli, tmp_path) -> None:
     assert list(np.unique(g["subtask"][:])) == [0, 1, 2, 3] and int(g["subtask_done"][:].sum()) == 4
     for cam in ALL_CAMERAS:
         assert g[f"rgb/{cam}"].shape == (n, 32, 32, 3)
+
+
+def test_light_furniture_in_the_way_is_taken_out() -> None:
+    """A stool in the only doorway closes the route for the base: the set-up takes it out
+    (and says so), and an episode plans through the doorway."""
+    blocked = mobile_setup(_living_room(stool_in_door=True), clear=False)
+    assert "route" in blocked.reachable and blocked.cleared == ()
+    assert isinstance(MobilePlanner(blocked).plan_episode(0), MobilePlanFailure)
+    setup = mobile_setup(_living_room(stool_in_door=True))
+    assert setup.cleared == ("stool",) and setup.reachable == ""
+    assert "stool" not in {o.id for o in setup.scene.objects}
+    plan = MobilePlanner(setup).plan_episode(0)
+    assert isinstance(plan, MobileEpisodePlan), plan
+    assert plan.pick_base[0] < 3.0 < plan.place_base[0]  # it drove through the doorway
+
+
+def test_plan_budget_bounds_an_episode() -> None:
+    setup = mobile_setup(_living_room())
+    result = MobilePlanner(setup, MobileMotionConfig(plan_budget=0.0)).plan_episode(0)
+    assert isinstance(result, MobilePlanFailure) and result.reason == PLAN_TIMEOUT
+    assert "budget" in result.detail
+
+
+def _grasp(z: float, contact: float, score: float) -> Grasp:
+    pose = np.eye(4)
+    pose[:3, :3] = np.diag([1.0, -1.0, -1.0])  # straight down
+    pose[2, 3] = z
+    pts = np.array([[-0.033, 0.0, z], [0.033, 0.0, z]])
+    return Grasp(pose, 0.066, 1.0, contact, score, pts)
+
+
+def test_carry_order_prefers_a_hold_near_the_centre_of_mass() -> None:
+    """A can 12 cm tall (centre of mass 6 cm up): a grasp on its rim, 3 mm below the top,
+    ranks below one 2.5 cm lower with the pads fully on the can, although the geometric score
+    prefers the rim; with hold_weight 0 the order stays."""
+    rim, body = _grasp(0.117, 0.67, 1.30), _grasp(0.095, 1.0, 1.28)
+    obj = np.eye(4)
+    com = np.array([0.0, 0.0, 0.06])
+    ranked = carry_order([rim, body], obj, com, 0.12, np.array([-0.6, 0.0]), 1.0, 1.0)
+    assert ranked == [body, rim]
+    assert carry_order([rim, body], obj, com, 0.12, np.array([-0.6, 0.0]), 1.0, 0.0) == [
+        rim,
+        body,
+    ]

@@ -23,6 +23,7 @@ def build_room(
     obstacle: bool = True,
     divider: str | None = None,
     extras: bool = False,
+    door: tuple[float, float] = DOOR,
 ) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """The test room compiled, with forward kinematics done.
 
@@ -30,6 +31,7 @@ def build_room(
         obstacle: a box in the middle of the room (``OBSTACLE``).
         divider: ``None``; ``"open"`` a wall at x = 3 with a doorway ``DOOR``; ``"blocked"``
             the same wall with a cylinder standing in the doorway.
+        door: the doorway of the divider (y from, y to; m).
         extras: also a floor slab, a high shelf (above the band), a 45-degree box, an upright
             cylinder, a mesh prism, a free sphere, a visual-only box and a body named like the
             robot (``mobile/...``).
@@ -52,7 +54,7 @@ def build_room(
         cx, cy, hx, hy = OBSTACLE
         wb.add_geom(name="obstacle", type=box, pos=[cx, cy, 0.4], size=[hx, hy, 0.4])
     if divider is not None:
-        d0, d1 = DOOR
+        d0, d1 = door
         for k, (a, b) in enumerate(((y0, d0), (d1, y1))):
             wb.add_geom(
                 name=f"divider/{k}",
@@ -61,7 +63,10 @@ def build_room(
                 size=[WALL_T / 2, (b - a) / 2, h / 2],
             )
         wb.add_geom(  # the lintel over the door: above the robot's band
-            name="divider/lintel", type=box, pos=[3.0, (d0 + d1) / 2, 2.25], size=[0.05, 0.6, 0.25]
+            name="divider/lintel",
+            type=box,
+            pos=[3.0, (d0 + d1) / 2, 2.25],
+            size=[0.05, (d1 - d0) / 2, 0.25],
         )
         if divider == "blocked":
             wb.add_geom(

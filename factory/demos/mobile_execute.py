@@ -1,0 +1,521 @@
+"""Executing a planned mobile episode: simulate, record, check success, render, replay.
+
+:func:`execute_mobile` simulates an episode's per-step controls in one ``mujoco.MjData``,
+records a frame every ``1 / fps`` s (integration state, base pose, arm, gripper, tool pose,
+action, sub-task labels), checks success (:func:`check_mobile_success`) and only then draws the
+images of the five cameras (``left``, ``right``, ``wrist`` and the fisheye cameras
+``fisheye_front``/``fisheye_back``) from the recorded states (:func:`render_frames`): a failed
+episode costs its physics alone. :func:`replay` re-simulates a recording from its first state.
+Nothing is teleported.
+
+Frames: world frame for poses (m, rad); the base pose is the footprint centre's (x, y) and the
+unwrapped yaw (the base joints' values).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from factory.demos.mobile_robot import CAMERAS
+from factory.demos.mobile_scene import (
+    ALL_CAMERAS,
+    COLLISION,
+    FISHEYE_CAMERAS,
+    MobileSetup,
+    MobileTaskError,
+    body_box,
+    support_top,
+)
+from factory.demos.task import Outcome
+from factory.nav import BASE_COLLISION
+
+if TYPE_CHECKING:
+    from factory.demos.mobile_plan import MobileEpisodePlan
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class MobileRecordConfig:
+    """What a mobile episode records.
+
+    Attributes:
+        fps: frames per second (Hz).
+        width, height: pinhole image size (px); the fisheye images are ``width`` square.
+        cameras: recording cameras, from :data:`ALL_CAMERAS`.
+        depth: ``uint16_mm`` (millimetres) or ``float32`` (metres); pinhole depth is along the
+            optical axis, fisheye depth is the ray length.
+        render: render images (off: states and signals only).
+        fisheye_fov_deg: full field of view of the fisheye cameras (deg).
+    """
+
+    fps: float = 20.0
+    width: int = 128
+    height: int = 128
+    cameras: tuple[str, ...] = ALL_CAMERAS
+    depth: str = "uint16_mm"
+    render: bool = True
+    fisheye_fov_deg: float = 180.0
+
+    def __post_init__(self) -> None:
+        unknown = [c for c in self.cameras if c not in ALL_CAMERAS]
+        if unknown:
+            raise MobileTaskError(f"unknown camera(s) {unknown}: choose from {ALL_CAMERAS}")
+        if self.depth not in ("uint16_mm", "float32"):
+            raise MobileTaskError(f"depth must be uint16_mm or float32, got {self.depth!r}")
+
+
+@dataclass
+class MobileRecording:
+    """One executed mobile episode (F frames) and its outcome.
+
+    Attributes:
+        time: (F,) s. state: (F, nstate) MuJoCo integration state (``mj_setState`` with
+            ``mjSTATE_INTEGRATION`` reproduces the frame).
+        base_pose: (F, 3) base x, y (m) and unwrapped yaw (rad), world frame.
+        joint_pos: (F, 7) arm joints (rad). gripper: (F, 1) finger opening (m).
+        ee_pose: (F, 7) tool site position (m) + quaternion wxyz, world frame.
+        action: (F, 11) targets at the end of the frame: arm (7, rad), gripper (m), base x, y
+            (m), yaw (rad).
+        subtask: (F,) int8 label id (index into :data:`SUBTASKS`) of the frame's period.
+        subtask_done: (F,) bool: true on the last frame of each sub-task.
+        rgb: camera -> (F, H, W, 3) uint8; depth: camera -> (F, H, W) uint16 mm or float32 m.
+        ctrl: (S, nu) the controls of every physics step simulated (S = (F - 1) x steps per
+            frame): replaying them from ``state[0]`` reproduces the episode.
+        outcome: the success check.
+        max_base_penetration, max_arm_penetration: deepest contact of the base / the arm and
+            hand with the scene over every physics step (m).
+        sim_seconds, render_seconds: wall time (s).
+    """
+
+    time: np.ndarray
+    state: np.ndarray
+    base_pose: np.ndarray
+    joint_pos: np.ndarray
+    gripper: np.ndarray
+    ee_pose: np.ndarray
+    action: np.ndarray
+    subtask: np.ndarray
+    subtask_done: np.ndarray
+    rgb: dict[str, np.ndarray] = field(default_factory=dict)
+    depth: dict[str, np.ndarray] = field(default_factory=dict)
+    ctrl: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    outcome: Outcome | None = None
+    max_base_penetration: float = 0.0
+    max_arm_penetration: float = 0.0
+    sim_seconds: float = 0.0
+    render_seconds: float = 0.0
+
+
+class MobileRenderer:
+    """Renders the mobile robot's recording cameras: the pinhole ones (``left``, ``right``,
+    ``wrist``) side by side in one GL pass, RGB and depth read together (as
+    :class:`factory.demos.execute.FrameRenderer`), and the fisheye ones through
+    :class:`factory.sim.fisheye.FisheyeRenderer` (its own GL context).
+    """
+
+    def __init__(self, model: mujoco.MjModel, cfg: MobileRecordConfig) -> None:
+        from factory.sim.fisheye import FisheyeRenderer, FisheyeSpec
+        from factory.sim.gl import configure_gl
+
+        configure_gl("auto")
+        self.cfg = cfg
+        self.pinhole = [c for c in cfg.cameras if c in CAMERAS]
+        self.fisheye = [c for c in cfg.cameras if c in FISHEYE_CAMERAS]
+        self.renderer: mujoco.Renderer | None = None
+        self.fish: FisheyeRenderer | None = None
+        n, w, h = len(self.pinhole), cfg.width, cfg.height
+        if n:
+            vis = model.vis
+            vis.quality.offsamples = 0
+            vis.global_.offwidth = max(vis.global_.offwidth, n * w)
+            vis.global_.offheight = max(vis.global_.offheight, h)
+            self.renderer = mujoco.Renderer(model, h, n * w)
+            flags = self.renderer.scene.flags
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+            flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
+            self.option = mujoco.MjvOption()
+            self.option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
+            self.option.sitegroup[:] = 0
+            self.cams = [model.camera(CAMERAS[c]).id for c in self.pinhole]
+            self._rgb = np.empty((h, n * w, 3), np.uint8)
+            self._z = np.empty((h, n * w), np.float32)
+            self._rect = mujoco.MjrRect(0, 0, n * w, h)
+            extent = model.stat.extent
+            self._near = np.float32(model.vis.map.znear * extent)
+            self._far = np.float32(model.vis.map.zfar * extent)
+        if self.fisheye:
+            spec = FisheyeSpec(resolution=cfg.width, fov_deg=cfg.fisheye_fov_deg)
+            self.fish = FisheyeRenderer(model, spec)
+            self.fish_ids = {c: model.camera(FISHEYE_CAMERAS[c]).id for c in self.fisheye}
+
+    def _metric(self, z: np.ndarray) -> np.ndarray:
+        near, far = self._near, self._far
+        c = -(far + near) / (far - near)
+        d = -(np.float32(2) * far * near) / (far - near)
+        c = np.float32(-0.5) * c - np.float32(0.5)
+        d = np.float32(-0.5) * d
+        return (d / (z.astype(np.float64) + c)).astype(np.float32)
+
+    def _depth(self, depth: np.ndarray) -> np.ndarray:
+        if self.cfg.depth == "uint16_mm":
+            return np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
+        return depth.astype(np.float32)
+
+    def render(self, data: mujoco.MjData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Camera -> (RGB (H, W, 3) uint8, depth (H, W)) of the state in ``data`` (current
+        kinematics needed)."""
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        r = self.renderer
+        if r is not None:
+            r._gl_context.make_current()
+            ctx = r._mjr_context
+            w, h = self.cfg.width, self.cfg.height
+            for k, cam in enumerate(self.cams):
+                r.update_scene(data, camera=cam, scene_option=self.option)
+                mujoco.mjr_render(mujoco.MjrRect(k * w, 0, w, h), r.scene, ctx)
+            mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
+            rgb = np.flipud(self._rgb)
+            depth = self._depth(self._metric(np.flipud(self._z)))
+            for k, c in enumerate(self.pinhole):
+                out[c] = (rgb[:, k * w : (k + 1) * w].copy(), depth[:, k * w : (k + 1) * w].copy())
+        if self.fish is not None:
+            for c in self.fisheye:
+                im, dp = self.fish.render(data, self.fish_ids[c])
+                out[c] = (im, self._depth(dp))
+        return out
+
+    def close(self) -> None:
+        """Frees the GL contexts."""
+        if self.renderer is not None:
+            self.renderer.close()
+        if self.fish is not None:
+            self.fish.close()
+
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def _penetrations(
+    data: mujoco.MjData,
+    base_geom: np.ndarray,
+    arm_geom: np.ndarray,
+    arm_allowed: np.ndarray,
+    base_allowed: np.ndarray,
+) -> tuple[float, float]:
+    """Deepest contact (m) of a base geom and of an arm/hand geom with a scene geom, over the
+    current contacts (vectorized over ``data.contact``)."""
+    n = data.ncon
+    if not n:
+        return 0.0, 0.0
+    geom = data.contact.geom[:n]
+    depth = -data.contact.dist[:n]
+    robot = base_geom | arm_geom
+    r1, r2 = robot[geom[:, 0]], robot[geom[:, 1]]
+    mixed = r1 != r2
+    if not mixed.any():
+        return 0.0, 0.0
+    rg = np.where(r1, geom[:, 0], geom[:, 1])[mixed]
+    other = np.where(r1, geom[:, 1], geom[:, 0])[mixed]
+    d = depth[mixed]
+    on_base = base_geom[rg] & ~base_allowed[other]
+    on_arm = arm_geom[rg] & ~base_geom[rg] & ~arm_allowed[other]
+    worst_base = float(d[on_base].max()) if on_base.any() else 0.0
+    worst_arm = float(d[on_arm].max()) if on_arm.any() else 0.0
+    return max(worst_base, 0.0), max(worst_arm, 0.0)
+
+
+def simulate(
+    setup: MobileSetup,
+    state0: np.ndarray,
+    ctrl: np.ndarray,
+    cfg: MobileRecordConfig,
+    renderer: MobileRenderer | None = None,
+    targets: np.ndarray | None = None,
+    subtask: np.ndarray | None = None,
+    images: bool = True,
+) -> MobileRecording:
+    """Runs per-step controls from an integration state and records frames at ``cfg.fps``.
+
+    Frame ``f`` is the state after ``f * k`` physics steps (``k`` steps per frame). The
+    physics and the per-frame signals come first; the images are drawn afterwards from the
+    recorded states (:func:`render_frames`), each from a separate ``MjData`` (``mj_setState`` +
+    ``mj_forward``), so the simulation is the same whether or not it is rendered, and a replay
+    from ``state0`` with the same ``ctrl`` reproduces the states and images exactly.
+
+    Args:
+        setup: the composed scene.
+        state0: initial integration state (nstate,).
+        ctrl: controls per physics step (S, nu); S should be a multiple of the steps per frame.
+        cfg: what to record.
+        renderer: a renderer to reuse (made if None and images are drawn).
+        targets, subtask: per-step action (S, 11) and sub-task labels (S,); when given,
+            recorded per frame: the action at the frame period's last step, the label at its
+            first, and the done flag on the last frame of each sub-task.
+        images: draw the images now (when ``cfg.render``); False leaves ``rgb``/``depth``
+            empty for a later :func:`render_frames`.
+
+    Returns:
+        the recording, without outcome.
+    """
+    model, robot = setup.model, setup.robot
+    dt = float(model.opt.timestep)
+    k = max(1, round(1.0 / (cfg.fps * dt)))
+    n_steps = len(ctrl)
+    n_frames = math.ceil(n_steps / k) + 1
+    total = (n_frames - 1) * k
+    if total > n_steps:
+        ctrl = np.concatenate([ctrl, np.repeat(ctrl[-1:], total - n_steps, axis=0)])
+    nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+    rec = MobileRecording(
+        time=np.arange(n_frames) / cfg.fps,
+        state=np.zeros((n_frames, nstate)),
+        base_pose=np.zeros((n_frames, 3)),
+        joint_pos=np.zeros((n_frames, 7)),
+        gripper=np.zeros((n_frames, 1)),
+        ee_pose=np.zeros((n_frames, 7)),
+        action=np.zeros((n_frames, 11)),
+        subtask=np.zeros(n_frames, np.int8),
+        subtask_done=np.zeros(n_frames, bool),
+        ctrl=np.array(ctrl),
+    )
+    data = mujoco.MjData(model)
+    view = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, state0, STATE_SPEC)
+    base_geom = np.zeros(model.ngeom, bool)
+    base_geom[robot.base_geoms] = True
+    arm_geom = np.zeros(model.ngeom, bool)
+    arm_geom[robot.geoms] = True
+    arm_geom &= ~base_geom
+    objs = setup.objects
+    pick = model.body(objs.pick.id).id
+    supports = [model.body(objs.pick_support.id).id, model.body(objs.place_support.id).id]
+    base_allowed = np.isin(model.geom_bodyid, [pick])
+    arm_allowed = np.isin(model.geom_bodyid, [pick, *supports])
+    worst_b = worst_a = 0.0
+    quat = np.zeros(4)
+
+    def record(f: int) -> None:
+        mujoco.mj_getState(model, data, rec.state[f], STATE_SPEC)
+        mujoco.mj_setState(model, view, rec.state[f], STATE_SPEC)
+        mujoco.mj_kinematics(model, view)
+        rec.base_pose[f] = view.qpos[robot.base_qpos]
+        rec.joint_pos[f] = view.qpos[robot.qpos]
+        fingers = view.qpos[robot.finger_qpos]
+        rec.gripper[f, 0] = float(fingers[0] - fingers[1])
+        mujoco.mju_mat2Quat(quat, view.site_xmat[robot.site])
+        rec.ee_pose[f] = np.concatenate([view.site_xpos[robot.site], quat])
+        last = min((f + 1) * k, n_steps) - 1
+        if targets is not None:
+            rec.action[f] = targets[last]
+        if subtask is not None:
+            first = min(f * k, n_steps - 1)
+            rec.subtask[f] = subtask[first]
+
+    t0 = time.perf_counter()
+    record(0)
+    for f in range(1, n_frames):
+        for s in range((f - 1) * k, f * k):
+            data.ctrl[:] = ctrl[s]
+            mujoco.mj_step(model, data)
+            if data.ncon:
+                b, a = _penetrations(data, base_geom, arm_geom, arm_allowed, base_allowed)
+                worst_b, worst_a = max(worst_b, b), max(worst_a, a)
+        record(f)
+    if subtask is not None:
+        rec.subtask_done[:-1] = rec.subtask[1:] != rec.subtask[:-1]
+        rec.subtask_done[-1] = True
+    rec.max_base_penetration = worst_b
+    rec.max_arm_penetration = worst_a
+    rec.sim_seconds = time.perf_counter() - t0
+    if images and cfg.render:
+        render_frames(setup, rec, cfg, renderer)
+    return rec
+
+
+def render_frames(
+    setup: MobileSetup,
+    rec: MobileRecording,
+    cfg: MobileRecordConfig,
+    renderer: MobileRenderer | None = None,
+) -> None:
+    """Draws every camera of ``cfg`` for every recorded state into ``rec.rgb``/``rec.depth``.
+
+    Each frame is the state ``rec.state[f]`` set into a fresh ``MjData`` and ``mj_forward``ed,
+    so the images depend on the recorded state alone (the same before or after the success
+    check, and in a replay). Adds the wall time to ``rec.render_seconds``.
+
+    Args:
+        setup: the composed scene.
+        rec: a recording with its states.
+        cfg: cameras, image size and depth format.
+        renderer: a renderer to reuse (made and closed here if None).
+    """
+    model = setup.model
+    t0 = time.perf_counter()
+    n_frames = len(rec.state)
+    depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
+    for c in cfg.cameras:
+        side = (cfg.width, cfg.width) if c in FISHEYE_CAMERAS else (cfg.height, cfg.width)
+        rec.rgb[c] = np.zeros((n_frames, *side, 3), np.uint8)
+        rec.depth[c] = np.zeros((n_frames, *side), depth_type)
+    own = renderer or MobileRenderer(model, cfg)
+    view = mujoco.MjData(model)
+    try:
+        for f in range(n_frames):
+            mujoco.mj_setState(model, view, rec.state[f], STATE_SPEC)
+            mujoco.mj_forward(model, view)
+            for c, (im, dp) in own.render(view).items():
+                rec.rgb[c][f] = im
+                rec.depth[c][f] = dp
+    finally:
+        if renderer is None:
+            own.close()
+    rec.render_seconds += time.perf_counter() - t0
+
+
+def check_mobile_success(
+    setup: MobileSetup,
+    rec: MobileRecording,
+    plan: MobileEpisodePlan,
+    fps: float,
+    settle_tol: float = 0.005,
+    speed_tol: float = 0.02,
+    above_tol: float = 0.03,
+    penetration_tol: float = 0.02,
+) -> Outcome:
+    """Whether an executed mobile episode succeeded.
+
+    The object rose with the hand during ``pick`` (else ``slip``), its bottom ends within
+    ``above_tol`` (m) above the place support's top and its centre inside the support's
+    footprint (else ``not_on_target``), no finger touches it (``not_released``), it moved less
+    than ``settle_tol`` (m) over the last 0.5 s and its speed is below ``speed_tol`` (m/s)
+    (``unstable``); the base never pressed more than ``penetration_tol`` (m) into the scene
+    (``base_collision``) nor the arm or hand into anything but the task objects (``collision``).
+    """
+    model, robot = setup.model, setup.robot
+    objs = setup.objects
+    qs = slice(1, 1 + model.nq)
+    vs = slice(1 + model.nq, 1 + model.nq + model.nv)
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, rec.state[-1], STATE_SPEC)
+    mujoco.mj_forward(model, data)
+    pick = model.body(objs.pick.id).id
+    support = model.body(objs.place_support.id).id
+    adr = int(model.jnt_qposadr[model.body_jntadr[pick]])
+    dof = int(model.jnt_dofadr[model.body_jntadr[pick]])
+    obj_box = body_box(model, data, pick)
+    sup_box = body_box(model, data, support)
+    top = support_top(model, data, support)
+    centre = data.xipos[pick]
+    # the support's footprint: its top's rectangle in its own frame (scene dimensions)
+    sup = objs.place_support
+    local = data.xmat[support].reshape(3, 3).T @ (centre - data.xpos[support])
+    inside = bool(
+        abs(local[0]) <= sup.dimensions.width / 2 and abs(local[1]) <= sup.dimensions.length / 2
+    ) and bool((centre[:2] >= sup_box[:2]).all() and (centre[:2] <= sup_box[3:5]).all())
+    hold = max(1, round(0.5 * fps))
+    q_end = rec.state[-1, qs]
+    q_before = rec.state[max(0, len(rec.state) - 1 - hold), qs]
+    moved = float(np.linalg.norm(q_end[adr : adr + 3] - q_before[adr : adr + 3]))
+    speed = float(np.linalg.norm(rec.state[-1, vs][dof : dof + 3]))
+    dt = float(model.opt.timestep)
+    k = max(1, round(1.0 / (fps * dt)))
+    start_z = float(rec.state[0, qs][adr + 2])
+    lift_frame = min(len(rec.state) - 1, plan.phases["navigate_to_place"] // k)
+    lifted = float(rec.state[lift_frame, qs][adr + 2]) - start_z
+    touching = False
+    for c in data.contact[: data.ncon]:
+        bodies = [int(model.geom_bodyid[c.geom[0]]), int(model.geom_bodyid[c.geom[1]])]
+        if pick in bodies and np.isin(bodies, robot.bodies).any():
+            touching = True
+    bottom = float(obj_box[2])
+    details = {
+        "lift_m": lifted,
+        "bottom_above_top_m": bottom - top,
+        "support_top_m": top,
+        "inside_footprint": float(inside),
+        "settle_motion_m": moved,
+        "final_speed_m_s": speed,
+        "base_penetration_m": rec.max_base_penetration,
+        "robot_penetration_m": rec.max_arm_penetration,
+    }
+    if rec.max_base_penetration > penetration_tol:
+        return Outcome(False, BASE_COLLISION, details)
+    if rec.max_arm_penetration > penetration_tol:
+        return Outcome(False, COLLISION, details)
+    if lifted < 0.03:
+        return Outcome(False, "slip", details)
+    if not inside or not (-0.01 <= bottom - top <= above_tol):
+        return Outcome(False, "not_on_target", details)
+    if touching:
+        return Outcome(False, "not_released", details)
+    if moved > settle_tol or speed > speed_tol:
+        return Outcome(False, "unstable", details)
+    return Outcome(True, "", details)
+
+
+def execute_mobile(
+    setup: MobileSetup,
+    plan: MobileEpisodePlan,
+    cfg: MobileRecordConfig,
+    renderer: MobileRenderer | None = None,
+    render_failures: bool = False,
+) -> MobileRecording:
+    """Simulates a planned episode on the CPU, checks success, and renders it.
+
+    The images are drawn after the success check, from the recorded states, and only for a
+    successful episode unless ``render_failures``: a failed episode costs its physics only
+    (rendering five cameras is most of an episode's time on a CPU).
+
+    Args:
+        setup: the composed scene.
+        plan: the planned episode.
+        cfg: what to record.
+        renderer: a renderer to reuse.
+        render_failures: draw the images of a failed episode too.
+
+    Returns:
+        the recording with its ``outcome``; ``rgb``/``depth`` are empty for a failed episode
+        (unless ``render_failures``) or when ``cfg.render`` is off.
+    """
+    model = setup.model
+    data = mujoco.MjData(model)
+    data.qpos[:] = plan.qpos0
+    data.ctrl[:] = plan.ctrl[0]
+    mujoco.mj_forward(model, data)
+    state0 = np.zeros(mujoco.mj_stateSize(model, STATE_SPEC))
+    mujoco.mj_getState(model, data, state0, STATE_SPEC)
+    rec = simulate(
+        setup,
+        state0,
+        plan.ctrl,
+        cfg,
+        renderer,
+        targets=plan.targets,
+        subtask=plan.subtask,
+        images=False,
+    )
+    rec.outcome = check_mobile_success(setup, rec, plan, cfg.fps)
+    if cfg.render and (rec.outcome.success or render_failures):
+        render_frames(setup, rec, cfg, renderer)
+    return rec
+
+
+def replay(
+    setup: MobileSetup,
+    rec: MobileRecording,
+    cfg: MobileRecordConfig,
+    renderer: MobileRenderer | None = None,
+) -> MobileRecording:
+    """Re-simulates a recording from its first state with its recorded controls (same frames,
+    same images on the same machine)."""
+    return simulate(setup, rec.state[0], rec.ctrl, cfg, renderer)
