@@ -23,6 +23,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -131,6 +132,32 @@ def shortcut(
     return np.array(out)
 
 
+def solve_rrt_connect(setup: Any, cfg: NavPlannerConfig, resolution: float, attempt: int) -> Any:
+    """Runs OMPL's RRTConnect on a prepared ``og.SimpleSetup`` (space, validity checker, start
+    and goal set) and simplifies the solution.
+
+    Args:
+        resolution: the validity-checking resolution, a fraction of the space's extent.
+        attempt: 0-based attempt number (for the message).
+
+    Returns:
+        the simplified ``og.PathGeometric``, or why there is none (a string).
+    """
+    from ompl import geometric as og
+
+    info = setup.getSpaceInformation()
+    info.setStateValidityCheckingResolution(resolution)
+    planner = og.RRTConnect(info)
+    if cfg.range > 0:
+        planner.setRange(cfg.range)
+    setup.setPlanner(planner)
+    solved = setup.solve(cfg.timeout)
+    if not solved or str(solved) != "Exact solution":
+        return f"RRTConnect found no path in {cfg.timeout:.1f} s ({attempt + 1} attempts)"
+    setup.simplifySolution(cfg.simplify)
+    return setup.getSolutionPath()
+
+
 def _seed(seed: int) -> None:
     global _seeded
     if _seeded:
@@ -212,20 +239,12 @@ def plan_base_path(
         s[0], s[1] = float(start[0]), float(start[1])
         g[0], g[1] = float(goal[0]), float(goal[1])
         setup.setStartAndGoalStates(s, g)
-        info = setup.getSpaceInformation()
-        info.setStateValidityCheckingResolution(
-            res * cfg.edge_step / max(space.getMaximumExtent(), 1e-9)
+        sol = solve_rrt_connect(
+            setup, cfg, res * cfg.edge_step / max(space.getMaximumExtent(), 1e-9), attempt
         )
-        planner = og.RRTConnect(info)
-        if cfg.range > 0:
-            planner.setRange(cfg.range)
-        setup.setPlanner(planner)
-        solved = setup.solve(cfg.timeout)
-        if not solved or str(solved) != "Exact solution":
-            detail = f"RRTConnect found no path in {cfg.timeout:.1f} s ({attempt + 1} attempts)"
+        if isinstance(sol, str):
+            detail = sol
             continue
-        setup.simplifySolution(cfg.simplify)
-        sol = setup.getSolutionPath()
         path = np.array(
             [[sol.getState(k)[0], sol.getState(k)[1]] for k in range(sol.getStateCount())]
         )

@@ -25,7 +25,7 @@ import numpy as np
 
 from factory.nav.footprint import Footprint, unwrap_yaw, wrap
 from factory.nav.grid import OccupancyGrid
-from factory.nav.rrt import NAV_FAILED, BasePath, NavPlannerConfig, _seed
+from factory.nav.rrt import NAV_FAILED, BasePath, NavPlannerConfig, _seed, solve_rrt_connect
 
 log = logging.getLogger(__name__)
 
@@ -145,23 +145,15 @@ def plan_se2_path(
         g.setY(float(goal[1]))
         g.setYaw(float(wrap(goal[2])))
         setup.setStartAndGoalStates(s, g)
-        info = setup.getSpaceInformation()
         # the SE(2) metric weighs yaw by 0.5 m/rad; footprint points move up to ``reach``
         # m/rad, so the edge step is scaled down to keep them within ``edge_step`` cells
         scale = max(1.0, footprint.reach / 0.5)
-        info.setStateValidityCheckingResolution(
-            res * cfg.edge_step / scale / max(space.getMaximumExtent(), 1e-9)
+        sol = solve_rrt_connect(
+            setup, cfg, res * cfg.edge_step / scale / max(space.getMaximumExtent(), 1e-9), attempt
         )
-        planner = og.RRTConnect(info)
-        if cfg.range > 0:
-            planner.setRange(cfg.range)
-        setup.setPlanner(planner)
-        solved = setup.solve(cfg.timeout)
-        if not solved or str(solved) != "Exact solution":
-            detail = f"RRTConnect found no path in {cfg.timeout:.1f} s ({attempt + 1} attempts)"
+        if isinstance(sol, str):
+            detail = sol
             continue
-        setup.simplifySolution(cfg.simplify)
-        sol = setup.getSolutionPath()
         path = np.array(
             [
                 [sol.getState(k).getX(), sol.getState(k).getY(), sol.getState(k).getYaw()]
