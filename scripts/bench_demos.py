@@ -2,13 +2,15 @@
 and failure reasons, planning time per segment, rendering frames/s.
 
     python scripts/bench_demos.py [--scenes 2] [--episodes 4] [--cores 1] [--batch 16]
-        [--executor cpu|warp] [--gpu-batch 512] [--workers N]
+        [--executor cpu|warp] [--gpu-batch 512] [--workers N] [--task pick_place|mobile_pick_place]
+        [--runs cold warm] [--set KEY=VALUE ...]
         [--run-dir runs/bench_demos] [--out benchmarks/results/demos-cpu1.json]
 
 ``--executor warp`` runs the episodes on the GPU (MuJoCo Warp worlds and batch renderer) with
 ``--workers`` planning processes (default: cores - 1).
 
-Scenes are generated first (kitchens with a pick-and-place task; not timed; kept in
+Scenes are generated first (kitchens with a pick-and-place task, or living rooms with a mobile
+"move the can from the coffee table to the desk" task; not timed; kept in
 ``--run-dir`` and reused). ``stage=demos`` then runs through the real CLI on ``--cores`` cores
 (``taskset``; planning workers, simulation threads and Mesa's renderer threads all limited to
 them) twice: a cold run into an empty episode store and a warm run after deleting the episodes
@@ -30,7 +32,13 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PROMPT = "a kitchen where the robot picks up a mug and puts it in the bowl"
+PROMPTS = {
+    "pick_place": "a kitchen where the robot picks up a mug and puts it in the bowl",
+    "mobile_pick_place": (
+        "a living room where the robot moves the coke can from the coffee table to the desk"
+    ),
+}
+"""The generation request of each task's benchmark scenes."""
 
 
 def _cli(args: list[str], cores: int, env: dict[str, str]) -> float:
@@ -94,6 +102,12 @@ def main() -> None:
     p.add_argument("--gpu-batch", type=int, default=512)
     p.add_argument("--workers", type=int, default=0, help="0: --cores (cpu), cores - 1 (warp)")
     p.add_argument(
+        "--task",
+        default="pick_place",
+        choices=sorted(PROMPTS),
+        help="mobile_pick_place: living rooms, CPU executor (one episode at a time per worker)",
+    )
+    p.add_argument(
         "--runs",
         nargs="+",
         default=["cold", "warm"],
@@ -119,7 +133,7 @@ def main() -> None:
             [
                 "stage=generate",
                 f"run_dir={run}",
-                f"generate.prompts=[{PROMPT}]",
+                f"generate.prompts=[{PROMPTS[args.task]}]",
                 f"generate.scenes_per_prompt={args.scenes}",
                 "generate.render=false",
             ],
@@ -135,6 +149,7 @@ def main() -> None:
             [
                 "stage=demos",
                 f"run_dir={run}",
+                f"task={args.task}",
                 f"demos.episodes_per_scene={args.episodes}",
                 f"demos.workers={workers}",
                 f"demos.batch={args.batch}",
@@ -196,12 +211,14 @@ def main() -> None:
             "gpu": _gpu_name(),
         },
         "executor": args.executor,
+        "task": args.task,
         "workers": workers,
         "scenes": args.scenes,
         "episodes_per_scene": args.episodes,
         "results": results,
     }
-    name = f"demos-{'gpu' if args.executor == 'warp' else 'cpu'}{args.cores}.json"
+    kind = "mobile-" if args.task == "mobile_pick_place" else ""
+    name = f"demos-{kind}{'gpu' if args.executor == 'warp' else 'cpu'}{args.cores}.json"
     path = args.out or ROOT / "benchmarks" / "results" / name
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=2) + "\n")
