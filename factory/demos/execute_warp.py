@@ -188,6 +188,10 @@ class WarpExecutor:
         graph: capture one recording period into a CUDA graph (CUDA only).
         broadphase: MuJoCo Warp's broadphase (``nxn``, ``sap_tile``, ``sap_segmented``);
             None keeps its own choice (by the number of geom pairs).
+        arenas: allocate each call's recordings in shared memory arenas taken from this
+            :class:`~factory.demos.shared_frames.ArenaPool` (Linux), so that writer processes
+            read them in place; :meth:`take_arenas` hands them over (to be given back to the
+            pool once written). None: ordinary numpy arrays.
     """
 
     def __init__(
@@ -197,6 +201,7 @@ class WarpExecutor:
         device: str | None = None,
         graph: bool = True,
         broadphase: str | None = None,
+        arenas: Any = None,
     ) -> None:
         import mujoco_warp as mjw
         import warp as wp
@@ -218,6 +223,14 @@ class WarpExecutor:
         if broadphase is not None:
             self.m.opt.broadphase = mjw.BroadphaseType[broadphase.upper()]
         self.times = WarpTimes()
+        self.arenas = arenas
+        self._arenas: list[Any] = []
+
+    def take_arenas(self) -> list[Any]:
+        """The shared memory arenas holding the recordings of the calls since the last
+        :meth:`take_arenas` (give them back to the pool once nothing reads them any more)."""
+        out, self._arenas = self._arenas, []
+        return out
 
     def _render_context(self, n: int) -> Any:
         cfg = self.cfg
@@ -291,7 +304,11 @@ class WarpExecutor:
             k = min(len(p.targets), steps)
             targets[i, :k] = p.targets[:k]
             targets[i, k:] = p.targets[-1]
-        frames = _Frames.allocate(total + 1, n, nstate, cfg)
+        arena = None
+        if self.arenas is not None:
+            arena = self.arenas.take(_Frames.nbytes(total + 1, n, nstate, cfg))
+            self._arenas.append(arena)
+        frames = _Frames.allocate(total + 1, n, nstate, cfg, arena)
         ncam = len(cfg.cameras) if cfg.render else 0
         npix = cfg.width * cfg.height
         pick = model.body(setup.objects.pick.id).id
@@ -374,7 +391,8 @@ class WarpExecutor:
                 wp.synchronize()
                 return {k: a.numpy() for k, a in mirrors.items()}
 
-            self.times.setup += time.perf_counter() - t0
+            setup_s = time.perf_counter() - t0
+            self.times.setup += setup_s
             captured = None
             copy_s = frames_s = 0.0
             t1 = time.perf_counter()
@@ -427,7 +445,19 @@ class WarpExecutor:
         for r in recs:
             r.sim_seconds = frames_s / n
             r.render_seconds = copy_s / n
-        self.times.finish += time.perf_counter() - t3
+        finish_s = time.perf_counter() - t3
+        self.times.finish += finish_s
+        log.info(
+            "warp call: %d worlds x %d frames (%d steps each): setup %.1f s, GPU and copies "
+            "%.1f s, filing %.1f s, success checks %.1f s",
+            n,
+            total + 1,
+            steps,
+            setup_s,
+            frames_s,
+            copy_s,
+            finish_s,
+        )
         return recs
 
     def _record(
@@ -509,19 +539,48 @@ class _Frames:
     rgb: dict[str, np.ndarray]
     depth: dict[str, np.ndarray]
 
-    @classmethod
-    def allocate(cls, f: int, n: int, nstate: int, cfg: RecordConfig) -> _Frames:
+    @staticmethod
+    def specs(f: int, n: int, nstate: int, cfg: RecordConfig) -> dict[str, Any]:
+        """``name -> (shape, dtype)`` of every buffer (``rgb/<cam>``, ``depth/<cam>``)."""
         depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
         cams = cfg.cameras if cfg.render else ()
+        out: dict[str, Any] = {
+            "state": ((f, n, nstate), np.float64),
+            "joint_pos": ((f, n, 7), np.float64),
+            "gripper": ((f, n, 1), np.float64),
+            "ee_pose": ((f, n, 7), np.float64),
+            "action": ((f, n, 8), np.float64),
+            "env_state": ((f, n, 14), np.float64),
+        }
+        for c in cams:
+            out[f"rgb/{c}"] = ((f, n, cfg.height, cfg.width, 3), np.uint8)
+            out[f"depth/{c}"] = ((f, n, cfg.height, cfg.width), depth_type)
+        return out
+
+    @classmethod
+    def nbytes(cls, f: int, n: int, nstate: int, cfg: RecordConfig) -> int:
+        """Bytes of every buffer together (page-aligned, as an arena places them)."""
+        from factory.demos.shared_frames import Arena
+
+        return Arena.bytes_for(list(cls.specs(f, n, nstate, cfg).values()))
+
+    @classmethod
+    def allocate(cls, f: int, n: int, nstate: int, cfg: RecordConfig, arena: Any = None) -> _Frames:
+        """Buffers for ``f`` frames of ``n`` worlds: zero-filled, or in ``arena`` as they
+        are (:meth:`WarpExecutor._record` writes every element of every frame)."""
+        made = {
+            k: (np.zeros(shape, dt) if arena is None else arena.empty(shape, dt))
+            for k, (shape, dt) in cls.specs(f, n, nstate, cfg).items()
+        }
         return cls(
-            state=np.zeros((f, n, nstate)),
-            joint_pos=np.zeros((f, n, 7)),
-            gripper=np.zeros((f, n, 1)),
-            ee_pose=np.zeros((f, n, 7)),
-            action=np.zeros((f, n, 8)),
-            env_state=np.zeros((f, n, 14)),
-            rgb={c: np.zeros((f, n, cfg.height, cfg.width, 3), np.uint8) for c in cams},
-            depth={c: np.zeros((f, n, cfg.height, cfg.width), depth_type) for c in cams},
+            state=made["state"],
+            joint_pos=made["joint_pos"],
+            gripper=made["gripper"],
+            ee_pose=made["ee_pose"],
+            action=made["action"],
+            env_state=made["env_state"],
+            rgb={k[4:]: a for k, a in made.items() if k.startswith("rgb/")},
+            depth={k[6:]: a for k, a in made.items() if k.startswith("depth/")},
         )
 
     def recordings(self, n_frames: list[int], cfg: RecordConfig) -> list[Recording]:

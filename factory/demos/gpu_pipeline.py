@@ -4,7 +4,8 @@ Scenes are taken one after another. The episode slots of a scene are planned in 
 ``spawn``ed worker processes (one plan per task, each worker keeping the scene's planner), the
 plans are executed and recorded together as the worlds of one MuJoCo Warp model
 (:class:`~factory.demos.execute_warp.WarpExecutor`, up to ``demos.gpu_batch`` worlds per
-call), and the successful recordings are written by a few threads while the GPU goes on. While
+call), and the successful recordings are written by a few processes while the GPU goes on; they
+read the images in place from the call's shared memory (:mod:`factory.demos.shared_frames`). While
 the GPU runs a scene, the pool already plans the next scene's episodes, so neither waits for
 the other as long as planning keeps up. Failed slots are planned again with their next seed
 (``demos.attempts``), exactly as on the CPU path: the same seeds give the same plans, so the CPU
@@ -19,6 +20,8 @@ import time
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any
 
+from factory.demos import shared_frames
+from factory.demos.shared_frames import ArenaPool, share
 from factory.demos.slots import (
     StageEnv,
     WorkItem,
@@ -37,15 +40,34 @@ from factory.errors import FactoryError
 log = logging.getLogger(__name__)
 
 
-def plan_slot(env: StageEnv, scene_id: str, slot: int, attempt: int) -> tuple[int, int, Any]:
-    """Plans one episode slot in a worker: ``(slot, seed, EpisodePlan | PlanFailure | str)``
-    (a string: the scene cannot host the task, and why)."""
+def plan_slot(
+    env: StageEnv, scene_id: str, slot: int, attempt: int
+) -> tuple[int, int, Any, int, list[tuple[str, str]]]:
+    """Plans one episode slot in a worker, trying the slot's next seeds (attempts ``attempt``,
+    ``attempt + 1``, ... below ``demos.attempts``) until one plans, as the CPU path does.
+
+    Returns:
+        ``(slot, seed, result, attempt, failed)``: the result is an ``EpisodePlan``, the last
+        ``PlanFailure``, or a string (the scene cannot host the task, and why); ``attempt`` is
+        the attempt of the result; ``failed`` the ``(reason, detail)`` of the attempts that did
+        not plan.
+    """
+    from factory.demos.pick_place import EpisodePlan
+
     try:
         _, planner = cached_setup(env, scene_id)
     except FactoryError as e:
-        return slot, 0, str(e)
-    seed = episode_seed(env.seed, scene_id, slot, attempt)
-    return slot, seed, planner.plan_episode(seed, env.demos.randomize)
+        return slot, 0, str(e), attempt, []
+    failed: list[tuple[str, str]] = []
+    while True:
+        seed = episode_seed(env.seed, scene_id, slot, attempt)
+        res = planner.plan_episode(seed, env.demos.randomize)
+        if isinstance(res, EpisodePlan):
+            return slot, seed, res, attempt, failed
+        failed.append((res.reason, res.detail))
+        if attempt + 1 >= env.demos.attempts:
+            return slot, seed, res, attempt, failed
+        attempt += 1
 
 
 WRITERS = 6
@@ -60,25 +82,40 @@ buffers; the episodes' recordings are views into them). The previous call's reco
 still be in memory while they are written, so two calls take at most 70 % of it."""
 
 
-def worlds_that_fit(plans: list[Any], rec_cfg: Any, timestep: float) -> int:
+def memory_budget() -> int | None:
+    """Bytes one GPU call's recordings may take: :data:`HOST_MEMORY_SHARE` of the host's
+    available memory now (None where the platform does not say)."""
+    import os
+
+    try:
+        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError):  # pragma: no cover - non-POSIX
+        return None
+    return int(HOST_MEMORY_SHARE * avail)
+
+
+def worlds_that_fit(
+    plans: list[Any], rec_cfg: Any, timestep: float, budget: int | None = None
+) -> int:
     """How many of ``plans`` one GPU call may record without exhausting host memory.
 
     A world's recording holds ``frames x cameras x height x width`` pixels of RGB (3 bytes) and
     depth (2 or 4 bytes) plus small per-frame signals; frames come from the longest plan.
-    """
-    import os
 
+    Args:
+        budget: bytes the call may take; None: :func:`memory_budget` now.
+    """
     if not plans:
         return 1
     frames = max(len(p.ctrl) for p in plans) * timestep * rec_cfg.fps + 2
     depth_bytes = 2 if rec_cfg.depth == "uint16_mm" else 4
     pixels = len(rec_cfg.cameras) * rec_cfg.height * rec_cfg.width if rec_cfg.render else 0
     per_world = frames * (pixels * (3 + depth_bytes) + 4096)
-    try:
-        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError):  # pragma: no cover - non-POSIX
+    if budget is None:
+        budget = memory_budget()
+    if budget is None:  # pragma: no cover - non-POSIX
         return len(plans)
-    return max(1, int(HOST_MEMORY_SHARE * avail // per_world))
+    return max(1, int(budget // per_world))
 
 
 def length_chunks(
@@ -87,6 +124,7 @@ def length_chunks(
     rec_cfg: Any,
     timestep: float,
     scene_id: str = "",
+    budget: int | None = None,
 ) -> list[list[tuple[int, int, Any]]]:
     """The planned episodes of a scene in GPU calls of similar length.
 
@@ -102,6 +140,8 @@ def length_chunks(
         gpu_batch: most worlds per call.
         rec_cfg: the recording config (frames, cameras, image size).
         timestep: physics step (s).
+        scene_id: for the log.
+        budget: bytes of host memory a call may take (None: :func:`memory_budget` now).
 
     Returns:
         the calls, each a list of ``planned`` items, shortest episodes first.
@@ -114,11 +154,13 @@ def length_chunks(
     while start < len(order):
         rest = len(order) - start
         size = min(gpu_batch, rest)
-        fit = worlds_that_fit([p for _, _, p in order[start : start + size]], rec_cfg, timestep)
+        chunk = [p for _, _, p in order[start : start + size]]
+        fit = worlds_that_fit(chunk, rec_cfg, timestep, budget)
         while fit < size:  # fewer, shorter episodes: fits better
             size = max(1, fit)
             capped = True
-            fit = worlds_that_fit([p for _, _, p in order[start : start + size]], rec_cfg, timestep)
+            chunk = [p for _, _, p in order[start : start + size]]
+            fit = worlds_that_fit(chunk, rec_cfg, timestep, budget)
         calls = -(-rest // size)
         size = -(-rest // calls)  # the calls left of equal size
         out.append(order[start : start + size])
@@ -170,7 +212,21 @@ def run_gpu(
         attempts = {s: dict.fromkeys(by_scene[s], 0) for s in scenes}
         pending: dict[str, list[Future[Any]]] = {}
         setups: dict[str, Future[Any]] = {}
-        in_flight: list[list[Future[Any]]] = []  # each GPU call's writes, oldest first
+        # Each GPU call's writes and the shared memory they read, oldest first.
+        in_flight: list[tuple[list[Future[Any]], list[Any]]] = []
+
+        # One budget for the whole run: the arenas of earlier calls keep their pages (reused),
+        # so the memory available later says less than what a call may take.
+        budget = memory_budget()
+        arena_pool = ArenaPool(budget or 0) if shared_frames.supported() else None
+
+        def settle(writes: list[Future[Any]], arenas: list[Any]) -> None:
+            for w in writes:
+                w.result()
+            for arena in arenas:
+                assert arena_pool is not None
+                arena_pool.give(arena)
+
         if scenes:
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
             setups[scenes[0]] = prep.submit(scene_planner, env.run_dir, scenes[0], dc)
@@ -195,7 +251,7 @@ def run_gpu(
             out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
             out["cleared"] = list(setup.cleared)
             instruction = episode_instruction(setup)
-            executor = WarpExecutor(setup, rec_cfg, device=device)
+            executor = WarpExecutor(setup, rec_cfg, device=device, arenas=arena_pool)
             attempt = attempts[sid]
             t_scene = time.perf_counter()
             waited = {"plans": 0.0, "writes": 0.0}
@@ -206,29 +262,29 @@ def run_gpu(
                     f.result()
                 waited["plans"] += time.perf_counter() - t_wait
                 for f in futures:
-                    k, seed, res = f.result()
+                    k, seed, res, attempt[k], failed = f.result()
+                    for reason, detail in failed:
+                        out["failures"][reason] += 1
+                        log.info("scene %s slot %d: plan failed: %s", sid, k, detail)
                     if isinstance(res, EpisodePlan):
                         planned.append((k, seed, res))
                         out["plan"].append(res.seconds)
                         out["segments"].extend(res.plan_seconds.values())
                     elif isinstance(res, str):
                         out["failures"]["scene_unusable"] += 1
-                    else:
-                        out["failures"][res.reason] += 1
-                        log.info("scene %s slot %d: plan failed: %s", sid, k, res.detail)
                 done: set[int] = set()
                 for chunk in length_chunks(
-                    planned, dc.gpu_batch, rec_cfg, setup.model.opt.timestep, sid
+                    planned, dc.gpu_batch, rec_cfg, setup.model.opt.timestep, sid, budget
                 ):
                     # At most two calls' recordings in memory: this one's and the last one's
                     # (still being written).
                     t_wait = time.perf_counter()
                     while len(in_flight) > 1:
-                        for w in in_flight.pop(0):
-                            w.result()
+                        settle(*in_flight.pop(0))
                     waited["writes"] += time.perf_counter() - t_wait
                     t0 = time.perf_counter()
                     recs = executor.execute([p for _, _, p in chunk])
+                    arenas = executor.take_arenas()
                     out["simulate"] += time.perf_counter() - t0
                     writes: list[Future[Any]] = []
                     for (k, seed, plan), rec in zip(chunk, recs, strict=True):
@@ -239,15 +295,17 @@ def run_gpu(
                         meta, arrays = episode_payload(
                             env, setup, k, seed, plan, rec, rec_cfg, instruction
                         )
+                        # Images stay in the shared arena: the writer maps them.
+                        arrays = share(arrays, arenas)
                         writes.append(writers.submit(store_episode, str(store.path), meta, arrays))
                         out["frames"] += len(rec.time)
                         out["new"] += 1
                         done.add(k)
-                    in_flight.append(writes)
+                    in_flight.append((writes, arenas))
                     del recs
-                retry = []
-                for k, _, res in [(k, s, r) for k, s, r in ((f.result()) for f in futures)]:
-                    if k in done or isinstance(res, str):
+                retry = []  # slots whose plan failed in execution: their next seed
+                for k, _, res, _, _ in (f.result() for f in futures):
+                    if k in done or not isinstance(res, EpisodePlan):
                         continue
                     attempt[k] += 1
                     if attempt[k] < dc.attempts:
@@ -267,7 +325,8 @@ def run_gpu(
                 waited["plans"],
                 waited["writes"],
             )
-        for writes in in_flight:
-            for w in writes:
-                w.result()
+        for writes, arenas in in_flight:
+            settle(writes, arenas)
+        if arena_pool is not None:
+            arena_pool.close()
     return results

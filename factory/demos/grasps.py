@@ -301,6 +301,101 @@ def pad_contacts(
     return np.asarray(good.reshape(n, len(offs)).mean(1))
 
 
+@dataclass
+class _Pairs:
+    """Antipodal pairs of surface samples and every approach around each (object frame).
+
+    Attributes:
+        sample: (m,) index of each pair's surface sample.
+        pts: (m, 3) the first finger's contact point.
+        axis: (m, 3) closing axis.
+        width: (m,) span (m).
+        quality: (m,) exit normal along the axis (cosine).
+        dirs: (m, A, 3) approach directions (unit, perpendicular to the axis).
+    """
+
+    sample: np.ndarray
+    pts: np.ndarray
+    axis: np.ndarray
+    width: np.ndarray
+    quality: np.ndarray
+    dirs: np.ndarray
+
+
+def _antipodal_pairs(
+    pieces: list[Piece], pts: np.ndarray, nrm: np.ndarray, cfg: GraspConfig
+) -> _Pairs:
+    """The antipodal, holdable pairs among surface samples ``pts`` (k, 3) with normals ``nrm``."""
+    axis = -nrm
+    t_in, t_out, exit_n = _line_intervals(pieces, pts, axis)
+    t_exit, which, nxt = _union_exit(t_in, t_out)
+    open_w = 2 * PANDA.finger_max
+    ok = np.isfinite(t_exit) & (t_exit >= cfg.min_width) & (t_exit <= open_w - cfg.width_margin)
+    # The far finger must not meet more material on its way in (e.g. a handle behind a wall).
+    ok &= ~(nxt < t_exit / 2 + open_w / 2 + 0.01)
+    idx = np.flatnonzero(ok)
+    n_exit = exit_n[idx, which[idx]]
+    quality = np.einsum("ij,ij->i", n_exit, axis[idx])
+    cone = 1 / np.sqrt(1 + cfg.friction**2)
+    good = quality >= cone
+    idx, quality = idx[good], quality[good]
+    a = axis[idx]  # (m, 3)
+    helper = np.where(
+        (np.abs(a[:, 2]) < 0.9)[:, None], np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    )
+    u = np.cross(a, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(a, u)
+    th = np.linspace(0, 2 * np.pi, cfg.approaches, endpoint=False)
+    dirs = np.cos(th)[None, :, None] * u[:, None] + np.sin(th)[None, :, None] * v[:, None]
+    return _Pairs(idx, pts[idx], a, t_exit[idx], quality, dirs.reshape(len(idx), len(th), 3))
+
+
+def _ranked(
+    pairs: _Pairs,
+    pair: np.ndarray,
+    d: np.ndarray,
+    down: np.ndarray,
+    contact: np.ndarray,
+    com_in_obj: np.ndarray | None,
+) -> list[Grasp]:
+    """Grasps of (pair index, approach ``d``) candidates, scored, best per cell, best first."""
+    open_w = 2 * PANDA.finger_max
+    a, width = pairs.axis, pairs.width
+    centre = pairs.pts + a * width[:, None] / 2
+    com = np.zeros(3) if com_in_obj is None else np.asarray(com_in_obj)
+    off = np.linalg.norm(np.cross(centre[pair] - com, d), axis=1)
+    q = pairs.quality[pair]
+    score = 0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width[pair] / open_w)
+    # Many samples give nearly the same approach: keep the best per (centre, approach) cell.
+    order = np.argsort(-score, kind="stable")
+    keys = np.concatenate(
+        [np.round(centre[pair] / 0.01).astype(int), np.round(d * 4).astype(int)], axis=1
+    )
+    _, first = np.unique(keys[order], axis=0, return_index=True)
+    out: list[Grasp] = []
+    for j in order[np.sort(first)]:
+        p = pair[j]
+        ai, dj = a[p], d[j]
+        pose = np.eye(4)
+        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = ai, np.cross(dj, ai), dj, centre[p]
+        out.append(
+            Grasp(
+                pose,
+                float(width[p]),
+                float(q[j]),
+                float(contact[j]),
+                float(score[j]),
+                np.stack([pairs.pts[p], pairs.pts[p] + ai * width[p]]),
+            )
+        )
+    return out
+
+
+def _down_obj(rot_obj_in_world: np.ndarray) -> np.ndarray:
+    return np.asarray(rot_obj_in_world).T @ np.array([0.0, 0.0, -1.0])
+
+
 def antipodal_candidates(
     pieces: list[Piece],
     rot_obj_in_world: np.ndarray,
@@ -321,73 +416,81 @@ def antipodal_candidates(
         candidates sorted by score (best first).
     """
     pts, nrm = _sample_surface(pieces, cfg.samples, rng)
-    axis = -nrm
-    t_in, t_out, exit_n = _line_intervals(pieces, pts, axis)
-    t_exit, which, nxt = _union_exit(t_in, t_out)
-    open_w = 2 * PANDA.finger_max
-    ok = np.isfinite(t_exit) & (t_exit >= cfg.min_width) & (t_exit <= open_w - cfg.width_margin)
-    # The far finger must not meet more material on its way in (e.g. a handle behind a wall).
-    ok &= ~(nxt < t_exit / 2 + open_w / 2 + 0.01)
-    idx = np.flatnonzero(ok)
-    n_exit = exit_n[idx, which[idx]]
-    quality = np.einsum("ij,ij->i", n_exit, axis[idx])
-    cone = 1 / np.sqrt(1 + cfg.friction**2)
-    good = quality >= cone
-    idx, quality = idx[good], quality[good]
-    com = np.zeros(3) if com_in_obj is None else np.asarray(com_in_obj)
-    down_obj = rot_obj_in_world.T @ np.array([0.0, 0.0, -1.0])
-    min_down = np.cos(np.radians(cfg.max_tilt_deg))
-    # Every (pair, approach) at once, in the order (pair, approach angle).
-    a = axis[idx]  # (m, 3)
-    width = t_exit[idx]
-    centre = pts[idx] + a * width[:, None] / 2
-    helper = np.where(
-        (np.abs(a[:, 2]) < 0.9)[:, None], np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
-    )
-    u = np.cross(a, helper)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    v = np.cross(a, u)
-    th = np.linspace(0, 2 * np.pi, cfg.approaches, endpoint=False)
-    d = np.cos(th)[None, :, None] * u[:, None] + np.sin(th)[None, :, None] * v[:, None]
-    pair = np.repeat(np.arange(len(idx)), len(th))
-    d = d.reshape(-1, 3)
-    down = d @ down_obj
-    keep = down >= min_down
+    pairs = _antipodal_pairs(pieces, pts, nrm, cfg)
+    pair = np.repeat(np.arange(len(pairs.sample)), cfg.approaches)
+    d = pairs.dirs.reshape(-1, 3)
+    down = d @ _down_obj(rot_obj_in_world)
+    keep = down >= np.cos(np.radians(cfg.max_tilt_deg))
     pair, d, down = pair[keep], d[keep], down[keep]
-    contact = pad_contacts(pieces, pts[idx][pair], a[pair], d, width[pair], cfg.pad_half)
+    contact = pad_contacts(
+        pieces, pairs.pts[pair], pairs.axis[pair], d, pairs.width[pair], cfg.pad_half
+    )
     keep = contact >= cfg.min_contact
-    pair, d, down, contact = pair[keep], d[keep], down[keep], contact[keep]
-    off = np.linalg.norm(np.cross(centre[pair] - com, d), axis=1)
-    q = quality[pair]
-    score = 0.5 * q + 0.35 * down + 0.4 * contact - 0.8 * off + 0.15 * (1 - width[pair] / open_w)
-    out: list[Grasp] = []
-    for j, p in enumerate(pair):
-        ai, dj = a[p], d[j]
-        pose = np.eye(4)
-        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = ai, np.cross(dj, ai), dj, centre[p]
-        i = idx[p]
-        out.append(
-            Grasp(
-                pose,
-                float(width[p]),
-                float(q[j]),
-                float(contact[j]),
-                float(score[j]),
-                np.stack([pts[i], pts[i] + ai * width[p]]),
+    return _ranked(pairs, pair[keep], d[keep], down[keep], contact[keep], com_in_obj)
+
+
+class GraspPool:
+    """The antipodal pairs of one object, computed once, from which each episode draws.
+
+    :func:`antipodal_candidates` samples the surface, intersects lines and probes the finger
+    pads anew for every episode, about half of an episode's planning time, although the object's
+    shape never changes between the episodes of a scene. A pool samples ``factor`` times the
+    samples once and intersects their lines; an episode then draws ``cfg.samples`` of those
+    samples with its own generator and keeps their pairs: the same kind of candidates, as
+    random per episode. The finger pads of a (pair, approach) are probed the first time an
+    episode needs them and kept.
+
+    Args:
+        pieces: the object's convex pieces, object frame.
+        cfg: sampling parameters.
+        seed: the pool's samples (deterministic per seed).
+        com_in_obj: centre of mass (3,), object frame.
+        factor: samples in the pool per ``cfg.samples``.
+    """
+
+    def __init__(
+        self,
+        pieces: list[Piece],
+        cfg: GraspConfig,
+        seed: int,
+        com_in_obj: np.ndarray | None = None,
+        factor: int = 4,
+    ) -> None:
+        self.cfg = cfg
+        self.com = com_in_obj
+        self.size = cfg.samples * factor
+        pts, nrm = _sample_surface(pieces, self.size, np.random.default_rng(seed))
+        self.size = len(pts)
+        self.pairs = _antipodal_pairs(pieces, pts, nrm, cfg)
+        m, na = len(self.pairs.sample), cfg.approaches
+        self._pair = np.repeat(np.arange(m), na)
+        self._d = self.pairs.dirs.reshape(-1, 3)
+        self._pieces = pieces
+        # Pad contacts are probed when an episode first needs them (NaN: not yet).
+        self._contact = np.full(len(self._pair), np.nan)
+
+    def candidates(self, rot_obj_in_world: np.ndarray, rng: np.random.Generator) -> list[Grasp]:
+        """Candidates of one episode (as :func:`antipodal_candidates`), best first.
+
+        Args:
+            rot_obj_in_world: the object's orientation (3, 3).
+            rng: the episode's generator (draws which pool samples take part).
+        """
+        cfg = self.cfg
+        drawn = np.zeros(self.size, bool)
+        drawn[rng.choice(self.size, min(cfg.samples, self.size), replace=False)] = True
+        down = self._d @ _down_obj(rot_obj_in_world)
+        keep = drawn[self.pairs.sample[self._pair]] & (down >= np.cos(np.radians(cfg.max_tilt_deg)))
+        need = np.flatnonzero(keep & np.isnan(self._contact))
+        if len(need):
+            p, pair = self.pairs, self._pair[need]
+            self._contact[need] = pad_contacts(
+                self._pieces, p.pts[pair], p.axis[pair], self._d[need], p.width[pair], cfg.pad_half
             )
+        keep &= self._contact >= cfg.min_contact
+        return _ranked(
+            self.pairs, self._pair[keep], self._d[keep], down[keep], self._contact[keep], self.com
         )
-    # Many samples give nearly the same approach: keep the best per (centre, approach) cell.
-    out.sort(key=lambda g: -g.score)
-    seen: set[tuple[int, ...]] = set()
-    unique = []
-    for g in out:
-        key = tuple(np.round(g.pose_tool_in_obj[:3, 3] / 0.01).astype(int)) + tuple(
-            np.round(g.pose_tool_in_obj[:3, 2] * 4).astype(int)
-        )
-        if key not in seen:
-            seen.add(key)
-            unique.append(g)
-    return unique
 
 
 def facing_order(

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import time
+import zlib
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -24,8 +25,8 @@ import numpy as np
 from factory.demos.grasps import (
     Grasp,
     GraspConfig,
+    GraspPool,
     GripperShape,
-    antipodal_candidates,
     collision_pieces,
     facing_order,
     gripper_clear,
@@ -539,6 +540,7 @@ class EpisodePlanner:
         jnt = int(m.body_jntadr[self.pick_body])
         self.pick_adr = int(m.jnt_qposadr[jnt])
         self.pieces = collision_pieces(m, self.pick_body)
+        self._pool: GraspPool | None = None
         self.base = setup.placement.matrix()
         self.base_inv = np.linalg.inv(self.base)
         self.dt = float(m.opt.timestep)
@@ -552,13 +554,12 @@ class EpisodePlanner:
 
     def _grasps(self, data: mujoco.MjData) -> list[Grasp]:
         pose = pose_matrix(data.xpos[self.pick_body], data.xmat[self.pick_body])
-        cands = antipodal_candidates(
-            self.pieces,
-            pose[:3, :3],
-            self.grasp_cfg,
-            self._rng,
-            self.model.body_ipos[self.pick_body],
-        )
+        if self._pool is None:  # the object's pairs, once per planner (deterministic)
+            key = f"{self.setup.scene.id}/{self.setup.objects.pick.id}".encode()
+            self._pool = GraspPool(
+                self.pieces, self.grasp_cfg, zlib.crc32(key), self.model.body_ipos[self.pick_body]
+            )
+        cands = self._pool.candidates(pose[:3, :3], self._rng)
         cands = facing_order(cands, pose, self.base[:2, 3], self.grasp_facing)
         out = []
         back = np.eye(4)

@@ -98,6 +98,7 @@ class CollisionChecker:
         self._robot = np.zeros(m.ngeom, bool)
         self._robot[robot.geoms] = True
         self._ignore = np.zeros(m.ngeom, bool)
+        self._q_min, self._q_max = np.array(PANDA.q_min), np.array(PANDA.q_max)
         self.checks = 0
 
     def set_scene(self, qpos: np.ndarray) -> None:
@@ -142,32 +143,45 @@ class CollisionChecker:
             d.qpos[att.qpos_adr + 3 : att.qpos_adr + 7] = quat
             mujoco.mj_kinematics(m, d)
 
-    def collisions(self, q: np.ndarray) -> list[tuple[str, str, float]]:
-        """The offending contacts at arm joints ``q`` (7,): (body, body, distance m)."""
+    def _offending(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Geoms and distances of the offending contacts at arm joints ``q`` (7,): deeper
+        than the tolerance, not with an ignored body, not the grasped object between the
+        fingers; ``(g1, g2, dist)``, each (k,)."""
         self.checks += 1
         self._pose(q)
         d, m = self.data, self.model
         mujoco.mj_collision(m, d)
-        out = []
-        att_body = -1 if self.attached is None else self.attached.body
-        for c in d.contact[: d.ncon]:
-            if c.dist >= -self.tolerance:
-                continue
-            g1, g2 = int(c.geom[0]), int(c.geom[1])
-            if self._ignore[g1] or self._ignore[g2]:
-                continue
-            b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
-            if att_body in (b1, b2) and (self._finger[g1] or self._finger[g2]):
-                continue  # the grasped object between the fingers
-            out.append((m.body(b1).name, m.body(b2).name, float(c.dist)))
-        return out
+        if d.ncon == 0:
+            empty = np.zeros(0, int)
+            return empty, empty, np.zeros(0)
+        con, ncon = d.contact, d.ncon
+        dist = np.asarray(con.dist)[:ncon]
+        bad = np.flatnonzero(dist < -self.tolerance)
+        geom = np.asarray(con.geom)[:ncon][bad]
+        g1, g2, dist = geom[:, 0], geom[:, 1], dist[bad]
+        keep = ~(self._ignore[g1] | self._ignore[g2])
+        if self.attached is not None:
+            att = self.attached.body
+            body = m.geom_bodyid
+            held = ((body[g1] == att) | (body[g2] == att)) & (self._finger[g1] | self._finger[g2])
+            keep &= ~held
+        return g1[keep], g2[keep], dist[keep]
+
+    def collisions(self, q: np.ndarray) -> list[tuple[str, str, float]]:
+        """The offending contacts at arm joints ``q`` (7,): (body, body, distance m)."""
+        m = self.model
+        g1, g2, dist = self._offending(q)
+        return [
+            (m.body(int(m.geom_bodyid[a])).name, m.body(int(m.geom_bodyid[b])).name, float(x))
+            for a, b, x in zip(g1, g2, dist, strict=True)
+        ]
 
     def valid(self, q: np.ndarray) -> bool:
         """Whether arm joints ``q`` (7,) are within limits and collision-free."""
         q = np.asarray(q)
-        if (q < np.array(PANDA.q_min)).any() or (q > np.array(PANDA.q_max)).any():
+        if (q < self._q_min).any() or (q > self._q_max).any():
             return False
-        return not self.collisions(q)
+        return len(self._offending(q)[0]) == 0
 
     def segment_valid(self, q0: np.ndarray, q1: np.ndarray, step: float = 0.01) -> bool:
         """Whether the straight joint-space segment is valid at joint steps <= ``step`` rad."""

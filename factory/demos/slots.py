@@ -142,10 +142,13 @@ def episode_instruction(setup: Any) -> str:
 
 def store_episode(store_path: str, meta: Any, arrays: dict[str, np.ndarray]) -> None:
     """Writes one episode into the store at ``store_path`` (run in writer processes: each has
-    its own zarr event loop, so episodes compress and write in parallel)."""
+    its own zarr event loop, so episodes compress and write in parallel). Arrays given as
+    :class:`~factory.demos.shared_frames.SharedView` are read in place from the caller's
+    shared memory."""
     from factory.demos.episodes import EpisodeStore
+    from factory.demos.shared_frames import opened
 
-    EpisodeStore(store_path).write(meta, arrays)
+    EpisodeStore(store_path).write(meta, opened(arrays))
 
 
 def episode_payload(
