@@ -192,6 +192,10 @@ class WarpExecutor:
             :class:`~factory.demos.shared_frames.ArenaPool` (Linux), so that writer processes
             read them in place; :meth:`take_arenas` hands them over (to be given back to the
             pool once written). None: ordinary numpy arrays.
+        images_on_device: keep a call's images on the device until the call ends, then copy
+            them into an arena in one block per camera (needs ``arenas``): the host holds no
+            images while the call runs, so calls of many more worlds fit in host memory, and
+            the arena is taken only at the end, once the previous call's writes are done.
     """
 
     def __init__(
@@ -202,6 +206,7 @@ class WarpExecutor:
         graph: bool = True,
         broadphase: str | None = None,
         arenas: Any = None,
+        images_on_device: bool = False,
     ) -> None:
         import mujoco_warp as mjw
         import warp as wp
@@ -224,6 +229,7 @@ class WarpExecutor:
             self.m.opt.broadphase = mjw.BroadphaseType[broadphase.upper()]
         self.times = WarpTimes()
         self.arenas = arenas
+        self.images_on_device = images_on_device and arenas is not None
         self._arenas: list[Any] = []
 
     def take_arenas(self) -> list[Any]:
@@ -270,7 +276,7 @@ class WarpExecutor:
 
     def _execute(self, plans: list[EpisodePlan], headroom: float) -> list[Recording]:
         wp, mjw = self.wp, self.mjw
-        from factory.demos.warp_kernels import set_ctrl, tick, to_images
+        from factory.demos.warp_kernels import set_ctrl, tick, to_image_store, to_images
 
         cfg, setup = self.cfg, self.setup
         model, robot = setup.model, setup.robot
@@ -304,12 +310,13 @@ class WarpExecutor:
             k = min(len(p.targets), steps)
             targets[i, :k] = p.targets[:k]
             targets[i, k:] = p.targets[-1]
+        ncam = len(cfg.cameras) if cfg.render else 0
+        store = self.images_on_device and ncam > 0  # images stay on the device until the end
         arena = None
-        if self.arenas is not None:
+        if self.arenas is not None and not store:
             arena = self.arenas.take(_Frames.nbytes(total + 1, n, nstate, cfg))
             self._arenas.append(arena)
-        frames = _Frames.allocate(total + 1, n, nstate, cfg, arena)
-        ncam = len(cfg.cameras) if cfg.render else 0
+        frames = _Frames.allocate(total + 1, n, nstate, cfg, arena, images=not store)
         npix = cfg.width * cfg.height
         pick = model.body(setup.objects.pick.id).id
         target = model.body(setup.objects.target.id).id
@@ -334,12 +341,35 @@ class WarpExecutor:
                 depth_dev = mm_dev if mm else m_dev
                 rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
                 depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
+                if store:
+                    nf = total + 1
+                    frame_d = wp.zeros(1, dtype=int)
+                    rgb_store = wp.empty((ncam, nf, n, 3 * npix), dtype=wp.uint8)
+                    mm_store = wp.empty((ncam, nf, n, npix) if mm else (1, 1, 1, 1), wp.uint16)
+                    m_store = wp.empty((1, 1, 1, 1) if mm else (ncam, nf, n, npix), dtype=float)
 
             def draw() -> None:
                 if rc is None:
                     return
                 mjw.refit_bvh(self.m, d, rc)
                 mjw.render(self.m, d, rc)
+                if store:
+                    wp.launch(
+                        to_image_store,
+                        dim=(n, ncam, npix),
+                        inputs=[
+                            rc.rgb_data,
+                            rc.depth_data,
+                            rgb_adr,
+                            depth_adr,
+                            npix,
+                            int(mm),
+                            frame_d,
+                        ],
+                        outputs=[rgb_store, mm_store, m_store],
+                    )
+                    wp.launch(tick, dim=1, inputs=[frame_d])
+                    return
                 wp.launch(
                     to_images,
                     dim=(n, ncam, npix),
@@ -377,7 +407,7 @@ class WarpExecutor:
                 contact_dist=d.contact.dist,
                 contact_world=d.contact.worldid,
             )
-            if rc is not None:
+            if rc is not None and not store:
                 sources.update(rgb=rgb_dev, depth=depth_dev)
             sources = {k: a for k, a in sources.items() if a.size}
             mirrors = {
@@ -421,7 +451,7 @@ class WarpExecutor:
                     allowed,
                     worst,
                     (pick, target),
-                    rc is not None,
+                    rc is not None and not store,
                 )
                 t3 = time.perf_counter()
                 if f < total:
@@ -429,6 +459,11 @@ class WarpExecutor:
                 frames_s += (t2 - t1) + (time.perf_counter() - t3)
                 copy_s += t3 - t2
             overflow = d.overflow.numpy().copy()
+            if store:  # the call's images, one block per camera, into an arena
+                t4 = time.perf_counter()
+                frames.rgb, frames.depth = self._images_to_host(rgb_store, mm_store, m_store, n)
+                del rgb_store, mm_store, m_store
+                copy_s += time.perf_counter() - t4
         self.times.frames += frames_s
         self.times.copy += copy_s
         t3 = time.perf_counter()
@@ -459,6 +494,41 @@ class WarpExecutor:
             finish_s,
         )
         return recs
+
+    def _images_to_host(
+        self, rgb: Any, mm: Any, m: Any, n: int
+    ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Copies the device image stores of a call (``rgb``: (ncam, F, n, 3 H W) uint8;
+        ``mm``/``m``: (ncam, F, n, H W) depth) into an arena taken now from :attr:`arenas`.
+
+        Returns:
+            ``rgb[cam]`` (F, n, H, W, 3) and ``depth[cam]`` (F, n, H, W), views of the arena.
+        """
+        wp, cfg = self.wp, self.cfg
+        h, w = cfg.height, cfg.width
+        nf = rgb.shape[1]
+        depth = mm if cfg.depth == "uint16_mm" else m
+        dt = np.uint16 if cfg.depth == "uint16_mm" else np.float32
+        specs = [((nf, n, h, w, 3), np.uint8), ((nf, n, h, w), dt)] * len(cfg.cameras)
+        from factory.demos.shared_frames import Arena
+
+        arena = self.arenas.take(Arena.bytes_for(specs))
+        self._arenas.append(arena)
+        out_rgb: dict[str, np.ndarray] = {}
+        out_depth: dict[str, np.ndarray] = {}
+        for k, cam in enumerate(cfg.cameras):
+            out_rgb[cam] = arena.empty((nf, n, h, w, 3), np.uint8)
+            out_depth[cam] = arena.empty((nf, n, h, w), dt)
+            host = wp.array(
+                out_rgb[cam].reshape(nf, n, -1), dtype=wp.uint8, device="cpu", copy=False
+            )
+            wp.copy(host, rgb[k])
+            host = wp.array(
+                out_depth[cam].reshape(nf, n, -1), dtype=depth.dtype, device="cpu", copy=False
+            )
+            wp.copy(host, depth[k])
+        wp.synchronize()
+        return out_rgb, out_depth
 
     def _record(
         self,
@@ -565,12 +635,22 @@ class _Frames:
         return Arena.bytes_for(list(cls.specs(f, n, nstate, cfg).values()))
 
     @classmethod
-    def allocate(cls, f: int, n: int, nstate: int, cfg: RecordConfig, arena: Any = None) -> _Frames:
+    def allocate(
+        cls,
+        f: int,
+        n: int,
+        nstate: int,
+        cfg: RecordConfig,
+        arena: Any = None,
+        images: bool = True,
+    ) -> _Frames:
         """Buffers for ``f`` frames of ``n`` worlds: zero-filled, or in ``arena`` as they
-        are (:meth:`WarpExecutor._record` writes every element of every frame)."""
+        are (:meth:`WarpExecutor._record` writes every element of every frame); without
+        ``images`` the RGB and depth buffers are left out (filled in later)."""
         made = {
             k: (np.zeros(shape, dt) if arena is None else arena.empty(shape, dt))
             for k, (shape, dt) in cls.specs(f, n, nstate, cfg).items()
+            if images or not k.startswith(("rgb/", "depth/"))
         }
         return cls(
             state=made["state"],

@@ -82,16 +82,30 @@ buffers; the episodes' recordings are views into them). The previous call's reco
 still be in memory while they are written, so two calls take at most 70 % of it."""
 
 
-def memory_budget() -> int | None:
-    """Bytes one GPU call's recordings may take: :data:`HOST_MEMORY_SHARE` of the host's
-    available memory now (None where the platform does not say)."""
+GPU_MEMORY_SHARE = 0.6
+"""Share of the device's free memory a call's images may take when they stay on the device
+until the call ends (the rest: the worlds' physics data, the renderer and its buffers)."""
+
+
+def memory_budget(share: float = HOST_MEMORY_SHARE) -> int | None:
+    """Bytes one GPU call's recordings may take: ``share`` of the host's available memory now
+    (None where the platform does not say)."""
     import os
 
     try:
         avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError):  # pragma: no cover - non-POSIX
         return None
-    return int(HOST_MEMORY_SHARE * avail)
+    return int(share * avail)
+
+
+def device_budget(device: str) -> int | None:
+    """Bytes of a CUDA device's free memory a call's image store may take
+    (:data:`GPU_MEMORY_SHARE`); None on the CPU."""
+    import warp as wp
+
+    dev = wp.get_device(device)
+    return int(GPU_MEMORY_SHARE * dev.free_memory) if dev.is_cuda else None
 
 
 def worlds_that_fit(
@@ -215,10 +229,17 @@ def run_gpu(
         # Each GPU call's writes and the shared memory they read, oldest first.
         in_flight: list[tuple[list[Future[Any]], list[Any]]] = []
 
-        # One budget for the whole run: the arenas of earlier calls keep their pages (reused),
-        # so the memory available later says less than what a call may take.
-        budget = memory_budget()
-        arena_pool = ArenaPool(budget or 0) if shared_frames.supported() else None
+        # Images stay on the device during a call and go to host memory in one block at its
+        # end, once the previous call's writes are done: one call's recordings in host memory
+        # at a time (twice the share), and the device's memory bounds a call too.
+        shared = shared_frames.supported()
+        budget = memory_budget(2 * HOST_MEMORY_SHARE if shared else HOST_MEMORY_SHARE)
+        from factory.sim.backend import cuda_available
+
+        dev = device or ("cuda:0" if cuda_available() else "cpu")
+        on_device = device_budget(dev) if shared else None
+        if on_device is not None:
+            budget = on_device if budget is None else min(budget, on_device)
 
         def settle(writes: list[Future[Any]], arenas: list[Any]) -> None:
             for w in writes:
@@ -226,6 +247,12 @@ def run_gpu(
             for arena in arenas:
                 assert arena_pool is not None
                 arena_pool.give(arena)
+
+        def reclaim() -> None:
+            while in_flight:
+                settle(*in_flight.pop(0))
+
+        arena_pool = ArenaPool(budget or 0, reclaim) if shared else None
 
         if scenes:
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
@@ -251,7 +278,9 @@ def run_gpu(
             out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
             out["cleared"] = list(setup.cleared)
             instruction = episode_instruction(setup)
-            executor = WarpExecutor(setup, rec_cfg, device=device, arenas=arena_pool)
+            executor = WarpExecutor(
+                setup, rec_cfg, device=device, arenas=arena_pool, images_on_device=shared
+            )
             attempt = attempts[sid]
             t_scene = time.perf_counter()
             waited = {"plans": 0.0, "writes": 0.0}

@@ -20,6 +20,7 @@ import contextlib
 import mmap
 import os
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -150,16 +151,24 @@ class ArenaPool:
     Args:
         capacity: bytes of a new arena (at least what a call asks for); arenas are files whose
             pages are taken when first written, so an unused capacity costs nothing.
+        reclaim: called when no free arena fits, before a new one is made: it should wait for
+            the readers of arenas in use and :meth:`give` them back.
     """
 
-    def __init__(self, capacity: int) -> None:
+    def __init__(self, capacity: int, reclaim: Callable[[], None] | None = None) -> None:
         self.capacity = int(capacity)
+        self.reclaim = reclaim
         self._free: list[Arena] = []
         self._all: list[Arena] = []
 
     def take(self, nbytes: int) -> Arena:
-        """An arena with room for ``nbytes`` (a free one if one is large enough)."""
+        """An arena with room for ``nbytes``: a free one if one is large enough, else one
+        freed by ``reclaim`` (the owner waits for the readers of arenas in use and gives
+        them back), else a new one."""
         fits = [a for a in self._free if a.size >= nbytes]
+        if not fits and self.reclaim is not None and len(self._all) > len(self._free):
+            self.reclaim()
+            fits = [a for a in self._free if a.size >= nbytes]
         if fits:
             arena = min(fits, key=lambda a: a.size)
             self._free.remove(arena)

@@ -52,3 +52,32 @@ def to_images(
         mm_out[w, c, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
     else:
         m_out[w, c, p] = z
+
+
+@wp.kernel
+def to_image_store(
+    packed: wp.array2d(dtype=wp.uint32),
+    depth: wp.array2d(dtype=float),
+    rgb_adr: wp.array(dtype=int),
+    depth_adr: wp.array(dtype=int),
+    npix: int,
+    depth_mm: int,
+    frame: wp.array(dtype=int),
+    rgb_out: wp.array4d(dtype=wp.uint8),
+    mm_out: wp.array4d(dtype=wp.uint16),
+    m_out: wp.array4d(dtype=float),
+):
+    """As :func:`to_images`, into the call's image store on the device: ``rgb_out[c, f, w,
+    3 p + k]``, ``mm_out[c, f, w, p]`` or ``m_out[c, f, w, p]`` for frame ``f = frame[0]``
+    (camera-major, then frame-major: camera ``c``'s block is the host's ``(F, n, H, W, 3)``)."""
+    w, c, p = wp.tid()
+    f = frame[0]
+    val = packed[w, rgb_adr[c] + p]
+    rgb_out[c, f, w, 3 * p + 0] = wp.uint8((val >> wp.uint32(16)) & wp.uint32(0xFF))
+    rgb_out[c, f, w, 3 * p + 1] = wp.uint8((val >> wp.uint32(8)) & wp.uint32(0xFF))
+    rgb_out[c, f, w, 3 * p + 2] = wp.uint8(val & wp.uint32(0xFF))
+    z = depth[w, depth_adr[c] + p]
+    if depth_mm != 0:
+        mm_out[c, f, w, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
+    else:
+        m_out[c, f, w, p] = z

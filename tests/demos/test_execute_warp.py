@@ -11,6 +11,7 @@ run on the CPU device).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
@@ -221,3 +222,34 @@ def test_gpu_calls_group_episodes_of_similar_length(monkeypatch: pytest.MonkeyPa
     most = max(gpu_pipeline.worlds_that_fit([p for _, _, p in c], big, 0.002) for c in calls)
     assert all(len(c) <= most for c in calls) and len(calls) > 3
     assert gpu_pipeline.length_chunks([], 512, cfg, 0.002) == []
+
+
+@pytest.mark.slow
+def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
+    """The pipeline's mode (images stored on the device, copied to a shared arena at the end)
+    records the same images and states as copying every frame to the host (Warp's CPU device:
+    deterministic)."""
+    from factory.demos.execute_warp import WarpExecutor
+    from factory.demos.shared_frames import ArenaPool, supported
+
+    if not supported():
+        pytest.skip("shared arenas are Linux only")
+    planner = EpisodePlanner(setup)
+    plans = [p for p in (planner.plan_episode(s) for s in range(6)) if isinstance(p, EpisodePlan)]
+    plans = sorted(plans, key=lambda p: len(p.ctrl))[:2]
+    assert len(plans) == 2
+    # Short episodes: the first 3 s of each (the success checks may fail; images are compared).
+    plans = [dataclasses.replace(p, ctrl=p.ctrl[:1500], targets=p.targets[:1500]) for p in plans]
+    cfg = RecordConfig(width=24, height=24)
+    plain = WarpExecutor(setup, cfg, device="cpu").execute(plans)
+    pool = ArenaPool(1 << 24)
+    kept = WarpExecutor(setup, cfg, device="cpu", arenas=pool, images_on_device=True)
+    stored = kept.execute(plans)
+    assert kept.take_arenas()  # the images went to an arena
+    for a, b in zip(plain, stored, strict=True):
+        np.testing.assert_array_equal(a.state, b.state)
+        for cam in cfg.cameras:
+            assert a.rgb[cam].std() > 0
+            np.testing.assert_array_equal(a.rgb[cam], b.rgb[cam])
+            np.testing.assert_array_equal(a.depth[cam], b.depth[cam])
+    pool.close()
