@@ -46,6 +46,7 @@ class AssetsConfig:
         trellis_timeout: seconds per request.
         trellis_retries: retries after a failed request.
         fallback: fall back to ``procedural`` when the backend fails (logged, recorded).
+        texture_size: size (px) of the procedural assets' textures (64, 128, 256 or 512).
     """
 
     backend: str = "procedural"
@@ -54,6 +55,7 @@ class AssetsConfig:
     trellis_timeout: float = 120.0
     trellis_retries: int = 2
     fallback: bool = True
+    texture_size: int = 256
 
 
 @dataclass
@@ -135,11 +137,16 @@ class CompileConfig:
         ceiling: add a ceiling slab per room (off by default so top views see inside).
         timestep: simulation step (s).
         offscreen_size: offscreen framebuffer (px, square) written into the model.
+        textures: procedural textures on floors, walls, ceilings and asset parts (false:
+            flat colours).
+        texture_size: size (px) of floor, wall and ceiling textures (64, 128, 256 or 512).
     """
 
     ceiling: bool = False
     timestep: float = 0.002
     offscreen_size: int = 1280
+    textures: bool = True
+    texture_size: int = 256
 
 
 @dataclass

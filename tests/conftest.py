@@ -6,6 +6,7 @@ import copy
 import json
 import os
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,11 @@ import pytest
 from factory.sim.gl import configure_gl
 
 configure_gl("auto")  # before any test imports mujoco
+# scenes compiled without a run's assets folder cache their floor and wall textures here, not
+# in the user's ~/.cache
+os.environ.setdefault(
+    "FACTORY_TEXTURE_CACHE", os.path.join(tempfile.gettempdir(), "factory-test-textures")
+)
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE_SCENE = REPO / "factory" / "data" / "examples" / "kitchen_pick_place" / "scene.json"

@@ -17,6 +17,7 @@ FLOORS: dict[str, int] = {
     "config": 1,
     "store": 1,
     "sim": 2,
+    "textures": 2,
     "assets": 3,
     "nav": 3,
     "scenes": 4,

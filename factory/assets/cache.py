@@ -46,6 +46,7 @@ def cached(assets_dir: Path, asset_id: str) -> AssetMeta | None:
         shutil.rmtree(folder, ignore_errors=True)
         return None
     files = [meta.visual, *meta.collision, *(p["file"] for p in meta.visual_parts)]
+    files += [p["texture"] for p in meta.visual_parts if p.get("texture")]
     if not all((folder / f).is_file() for f in files):
         log.warning("asset %s misses files; rebuilding it", asset_id)
         shutil.rmtree(folder, ignore_errors=True)
@@ -76,10 +77,22 @@ def build(assets_dir: Path, asset_id: str, fill: Callable[[Path], AssetMeta]) ->
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def write_obj(mesh: trimesh.Trimesh, path: Path) -> None:
-    """A mesh as OBJ (vertices and faces only; 9 significant digits)."""
+def write_obj(mesh: trimesh.Trimesh, path: Path, uv: np.ndarray | None = None) -> None:
+    """A mesh as OBJ (9 significant digits): vertices and faces, and with ``uv`` (F, 3, 2)
+    texture coordinates per face corner (``vt`` with their own indices, ``f v/vt``; the
+    vertices stay shared, so the mesh stays watertight)."""
     v = np.asarray(mesh.vertices)
     f = np.asarray(mesh.faces) + 1
     lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in v]
-    lines += [f"f {a} {b} {c}" for a, b, c in f]
+    if uv is None:
+        lines += [f"f {a} {b} {c}" for a, b, c in f]
+    else:
+        flat = np.round(np.asarray(uv, float).reshape(-1, 2), 6)
+        uniq, inv = np.unique(flat, axis=0, return_inverse=True)
+        t = inv.reshape(-1, 3) + 1
+        lines += [f"vt {a:.7g} {b:.7g}" for a, b in uniq]
+        lines += [
+            f"f {a}/{ta} {b}/{tb} {c}/{tc}"
+            for (a, b, c), (ta, tb, tc) in zip(f.tolist(), t.tolist(), strict=True)
+        ]
     path.write_text("\n".join(lines) + "\n")

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from factory.assets.uv import revolve_labels
+
 MAX_HULL_VERTICES = 64
 
 
@@ -29,6 +31,11 @@ class Part:
         fill: solid fraction for mass (1: solid; < 1: a box standing in for a frame, a
             cushion or an appliance's hollow body).
         name: what the part is (``top``, ``leg_0``, ``shell`` ...).
+        mapping: how its texture is laid on (:mod:`.uv`): ``planar``, ``revolved`` or
+            ``sphere``.
+        labels: for ``revolved`` parts, each vertex's (section, profile point) of the
+            revolve (:func:`.uv.revolve_labels`; the UVs are made from them and the final
+            mesh), else ``None``.
     """
 
     visual: trimesh.Trimesh
@@ -37,6 +44,8 @@ class Part:
     rgba: tuple[float, float, float, float]
     fill: float = 1.0
     name: str = "part"
+    mapping: str = "planar"
+    labels: np.ndarray | None = None
 
     @property
     def volume(self) -> float:
@@ -117,8 +126,9 @@ def cylinder(
     r1 = radius if radius_top is None else radius_top
     profile = np.array([[0, 0], [radius, 0], [r1, height], [0, height]], dtype=float)
     m = trimesh.creation.revolve(profile, sections=sections)
+    labels = revolve_labels(m, profile, sections)
     m.apply_translation([xy[0], xy[1], z0])
-    return Part(m, [_convex(m)], material, rgba, fill, name)
+    return Part(m, [_convex(m)], material, rgba, fill, name, "revolved", labels)
 
 
 def ellipsoid(
@@ -133,7 +143,7 @@ def ellipsoid(
     m = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
     m.apply_scale(radii)
     m.apply_translation(center)
-    return Part(m, [_convex(m)], material, rgba, fill, name)
+    return Part(m, [_convex(m)], material, rgba, fill, name, "sphere")
 
 
 def shell(
@@ -168,6 +178,7 @@ def shell(
         [0.0, bottom],
     ]
     visual = trimesh.creation.revolve(np.array(profile, dtype=float), sections=4 * segments)
+    labels = revolve_labels(visual, np.array(profile, dtype=float), 4 * segments)
     visual.apply_translation([xy[0], xy[1], z0])
     pieces = []
     base_profile = np.array(
@@ -188,7 +199,7 @@ def shell(
                 pts.append([(r - wall) * c, (r - wall) * s, z])
         seg = trimesh.Trimesh(np.array(pts) + np.array([xy[0], xy[1], z0])).convex_hull
         pieces.append(seg)
-    return Part(visual, pieces, material, rgba, 1.0, name)
+    return Part(visual, pieces, material, rgba, 1.0, name, "revolved", labels)
 
 
 def _lerp(a: float, b: float, t: float) -> float:

@@ -12,7 +12,10 @@
   retries, the same post-processing. On failure it falls back to ``procedural`` when
   ``fallback`` is set (logged and recorded in the asset's provenance), else raises.
 
-Every asset records its license and provenance in ``meta.json``.
+Every asset records its license and provenance in ``meta.json``. Procedural parts are
+textured (:mod:`factory.textures`): each part's OBJ carries UVs in the part's mapping
+(:mod:`.uv`), its PNG lies in the asset folder (a hard link into ``assets/textures/``), and its
+meta entry names the texture, the look, the weathering and the MuJoCo finish.
 """
 
 from __future__ import annotations
@@ -22,22 +25,29 @@ import logging
 import time
 import urllib.error
 import urllib.request
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from factory.assets.cache import asset_id_for, build, cached, write_obj
 from factory.assets.catalog import CATEGORIES
-from factory.assets.geometry import Support
+from factory.assets.geometry import Part, Support
 from factory.assets.meshproc import decompose, load_mesh, repair, to_object_frame
 from factory.assets.physics import material
 from factory.assets.procedural import AssetError, AssetSpec, generate
 from factory.assets.resolver import Resolution, resolve
+from factory.assets.uv import uv_of
 from factory.schema import AssetMeta
 
 log = logging.getLogger(__name__)
 
 BACKENDS: tuple[str, ...] = ("procedural", "mesh_library", "trellis")
+
+TEXTURES_DIR = "textures"
+"""The content-addressed texture cache inside the assets folder (``assets/textures/``);
+each asset folder holds hard links (or copies) of the images its parts use."""
 
 
 @dataclass
@@ -59,6 +69,7 @@ class AssetLibrary:
         library_dir: the mesh library folder (``mesh_library`` backend).
         trellis: the server settings (``trellis`` backend).
         fallback: on a backend failure, fall back to ``procedural`` (logged) instead of raising.
+        texture_size: size (px) of the procedural parts' textures (64..512).
     """
 
     def __init__(
@@ -68,11 +79,19 @@ class AssetLibrary:
         library_dir: str | Path | None = None,
         trellis: TrellisConfig | None = None,
         fallback: bool = True,
+        texture_size: int = 256,
     ) -> None:
         if backend not in BACKENDS:
             raise AssetError(f"asset backend {backend!r} is not one of {', '.join(BACKENDS)}")
         if backend == "mesh_library" and library_dir is None:
             raise AssetError("the mesh_library backend needs assets.library_dir=FOLDER")
+        from factory.textures.cache import SIZES
+
+        if texture_size not in SIZES:
+            raise AssetError(
+                f"assets.texture_size={texture_size} is not one of {', '.join(map(str, SIZES))}"
+            )
+        self.texture_size = int(texture_size)
         self.assets_dir = Path(assets_dir)
         self.backend = backend
         self.library_dir = Path(library_dir) if library_dir else None
@@ -90,12 +109,18 @@ class AssetLibrary:
                 url=cfg.trellis_url, timeout=cfg.trellis_timeout, retries=cfg.trellis_retries
             ),
             fallback=cfg.fallback,
+            texture_size=getattr(cfg, "texture_size", 256),
         )
 
     # ---- front
-    def from_text(self, text: str, seed: int = 0, dims: Any = None) -> tuple[AssetMeta, Resolution]:
-        """The asset for a free-text request (``dims`` in m overrides the text's size)."""
+    def from_text(
+        self, text: str, seed: int = 0, dims: Any = None, finish: tuple[str, ...] = ()
+    ) -> tuple[AssetMeta, Resolution]:
+        """The asset for a free-text request (``dims`` in m overrides the text's size;
+        ``finish`` adds condition kinds, e.g. the scene request's ``("dust",)``)."""
         res = resolve(text, seed=seed)
+        if finish:
+            res.spec.finish = tuple(dict.fromkeys((*res.spec.finish, *finish)))
         if dims is not None:
             from factory.assets.procedural import check_dims
 
@@ -106,6 +131,8 @@ class AssetLibrary:
 
     def get(self, spec: AssetSpec) -> AssetMeta:
         """The asset for a resolved spec (cached)."""
+        if spec.texture_size != self.texture_size:
+            spec = replace(spec, texture_size=self.texture_size)
         if self.backend == "procedural":
             return self._procedural(spec)
         key = spec.key() | {"text": spec.text}
@@ -139,21 +166,12 @@ class AssetLibrary:
         def fill(folder: Path) -> AssetMeta:
             gen = generate(spec)
             write_obj(gen.visual, folder / "visual.obj")
-            parts: list[dict[str, Any]] = []
+            parts = [
+                self._textured_part(group, k, spec, folder)
+                for k, group in enumerate(_same_look(gen.shape.parts))
+            ]
             collision: list[str] = []
-            for k, p in enumerate(gen.shape.parts):
-                write_obj(p.visual, folder / f"visual_{k}.obj")
-                mat = material(p.material)
-                parts.append(
-                    {
-                        "file": f"visual_{k}.obj",
-                        "name": p.name,
-                        "material": p.material,
-                        "rgba": list(p.rgba),
-                        "metallic": mat.metallic,
-                        "roughness": mat.roughness,
-                    }
-                )
+            for p in gen.shape.parts:
                 for c in p.collision:
                     name = f"collision_{len(collision)}.obj"
                     write_obj(c, folder / name)
@@ -184,6 +202,54 @@ class AssetLibrary:
             )
 
         return build(self.assets_dir, asset_id, fill)
+
+    def _textured_part(
+        self, group: list[Part], k: int, spec: AssetSpec, folder: Path
+    ) -> dict[str, Any]:
+        """Writes visual part ``k`` (parts of one material and colour, one mesh) with its UVs
+        and its texture into ``folder``; returns its meta entry."""
+        import trimesh
+
+        from factory.textures.appearance import appearance
+        from factory.textures.cache import link_or_copy
+
+        p = group[0]
+        mat = material(p.material)
+        app = appearance(
+            p.material,
+            p.rgba,
+            self.assets_dir / TEXTURES_DIR,
+            seed=spec.seed,
+            kinds=spec.finish,
+            size=spec.texture_size,
+            metallic=mat.metallic,
+            roughness=mat.roughness,
+        )
+        mesh = trimesh.util.concatenate([q.visual for q in group])
+        assert isinstance(mesh, trimesh.Trimesh)
+        uv = np.concatenate([uv_of(q.visual, q.mapping, q.labels) for q in group]) / app.tile
+        if len(uv) != len(mesh.faces):  # pragma: no cover - concatenation keeps every face
+            raise AssetError(f"visual part {p.name!r}: {len(uv)} UV faces, {len(mesh.faces)} faces")
+        write_obj(mesh, folder / f"visual_{k}.obj", uv)
+        tex_file = f"{app.texture.key}.png"
+        link_or_copy(app.texture.path, folder / tex_file)
+        return {
+            "file": f"visual_{k}.obj",
+            "name": p.name,
+            "parts": [q.name for q in group],
+            "material": p.material,
+            "rgba": [float(c) for c in app.colour],
+            "metallic": app.metallic,
+            "roughness": app.roughness,
+            "texture": tex_file,
+            "texture_gain": list(app.texture.gain),
+            "tinted": app.tinted,
+            "look": app.look,
+            "weathering": list(app.weathering),
+            "specular": app.finish.specular,
+            "shininess": app.finish.shininess,
+            "reflectance": app.finish.reflectance,
+        }
 
     # ---- mesh library
     def _library_entries(self) -> list[dict[str, Any]]:
@@ -319,6 +385,16 @@ class AssetLibrary:
             materials=list(mats),
             request=spec.key(),
         )
+
+
+def _same_look(parts: list[Part]) -> list[list[Part]]:
+    """The parts grouped by material and colour, in first-seen order: each group becomes one
+    visual mesh (a table's top and legs are drawn at once: fewer draws per camera frame)."""
+    groups: dict[tuple[str, tuple[float, ...]], list[Part]] = {}
+    for p in parts:
+        key = (p.material, tuple(round(float(c), 4) for c in p.rgba))
+        groups.setdefault(key, []).append(p)
+    return list(groups.values())
 
 
 def _support(s: Support) -> dict[str, Any]:

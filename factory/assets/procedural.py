@@ -40,6 +40,9 @@ class AssetSpec:
         style: a style word (kept for provenance and variation).
         seed: the random seed.
         text: the original text request, if any.
+        finish: condition kinds for the surfaces (``rust``, ``dust``, ``polished``, ``gold``,
+            ...: :mod:`factory.textures.conditions`), read from the text or given by the scene.
+        texture_size: texture images' size (px).
     """
 
     category: str
@@ -50,10 +53,19 @@ class AssetSpec:
     seed: int = 0
     text: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    finish: tuple[str, ...] = ()
+    texture_size: int = 256
 
     def key(self) -> dict[str, Any]:
-        """The normalised request (what the asset id hashes)."""
-        return {
+        """The normalised request (what the asset id hashes; ``finish`` and ``texture_size``
+        only when set, so assets without them keep their ids)."""
+        looks: dict[str, Any] = {}
+        finish = sorted(set(self.finish) - {"clean"})  # "clean" changes nothing
+        if finish:
+            looks["finish"] = finish
+        if self.texture_size != 256:
+            looks["texture_size"] = int(self.texture_size)
+        return looks | {
             "category": self.category,
             "dims": None if self.dims is None else [round(float(v), 6) for v in self.dims],
             "materials": None if self.materials is None else list(self.materials),

@@ -3,8 +3,10 @@
 Lexical and offline: category names and synonyms (longest phrase first, plural forms too),
 then fuzzy matching (``rapidfuzz``'s ``fuzz.ratio``) for misspellings and unseen words; size
 words ("small", "tall", "king-size"), colours, materials ("rusty metal", "oak") and styles
-("mid-century", "cyberpunk", "fairy-tale princess") set dimensions, materials and colours. The
-result says when it had to approximate (fuzzy or fallback category) and why.
+("mid-century", "cyberpunk", "fairy-tale princess") set dimensions, materials and colours;
+condition words ("rusty", "dusty", "golden": :mod:`factory.textures.conditions`) set the
+surfaces' weathering and finish. The result says when it had to approximate (fuzzy or fallback
+category) and why.
 
 The fuzzy similarity is the normalised Indel similarity ``2 * LCS / (len(a) + len(b))``. It
 was ``difflib``'s Ratcliff/Obershelp ratio until issue 13, which is never higher (its matching
@@ -25,6 +27,7 @@ from rapidfuzz import fuzz, process
 from factory.assets.catalog import CATEGORIES
 from factory.assets.physics import ALIASES, MATERIALS
 from factory.assets.procedural import AssetError, AssetSpec
+from factory.textures.conditions import kinds_in
 
 RGBA = tuple[float, float, float, float]
 
@@ -281,5 +284,8 @@ def resolve(text: str, seed: int = 0, allow_fallback: bool = True) -> Resolution
         style=styles[0] if styles else "",
         seed=seed,
         text=text,
+        finish=kinds_in(low),
     )
+    if spec.finish:
+        notes.append(f"condition: {', '.join(spec.finish)}")
     return Resolution(spec, confidence, approximated, matched, notes)

@@ -315,6 +315,14 @@ class _ExtrasWriter:
                         compiler.set(key, "../assets")
             model_text = ET.tostring(root, encoding="unicode")
             assets = self.run_dir / "assets"
+            # floor, wall and ceiling textures live in the run's shared assets/textures/
+            for tex in root.iter("texture"):
+                file = tex.get("file", "")
+                if file.startswith("textures/") and (assets / file).is_file():
+                    dst = self.dest / "extras" / "assets" / file
+                    if not dst.exists():
+                        dst.parent.mkdir(parents=True, exist_ok=True)
+                        _link_or_copy(str(assets / file), str(dst))
             for obj in json.loads(scene).get("objects", []):
                 aid = (obj.get("asset") or {}).get("asset_id")
                 if aid and aid not in self._assets and (assets / aid).is_dir():

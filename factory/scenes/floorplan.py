@@ -16,6 +16,9 @@ from factory.schema import Door, Room, Scene, Size3, Vec3, Wall, Window, check_i
 
 log = logging.getLogger(__name__)
 
+_NO_SURFACE_WORDS = frozenset({"clean", "spotless", "pristine", "brand-new", "brand new"})
+"""Condition words that leave floors and walls as they are."""
+
 
 def _room(
     rid: str,
@@ -25,8 +28,15 @@ def _room(
     length: float,
     height: float,
     rng: np.random.Generator,
+    condition: str = "",
 ) -> Room:
+    """One rectangular room; ``condition`` (the request's condition words, "dusty old") goes
+    before its floor and wall materials, which the compiler's textures read."""
     rt = ROOM_TYPES[rt_name]
+
+    def worn(material: str) -> str:
+        return f"{condition} {material}" if condition else material
+
     pts = [(x0, 0.0), (x0 + width, 0.0), (x0 + width, length), (x0, length)]
     names = ["south", "east", "north", "west"]
     walls = [
@@ -35,7 +45,7 @@ def _room(
             start=Vec3(*pts[i], 0.0),
             end=Vec3(*pts[(i + 1) % 4], 0.0),
             height=height,
-            material=str(rng.choice(rt.walls)),
+            material=worn(str(rng.choice(rt.walls))),
         )
         for i, n in enumerate(names)
     ]
@@ -56,7 +66,7 @@ def _room(
                 sill_height=0.9,
             )
         ],
-        floor_material=str(rng.choice(rt.floors)),
+        floor_material=worn(str(rng.choice(rt.floors))),
         ceiling_height=height,
     )
 
@@ -82,6 +92,8 @@ def init_scene(
             f"a room {forced_width} m wide cannot hold furniture: ask for at least 1.5 m"
         )
     height = 2.7
+    # condition words weather the rooms too ("clean" is no weathering)
+    condition = " ".join(w for w in parsed.condition_words if w not in _NO_SURFACE_WORDS)
     sizes = []
     for t in types:
         (w0, w1), (l0, l1) = ROOM_TYPES[t].size
@@ -94,7 +106,7 @@ def init_scene(
         base = re.sub(r"[^a-z0-9]+", "_", t).strip("_") or "room"
         used[base] = used.get(base, 0) + 1
         rid = check_id(base if used[base] == 1 else f"{base}_{used[base]}", "room id")
-        rooms.append(_room(rid, t, x, width, length, height, rng))
+        rooms.append(_room(rid, t, x, width, length, height, rng, condition))
         x += width
     # doors: an entrance on the first room's south wall, and one in each shared wall
     first = rooms[0]

@@ -3,9 +3,10 @@
 ``STYLE_WORDS`` name a design style (they also choose asset materials and colours, see
 :data:`factory.assets.resolver.STYLES`); ``CONDITIONS`` name the state or finish of things
 (rusty, dusty, muddy, worn, golden, luxurious, ...), each with its kind of weathering or finish
-and the materials it brings; material words ("oak", "velvet", "marble") are those of
-:mod:`factory.assets.physics`. :func:`read_style` reads all three; the scene keeps them in the
-parsed request so that materials and textures can follow them.
+and the materials it brings (the table is :data:`factory.textures.conditions.CONDITIONS`,
+which the asset library and the compiler read too); material words ("oak", "velvet",
+"marble") are those of :mod:`factory.assets.physics`. :func:`read_style` reads all three; the
+scene keeps them in the parsed request so that materials and textures can follow them.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from functools import cache
+
+from factory.textures.conditions import CONDITIONS, Condition
 
 STYLE_WORDS: tuple[str, ...] = (
     "mid-century",
@@ -35,88 +38,6 @@ STYLE_WORDS: tuple[str, ...] = (
     "futuristic",
 )
 """Design styles, in the order :func:`read_style` prefers them for ``style``."""
-
-
-@dataclass(frozen=True)
-class Condition:
-    """What a condition word means.
-
-    Attributes:
-        kind: the weathering or finish: ``rust``, ``dust``, ``dirt``, ``mud``, ``wear``,
-            ``scratches``, ``peeling``, ``stains``, ``mould``, ``cracks``, ``faded``, ``clean``,
-            ``polished``, ``gold``, ``luxury``.
-        materials: materials it brings (names of :data:`factory.assets.physics.MATERIALS`).
-    """
-
-    kind: str
-    materials: tuple[str, ...] = ()
-
-
-CONDITIONS: dict[str, Condition] = {
-    "rusty": Condition("rust", ("rusty metal",)),
-    "rusted": Condition("rust", ("rusty metal",)),
-    "rust-covered": Condition("rust", ("rusty metal",)),
-    "corroded": Condition("rust", ("rusty metal",)),
-    "dusty": Condition("dust"),
-    "dust-covered": Condition("dust"),
-    "cobwebbed": Condition("dust"),
-    "muddy": Condition("mud"),
-    "mud-stained": Condition("mud"),
-    "dirty": Condition("dirt"),
-    "grimy": Condition("dirt"),
-    "filthy": Condition("dirt"),
-    "messy": Condition("dirt"),
-    "stained": Condition("stains"),
-    "worn": Condition("wear"),
-    "worn-out": Condition("wear"),
-    "worn out": Condition("wear"),
-    "well-worn": Condition("wear"),
-    "weathered": Condition("wear"),
-    "shabby": Condition("wear"),
-    "run-down": Condition("wear"),
-    "rundown": Condition("wear"),
-    "dilapidated": Condition("wear"),
-    "derelict": Condition("wear"),
-    "abandoned": Condition("wear"),
-    "battered": Condition("wear"),
-    "aged": Condition("wear"),
-    "old": Condition("wear"),
-    "scratched": Condition("scratches"),
-    "scuffed": Condition("scratches"),
-    "chipped": Condition("scratches"),
-    "peeling": Condition("peeling"),
-    "mouldy": Condition("mould"),
-    "moldy": Condition("mould"),
-    "damp": Condition("mould"),
-    "cracked": Condition("cracks"),
-    "faded": Condition("faded"),
-    "sun-bleached": Condition("faded"),
-    "clean": Condition("clean"),
-    "spotless": Condition("clean"),
-    "pristine": Condition("clean"),
-    "brand-new": Condition("clean"),
-    "brand new": Condition("clean"),
-    "polished": Condition("polished"),
-    "shiny": Condition("polished"),
-    "glossy": Condition("polished"),
-    "lacquered": Condition("polished"),
-    "golden": Condition("gold", ("brass",)),
-    "gold": Condition("gold", ("brass",)),
-    "gilded": Condition("gold", ("brass",)),
-    "gold-plated": Condition("gold", ("brass",)),
-    "luxurious": Condition("luxury", ("brass", "marble", "fabric")),
-    "luxury": Condition("luxury", ("brass", "marble", "fabric")),
-    "opulent": Condition("luxury", ("brass", "marble", "fabric")),
-    "lavish": Condition("luxury", ("brass", "marble", "fabric")),
-    "posh": Condition("luxury", ("brass", "marble", "fabric")),
-    "palatial": Condition("luxury", ("brass", "marble", "fabric")),
-    "royal": Condition("luxury", ("brass", "marble", "fabric")),
-    "regal": Condition("luxury", ("brass", "marble", "fabric")),
-    "upscale": Condition("luxury", ("brass", "marble", "fabric")),
-    "high-end": Condition("luxury", ("brass", "marble", "fabric")),
-    "velvet": Condition("luxury", ("fabric",)),
-}
-"""Condition word -> its kind and materials."""
 
 
 _NOT_WORDS = frozenset({"plant", "organic", "soil"})
@@ -199,3 +120,6 @@ def read_style(text: str) -> StyleRead:
         condition_words=tuple(w for _, w in conds),
         materials=tuple(materials),
     )
+
+
+__all__ = ["CONDITIONS", "STYLE_WORDS", "Condition", "StyleRead", "read_style"]

@@ -4,13 +4,16 @@ What a compiled scene holds:
 
 * a ground plane (collision) and one visual floor slab per room, with its floor material;
 * walls as boxes around their door and window openings (:mod:`factory.sim.walls`), glass panes
-  in windows, and optionally a ceiling;
+  in windows, and optionally a ceiling; floors, walls and ceilings are textured by their
+  material text (:mod:`factory.textures`: "oak" is a plank floor, "dusty oak" a dusty one),
+  the images cached in ``<assets>/textures/``;
 * one body per object, named by the object's id, at its bottom centre
   (``pos_obj_in_world``) with its rotation: a free joint unless the object is static
   (wall-mounted or ``physics.static``); geoms from the asset's convex collision parts (or, with
   none listed, the hull of its visual mesh); an object without an asset is a box of its
-  dimensions (logged). Mass is the scene's (uniform density over the collision geometry),
-  sliding friction the scene's.
+  dimensions (logged). Visual parts with a texture get a textured material (the part's colour
+  times the texture's gain, the part's finish). Mass is the scene's (uniform density over the
+  collision geometry), sliding friction the scene's.
 
 Mesh and texture files stay in ``<run_dir>/assets/`` and ``model.xml`` refers to them by
 relative path, so plain ``mujoco.MjModel.from_xml_path(".../model.xml")`` loads it.
@@ -21,8 +24,10 @@ from __future__ import annotations
 import logging
 import math
 import os
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 
@@ -37,7 +42,14 @@ from factory.schema import (
     Window,
     load_asset_meta,
 )
-from factory.sim.materials import DEFAULT_FLOOR, DEFAULT_WALL, SURFACES, object_rgba, surface
+from factory.sim.materials import (
+    DEFAULT_FLOOR,
+    DEFAULT_WALL,
+    SURFACES,
+    Surface,
+    object_rgba,
+    surface,
+)
 from factory.sim.walls import opening_rect, solid_rects
 
 log = logging.getLogger(__name__)
@@ -61,11 +73,16 @@ class CompileOptions:
         ceiling: add a ceiling slab per room.
         timestep: simulation step (s).
         offscreen_size: offscreen framebuffer width and height (px).
+        textures: procedural textures on floors, walls, ceilings and asset parts (off: flat
+            colours, as before issue 17).
+        texture_size: size (px) of the floor, wall and ceiling textures.
     """
 
     ceiling: bool = False
     timestep: float = 0.002
     offscreen_size: int = 1280
+    textures: bool = True
+    texture_size: int = 256
 
 
 @dataclass
@@ -100,6 +117,8 @@ class _Builder:
         self.boxed: list[str] = []
         self.mesh_assets: dict[str, AssetMeta] = {}
         self.dynamic_geoms: dict[str, list[mujoco.MjsGeom]] = {}
+        self.textures: set[str] = set()
+        self.tiles: dict[str, float] = {}  # textured surface material -> its tile (m)
 
     # ---- global settings
     def setup(self) -> None:
@@ -157,8 +176,12 @@ class _Builder:
         if default_rgba is not None:
             self.spec.add_material(name=mat_name, rgba=list(default_rgba), roughness=0.6)
             return mat_name
-        default = DEFAULT_FLOOR if key.startswith("floor") else DEFAULT_WALL
+        floor = key.startswith("floor")
+        default = DEFAULT_FLOOR if floor else DEFAULT_WALL
         surf = surface(name, default)
+        if self.options.textures:
+            self._surface_material(mat_name, key, name, surf, floor)
+            return mat_name
         mat = self.spec.add_material(
             name=mat_name, rgba=list(surf.rgba), roughness=surf.roughness, metallic=surf.metallic
         )
@@ -177,6 +200,109 @@ class _Builder:
             mat.texrepeat = [2.0, 2.0]
             mat.texuniform = True
             mat.rgba = [r, g, b, 1.0]
+        return mat_name
+
+    def _surface_material(
+        self, mat_name: str, key: str, name: str, surf: Surface, floor: bool
+    ) -> None:
+        """A textured floor, wall or ceiling material (:func:`factory.textures.appearance`)."""
+        from factory.textures.appearance import appearance
+        from factory.textures.cache import default_folder
+
+        folder = self.assets_root / "textures" if self.assets_root else default_folder()
+        app = appearance(
+            name,
+            surf.rgba,
+            folder,
+            seed=(self.scene.seed or 0) + zlib.crc32(key.encode()),
+            size=self.options.texture_size,
+            default="hardwood" if floor else "drywall",
+            floor=floor,
+            metallic=surf.metallic,
+            roughness=surf.roughness,
+        )
+        mat = self.spec.add_material(
+            name=mat_name,
+            rgba=list(app.rgba),
+            roughness=app.roughness,
+            metallic=app.metallic,
+            specular=app.finish.specular,
+            shininess=app.finish.shininess,
+            reflectance=app.finish.reflectance,
+            # MuJoCo repeats a texuniform texture once per 2 / texrepeat metres on a box face
+            texrepeat=[2.0 / app.tile, 2.0 / app.tile],
+            texuniform=True,
+        )
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = self._texture(app.texture.path)
+        self.tiles[mat_name] = app.tile
+
+    def _upright(self, mat_name: str, half_y: float, half_z: float) -> str:
+        """The textured material ``mat_name`` for the upright faces (local ±y) of a box of half
+        sizes ``half_y`` and ``half_z`` (a wall piece).
+
+        MuJoCo lays a ``texuniform`` texture on a box face with the repeats of the box's x and
+        y sizes whatever the face, so on an upright face the vertical repeat follows the
+        thickness, not the height (a plaster wall would be stretched 27-fold). The copy made
+        here scales the vertical repeat by height over thickness, so the texel is square.
+        """
+        tile = self.tiles.get(mat_name)
+        if tile is None or half_y <= 0:
+            return mat_name
+        ratio = round(half_z / half_y, 3)
+        name = f"{mat_name}/upright_{ratio:g}"
+        if name not in self.materials:
+            self.materials.add(name)
+            base = self.spec.material(mat_name)
+            mat = self.spec.add_material(
+                name=name,
+                rgba=list(base.rgba),
+                roughness=base.roughness,
+                metallic=base.metallic,
+                specular=base.specular,
+                shininess=base.shininess,
+                reflectance=base.reflectance,
+                texrepeat=[2.0 / tile, 2.0 / tile * ratio],
+                texuniform=True,
+            )
+            role = mujoco.mjtTextureRole.mjTEXROLE_RGB
+            mat.textures[role] = base.textures[role]
+        return name
+
+    def _texture(self, path: Path) -> str:
+        """The model's texture for an image file, added once (named by the file's content key;
+        a path inside the assets folder is written relative to it)."""
+        name = f"tex/{path.stem}"
+        if name not in self.textures:
+            self.textures.add(name)
+            file = str(path)
+            if self.assets_root is not None and path.is_relative_to(self.assets_root):
+                file = str(path.relative_to(self.assets_root))
+            self.spec.add_texture(name=name, type=mujoco.mjtTexture.mjTEXTURE_2D, file=file)
+        return name
+
+    def _part_material(
+        self, key: str, folder: Path, vp: dict[str, Any], rgba: tuple[float, ...], obj: SceneObject
+    ) -> str:
+        """The textured material of an asset's visual part (its meta entry ``vp``)."""
+        from factory.textures.appearance import material_rgb
+
+        mat_name = f"mat/{key}"
+        if mat_name in self.materials:
+            return mat_name
+        self.materials.add(mat_name)
+        rgb = material_rgb(rgba, vp.get("texture_gain", 1.0), bool(vp.get("tinted", True)))
+        metallic = obj.appearance.metallic
+        roughness = obj.appearance.roughness
+        mat = self.spec.add_material(
+            name=mat_name,
+            rgba=[*rgb, float(rgba[3]) if len(rgba) > 3 else 1.0],
+            metallic=float(vp.get("metallic", 0.0) if metallic is None else metallic),
+            roughness=float(vp.get("roughness", 0.5) if roughness is None else roughness),
+            specular=float(vp.get("specular", 0.5)),
+            shininess=float(vp.get("shininess", 0.5)),
+            reflectance=float(vp.get("reflectance", 0.0)),
+        )
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = self._texture(folder / vp["texture"])
         return mat_name
 
     # ---- architecture
@@ -230,7 +356,7 @@ class _Builder:
                     pos=[wall.start.x + ux * uc, wall.start.y + uy * uc, wall.start.z + zc],
                     quat=quat,
                     size=[(u1 - u0) / 2, half_t, (r.z1 - r.z0) / 2],
-                    material=mat,
+                    material=self._upright(mat, half_t, (r.z1 - r.z0) / 2),
                     group=GROUP_ARCH,
                 )
             for win in (op for op in room.windows if op.wall_id == wall.id):
@@ -319,11 +445,17 @@ class _Builder:
                         spec.add_mesh(name=part_mesh, file=f"{aid}/{vp['file']}", scale=scale)
                         self.mesh_assets[part_mesh] = meta
                     rgba_k = tuple(obj.appearance.rgba or vp.get("rgba") or rgba)
+                    if vp.get("texture") and self.options.textures and self.assets_root:
+                        part_mat = self._part_material(
+                            f"obj/{obj.id}/{k}", self.assets_root / aid, vp, rgba_k, obj
+                        )
+                    else:
+                        part_mat = self.material(f"obj/{obj.id}/{k}", "", rgba_k)
                     body.add_geom(
                         name=f"{obj.id}/visual_{k}",
                         type=mujoco.mjtGeom.mjGEOM_MESH,
                         meshname=part_mesh,
-                        material=self.material(f"obj/{obj.id}/{k}", "", rgba_k),
+                        material=part_mat,
                         contype=0,
                         conaffinity=0,
                         density=0,

@@ -205,7 +205,9 @@ def test_two_processes_leave_one_intact_copy(tmp_path: Path) -> None:
     with ctx.Pool(2) as pool:
         ids = pool.starmap(_build, [(str(tmp_path), barrier)] * 2)
     assert ids[0] == ids[1]
-    assert sorted(p.name for p in tmp_path.iterdir()) == [ids[0]]  # no temp folders left
+    # no temp folders or files left: the asset and the shared texture cache
+    assert sorted(p.name for p in tmp_path.iterdir()) == [ids[0], "textures"]
+    assert all(p.suffix == ".png" for p in (tmp_path / "textures").iterdir())
     assert cached(tmp_path, ids[0]) is not None
 
 
