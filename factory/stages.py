@@ -19,7 +19,7 @@ STAGES: dict[str, str] = {
     "ingest": "factory.scenes.ingest:run",
     "augment": "factory.augment.stage:run",
     "compile": "factory.scenes.build:run_compile",
-    "validate": "factory.sim.validate:run",
+    "validate": "factory.scenes.validate_stage:run",
     "render": "factory.scenes.build:run_render",
     "export": "factory.scenes.build:run_export",
     "demos": "factory.demos.stage:run",
@@ -40,7 +40,8 @@ DESCRIPTIONS: dict[str, str] = {
     "ingest": "bring scenes into run_dir (scene.json, SAGE layout/folder/zip; default: examples)",
     "augment": "task-consistent variants (augment.levels=[layout,category,configuration])",
     "compile": "compile each scene to MuJoCo: scenes/<id>/model.xml (+ meshes under assets/)",
-    "validate": "physics metrics per scene (collision %, stability %); validate.repair=true",
+    "validate": "physics metrics per scene (collision %, stability %), mobile task route check; "
+    "validate.repair=true",
     "render": "render top-down and corner views: scenes/<id>/renders/*.png",
     "export": "write scenes back out (export.format=sage: layout JSON + PLY meshes)",
     "demos": "recorded robot demonstrations (task=pick_place): episodes/shard-<k>.zarr",

@@ -98,6 +98,12 @@ def _validate(result: Mapping[str, Any], store: RunStore, shard: Shard) -> list[
             f"collision {float(result['collision_pct']):.1f} %, "
             f"stability {float(result['stability_pct']):.1f} %"
         )
+    checks = result.get("checks")
+    if isinstance(checks, Mapping):
+        for name, c in checks.items():
+            if isinstance(c, Mapping):
+                ok, failed = int(c.get("passed", 0)), sum(dict(c.get("failed", {})).values())
+                detail += f", {name} check {ok}/{ok + failed} passed"
     n = _int(result, "done") + _int(result, "skipped")
     return [_entry("scenes validated", n, "validate/summary.json", detail)]
 

@@ -6,7 +6,9 @@
   and wall materials may change too.
 * :func:`layout`: a new room (geometry and every task-irrelevant object, by the generation
   agent) with the task-relevant objects and their supports carried over: same assets, same
-  relations (the mug stays on the nightstand).
+  relations (the mug stays on the nightstand). A mobile task's place support is put away
+  from the pick's support, and the agent's last step keeps the route between them
+  (``Brain.keep_route``); ``stage=augment`` drops a variant whose route check still fails.
 
 Each takes a scene and returns a new one (or raises :class:`AugmentError` with the reason).
 Objects put on supports are posed jointly, many candidate configurations per batched physics
@@ -408,10 +410,21 @@ def layout(
     state = session.state
     assert state is not None
     ids_map: dict[str, str] = {}
+    # a mobile task's place support goes last, away from the pick's support (about 2.5 m)
+    supports.sort(key=lambda o: o.task_role == "place_support")
+    pick_support = next((o.placement.support_id for o in keep_objs if o.task_role == "pick"), None)
     for obj in supports:  # the kept furniture goes first, somewhere sensible
-        for rule in ("wall", "free"):
+        anchor = ids_map.get(pick_support or "")
+        away = obj.task_role == "place_support" and anchor is not None
+        for rule in ("facing", "away", "wall", "free") if away else ("wall", "free"):
             state.reuse = base_state.meta_of(obj)
-            res = place_floor(state, obj.description or obj.category, rule)
+            res = place_floor(
+                state,
+                obj.description or obj.category,
+                rule,
+                target=anchor if away else None,
+                task_role=obj.task_role,
+            )
             if res.ok:
                 break
         else:

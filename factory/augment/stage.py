@@ -4,17 +4,19 @@ Jobs are (parent scene, variant index); they are sharded over array tasks, and e
 seed is derived from (seed, parent, index), so the same run_dir, config and seed give the same
 variants and a re-run after a kill finishes only what is missing. Levels compose in the order
 layout, category, configuration. Every variant is checked with the strict physics protocol
-(no interpenetration over 1 cm, every object stable); those that fail are dropped and counted
-per level and reason. A kept variant is a full scene directory ``<parent>__<levels>_<k>``
-with ``source = augment:<parent>``, its parameters and seed in ``report.json``, its
-``model.xml`` and renders.
+(no interpenetration over 1 cm, every object stable), and a variant of a mobile-task scene
+with the route check (:func:`check_route`); those that fail are dropped and counted per level
+and reason (``L: physics``, ``L: no_route``, ...). A kept variant is a full scene directory
+``<parent>__<levels>_<k>`` with ``source = augment:<parent>``, its parameters and seed in
+``report.json``, its ``model.xml`` and renders.
 
 Configuration alone (``augment.levels=[configuration]``) is batched per parent: the parents
 are sharded (each shard makes all variants of its parents), one call of
 :func:`factory.augment.levels.configurations` finds ``variants_per_scene`` distinct valid
 configurations (seed from (seed, parent)), and one batched whole-scene check
 (:func:`factory.augment.check.verify_whole_scene`, the same verdict as :func:`check_physics`)
-confirms them all.
+confirms them all. Those variants move only task objects on their supports, not the floor's
+furniture, and are not route-checked.
 """
 
 from __future__ import annotations
@@ -87,6 +89,22 @@ def check_physics(scene: Any, assets: Any, tol: float = 0.01, backend: Any = "cp
     if m["stability"]["unstable"]:
         return f"unstable: {', '.join(m['stability']['unstable'][:4])}"
     return None
+
+
+def check_route(scene: Any, assets: Any) -> str | None:
+    """``None`` if the scene has no mobile task or its route check passes
+    (:func:`factory.nav.route.check_route`: both supports reachable for the robot's base,
+    1.5 m apart at least, one free region between them), else the reason (``no_route``,
+    ``place_support_too_close``, ...)."""
+    from factory.nav import route
+
+    if not route.is_mobile_task(scene):
+        return None
+    verdict = route.check_route(scene, assets)
+    if verdict.ok:
+        return None
+    log.info("variant %s fails the route check: %s", scene.id, verdict.detail)
+    return verdict.reason
 
 
 def make_variant(
@@ -227,6 +245,11 @@ def run(ctx: StageContext) -> dict[str, Any]:
             if failed is not None:
                 dropped[f"{tag}: physics"] += 1
                 log.info("variant %s dropped: %s", name, failed)
+                return "skipped"
+            blocked = check_route(scene, store.assets_dir)
+            if blocked is not None:
+                dropped[f"{tag}: {blocked}"] += 1
+                log.info("variant %s dropped: route check %s", name, blocked)
                 return "skipped"
         atomic_write_json(
             store.report_json(name),

@@ -66,6 +66,7 @@ from factory.demos.mobile_scene import (
     PLAN_TIMEOUT,
     MobileSetup,
     MobileTaskError,
+    SupportTop,
     base_matrix,
     body_box,
     carry_footprint,
@@ -306,6 +307,7 @@ class MobilePlanner:
         mujoco.mj_kinematics(m, data)
         self.pick_box = body_box(m, data, self.pick_support_body)
         self.place_box = body_box(m, data, self.place_support_body)
+        self.place_area = SupportTop.of(m, data, self.place_support_body)
         self.place_top = support_top(m, data, self.place_support_body)
         self.unusable = setup.reachable
         # spawn in the free region of the best pick pose that also reaches the place support
@@ -537,7 +539,9 @@ class MobilePlanner:
     def _place_points(self, base: np.ndarray, box: np.ndarray) -> list[np.ndarray]:
         """Candidate object positions (2,) on the support's top ahead of the arm's base with
         the base at ``base`` (3,): ``place_reach`` ahead, ``place_lateral`` aside, inside the
-        top's box (6,) by the object's radius and ``place_margin``."""
+        top's box (6,) and inside the top itself (:class:`~factory.nav.task_poses.SupportTop`:
+        a desk turned off the world axes is smaller than its world box) by the object's radius
+        and ``place_margin``."""
         mo = self.motion
         r = object_radius(self.setup.objects.pick)
         fwd = np.array([math.cos(base[2]), math.sin(base[2])])
@@ -549,7 +553,8 @@ class MobilePlanner:
         for depth in mo.place_reach:
             for lat in mo.place_lateral:
                 xy = arm + fwd * depth + side * lat
-                if (xy >= lo).all() and (xy <= hi).all():
+                inside = (xy >= lo).all() and (xy <= hi).all()
+                if inside and self.place_area.holds(xy, r, mo.place_margin):
                     out.append(xy)
         return out
 

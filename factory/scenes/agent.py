@@ -31,7 +31,8 @@ log = logging.getLogger(__name__)
 SYSTEM_PROMPT = (
     "You build simulation-ready indoor scenes for robot learning by calling tools. Start with "
     "init_scene, place large furniture on the floor and on walls, then small objects on top "
-    "of surfaces (shelves, tables, nightstands), check with visual_critic and physics_critic, "
+    "of surfaces (shelves, tables, nightstands), check with visual_critic and physics_critic "
+    "(and route_critic when the robot moves an object from one support to another), "
     "fix problems, and stop when the room is densely and plausibly furnished."
 )
 

@@ -25,13 +25,14 @@ from factory.scenes.brain_steps import (
     Caller,
     Trace,
     brief,
+    task_kind,
 )
 from factory.scenes.request import parse_request, style_of
 from factory.schema import Scene, Task, check_id
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TABLES", "AgentConfig", "generate_scene", "heuristic_agent"]
+__all__ = ["TABLES", "AgentConfig", "generate_scene", "heuristic_agent", "task_kind"]
 
 
 def heuristic_agent(
@@ -56,6 +57,7 @@ def heuristic_agent(
     spec = brain.task_objects(request, task)
     brain.small_objects()
     brain.fill()
+    brain.keep_route()
     return {"task": None if spec is None else spec.__dict__}
 
 
@@ -106,7 +108,7 @@ def generate_scene(
     if scene_id is not None:
         scene.id = check_id(scene_id, "scene id")
     if info["task"] is not None:
-        scene.task = Task(kind="pick_place", instruction=info["task"]["instruction"])
+        scene.task = Task(kind=task_kind(info["task"]), instruction=info["task"]["instruction"])
     report = {
         "agent": "heuristic",
         "request": request,

@@ -3,12 +3,15 @@
 :class:`Brain` holds the steps of the paper's loop over any tool caller (a
 :class:`~.tools.ToolSession`, or an MCP client): furnish the rooms, drop unstable furniture,
 place the task's objects, put small objects on surfaces with the physics critic judging each,
-then the visual critic's suggestions and fillers. :func:`~.brain.heuristic_agent` runs them on
-one scene; :mod:`.per_room` runs them room by room.
+then the visual critic's suggestions and fillers, and for a mobile task a last route check
+(:meth:`Brain.keep_route`). :func:`~.brain.heuristic_agent` runs them on one scene;
+:mod:`.per_room` runs them room by room.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,6 +20,12 @@ import numpy as np
 
 from factory.scenes.request import TaskSpec, parse_request, parse_task
 from factory.scenes.rooms import ROOM_TYPES, Item
+
+log = logging.getLogger(__name__)
+
+MAX_MADE_ROOM = 2
+"""Most light floor objects :meth:`Brain.make_room` takes out to put the mobile task's place
+support far enough from the pick's support."""
 
 
 @dataclass
@@ -169,8 +178,9 @@ class Brain:
         return spec
 
     def two_supports(self, spec: TaskSpec, objects: list[dict[str, Any]]) -> None:
-        """ "Move X from A to B": X on support A, and B a support of its own away from A
-        (about 2.5 m: the ``facing`` rule), marked ``place_support`` for the mobile task."""
+        """ "Move X from A to B": X on support A, and B a support of its own away from A,
+        marked ``place_support`` for the mobile task, where the route check passes
+        (:meth:`keep_route`)."""
 
         def named(text: str) -> dict[str, Any] | None:
             key = text.replace(" ", "_")
@@ -184,16 +194,151 @@ class Brain:
         if source is None:
             return
         self.place(text=spec.pick, placement="on_top", target=source["id"], task_role="pick")
-        for rule in ("facing", "wall", "free"):  # away from A first, then anywhere free
+        for room_id, rule in self.support_spots(spec.target, source["id"]):
             res = self.place(
                 text=spec.target,
                 placement="floor",
                 rule=rule,
                 target=source["id"],
                 task_role="place_support",
+                room_id=room_id,
             )
             if res.get("ok"):
+                self.keep_route()
                 return
+
+    def support_spots(self, text: str, source_id: str) -> list[tuple[str | None, str]]:
+        """Where the place support (``text``) may go, best first, as ``(room id, rule)``: in a
+        home, first the other rooms whose furniture it is (a desk in the study: the route
+        then passes a door), against a wall, facing the source, or anywhere about 2.5 m from
+        it; then the source's own room: facing the source from a wall (about 2.5 m away),
+        anywhere about 2.5 m away, against a wall, or anywhere free."""
+        info = self.call("get_scene_info")
+        rooms = info.get("rooms", [])
+        home = next(
+            (o.get("room_id") for o in info.get("objects", []) if o["id"] == source_id), None
+        )
+        near: tuple[str, ...] = ("facing", "away", "wall", "free")
+        if len(rooms) <= 1 or home is None:
+            return [(None, rule) for rule in near]
+
+        def holds(room: dict[str, Any]) -> bool:
+            rt = ROOM_TYPES.get(room["room_type"])
+            return rt is not None and any(
+                it.text == text or it.text.endswith(f" {text}") for it in rt.items
+            )
+
+        out: list[tuple[str | None, str]] = [
+            (r["id"], rule)
+            for r in rooms
+            if r["id"] != home and holds(r)
+            for rule in ("wall", "facing", "away")
+        ]
+        return out + [(home, rule) for rule in near]
+
+    def keep_route(self) -> dict[str, Any]:
+        """The mobile task's route check (``route_critic``) and its repair. When the check
+        fails, a pick support that the base cannot work at moves (with what stands on it)
+        towards the middle of its room or anywhere free; the place support moves through
+        :meth:`support_spots` (same asset and id, what stands on it along) until the check
+        passes; when no spot is far enough from the source, up to :data:`MAX_MADE_ROOM`
+        light floor objects far from it are taken out to make room (:meth:`make_room`);
+        when the way is blocked, the light floor objects the check names are taken out.
+        Nothing happens for a scene without a mobile task.
+
+        Returns:
+            the last verdict.
+        """
+        from factory.nav.route import BLOCKED, NO_PICK_POSE, PLACE_SUPPORT_TOO_CLOSE
+
+        verdict = self.call("route_critic")
+        if not verdict.get("ok") or not verdict.get("applies") or not verdict.get("reason"):
+            return verdict
+        place, source = verdict.get("place_support"), verdict.get("pick_support")
+        if place and source:
+            objects = {o["id"]: o for o in self.call("get_scene_info").get("objects", [])}
+            if verdict.get("reason") == NO_PICK_POSE and source in objects:
+                for rule in ("center", "free"):
+                    room = objects[source].get("room_id")
+                    verdict = self.move_support(source, room, rule, None, verdict)
+                    if not verdict.get("reason"):
+                        return verdict
+            text = str(objects[place]["category"]).replace("_", " ") if place in objects else ""
+            spots = self.support_spots(text, source) if text else []
+            for room_id, rule in spots:
+                verdict = self.move_support(place, room_id, rule, source, verdict)
+                if not verdict.get("reason"):
+                    return verdict
+            if verdict.get("reason") == PLACE_SUPPORT_TOO_CLOSE:
+                verdict = self.make_room(place, source, [r for r, _ in spots], verdict)
+        if verdict.get("reason") in BLOCKED:
+            verdict = self.call("route_critic", clear=True)
+            for oid in verdict.get("clear", []):
+                self.call("remove_object", object_id=oid)
+            if verdict.get("clear"):
+                verdict = self.call("route_critic")
+        if verdict.get("reason"):
+            log.info("the mobile task's route check fails: %s", verdict.get("detail"))
+        return verdict
+
+    def move_support(
+        self,
+        oid: str,
+        room_id: str | None,
+        rule: str,
+        target: str | None,
+        verdict: dict[str, Any],
+    ) -> dict[str, Any]:
+        """Moves a task support to ``(room_id, rule)`` (``target`` for the rules that need
+        one) and checks the route again; the verdict of the new spot, or ``verdict`` when it
+        could not move."""
+        moved = self.call(
+            "move_object",
+            object_id=oid,
+            placement="floor",
+            rule=rule,
+            target=target,
+            room_id=room_id,
+        )
+        return self.call("route_critic") if moved.get("ok") else verdict
+
+    def make_room(
+        self, place: str, source: str, rooms: list[str | None], verdict: dict[str, Any]
+    ) -> dict[str, Any]:
+        """Takes out light floor objects (at most 1 m across, no task role) that stand far
+        enough from the source, the largest first, one at a time (up to
+        :data:`MAX_MADE_ROOM`), each time moving the place support about 2.5 m from the
+        source, until the route check passes."""
+        from factory.nav.route import MIN_SUPPORT_SEPARATION
+
+        info = self.call("get_scene_info")
+        objects = {o["id"]: o for o in info.get("objects", [])}
+        home = objects[source].get("room_id") if source in objects else None
+        where = [r if r is not None else home for r in rooms] or [home]
+        sx, sy = objects[source]["position"][:2] if source in objects else (0.0, 0.0)
+
+        def light(o: dict[str, Any]) -> bool:
+            far = math.hypot(o["position"][0] - sx, o["position"][1] - sy)
+            return (
+                o["placement"] == "floor"
+                and not o.get("task_role")
+                and o["id"] not in (place, source)
+                and max(o["size"][0], o["size"][1]) <= 1.0
+                and far >= MIN_SUPPORT_SEPARATION
+                and o.get("room_id") in where
+            )
+
+        pool = sorted(
+            (o for o in objects.values() if light(o)),
+            key=lambda o: (where.index(o.get("room_id")), -o["size"][0] * o["size"][1], o["id"]),
+        )
+        for o in pool[:MAX_MADE_ROOM]:
+            self.call("remove_object", object_id=o["id"])
+            for rule in ("away", "facing"):
+                verdict = self.move_support(place, o.get("room_id"), rule, source, verdict)
+                if not verdict.get("reason"):
+                    return verdict
+        return verdict
 
     def small_objects(self) -> None:
         """Step 4: small objects on surfaces, multi-level, each judged by the physics critic."""
@@ -247,6 +392,12 @@ TABLES = (
     "kitchen_cabinet",
     "workbench",
 )
+
+
+def task_kind(spec: dict[str, Any]) -> str:
+    """The scene's ``Task.kind`` for a parsed task (``TaskSpec`` fields): ``mobile_pick_place``
+    for "move X from A to B" (two supports apart), else ``pick_place``."""
+    return "mobile_pick_place" if spec.get("source") else "pick_place"
 
 
 def brief(result: dict[str, Any]) -> dict[str, Any]:

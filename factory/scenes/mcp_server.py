@@ -28,8 +28,9 @@ def build_server(session: Any) -> Any:
         name="factory-scene-tools",
         version="0.1.0",
         instructions="Build a furnished, physically valid room: init_scene, then "
-        "place_objects (floor, wall, on_top), check with visual_critic and "
-        "physics_critic, fix with move_object/remove_object, finish with "
+        "place_objects (floor, wall, on_top), check with visual_critic, "
+        "physics_critic and (for a mobile task) route_critic, fix with "
+        "move_object/remove_object, finish with "
         "get_scene_json.",
     )
 
@@ -42,7 +43,9 @@ def build_server(session: Any) -> Any:
     def place_objects(
         text: str,
         placement: Literal["floor", "wall", "on_top"] | None = None,
-        rule: Literal["wall", "corner", "free", "center", "near", "around", "facing"] = "wall",
+        rule: Literal[
+            "wall", "corner", "free", "center", "near", "around", "facing", "away"
+        ] = "wall",
         target: str | None = None,
         height: float = 1.3,
         count: int = 1,
@@ -61,11 +64,15 @@ def build_server(session: Any) -> Any:
     def move_object(
         object_id: str,
         placement: Literal["floor", "wall", "on_top"] = "floor",
-        rule: Literal["wall", "corner", "free", "center", "near", "around"] = "free",
+        rule: Literal[
+            "wall", "corner", "free", "center", "near", "around", "facing", "away"
+        ] = "free",
         target: str | None = None,
+        room_id: str | None = None,
     ) -> str:
-        """Move an object elsewhere; it stays put if no place is found."""
-        return json.dumps(session.move_object(object_id, placement, rule, target))
+        """Move an object elsewhere (room_id picks the room); it stays put if no place is
+        found."""
+        return json.dumps(session.move_object(object_id, placement, rule, target, room_id))
 
     @server.tool()
     def remove_object(object_id: str) -> str:
@@ -91,6 +98,13 @@ def build_server(session: Any) -> Any:
     def physics_critic() -> str:
         """Collision and stability metrics of the whole scene."""
         return json.dumps(session.physics_critic())
+
+    @server.tool()
+    def route_critic(clear: bool = False) -> str:
+        """The mobile task's route: can the robot's base work at the pick's support and at the
+        place support (1.5 m apart at least) and drive between them; with clear, the light
+        objects whose removal would open the way."""
+        return json.dumps(session.route_critic(clear))
 
     @server.tool()
     def get_scene_json() -> str:

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from factory.assets import AssetLibrary
-from factory.scenes.brain_steps import AgentConfig, Brain, BrainState, Trace, brief
+from factory.scenes.brain_steps import AgentConfig, Brain, BrainState, Trace, brief, task_kind
 from factory.scenes.placement import SceneState
 from factory.scenes.request import style_of
 from factory.scenes.tools import ToolSession
@@ -281,8 +281,9 @@ def generate_home(
         state.metas = {k: v for w in works for k, v in w.metas.items()}
     finally:
         rooms.close()
+    brain.keep_route()  # the rooms' fillers may have closed the way between the supports
     if spec is not None:
-        home.task = Task(kind="pick_place", instruction=spec.instruction)
+        home.task = Task(kind=task_kind(spec.__dict__), instruction=spec.instruction)
     calls = trace.calls[:1] + [c for w in works for c in w.calls] + trace.calls[1:]
     report = {
         "agent": "heuristic",

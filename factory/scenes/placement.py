@@ -36,6 +36,9 @@ log = logging.getLogger(__name__)
 WALL_GAP = 0.01
 CLEARANCE = 0.02
 DOOR_DEPTH = 0.9
+AWAY_DISTANCE = 2.5
+"""Distance (m) from the target that the ``facing`` and ``away`` floor rules aim at (the
+mobile task's place support from the pick's support: at least 1.5 m is required)."""
 
 
 @dataclass
@@ -156,11 +159,17 @@ class SceneState:
     # ---- assets
     def asset(self, text: str, dims: Any = None) -> tuple[AssetMeta, Resolution]:
         """The asset for the next placement: ``reuse`` (set by the caller, used once) or a new
-        one from the library."""
+        one from the library, weathered and finished by the scene request's condition words
+        ("a dusty attic": every new object is dusty)."""
+        from factory.scenes.request import parse_request
+
         seed = int(self.rng.integers(0, 2**31))
         if self.reuse is not None:
             pinned, self.reuse = self.reuse, None
             return pinned
+        finish = parse_request(self.scene.description).conditions if self.scene.description else ()
+        if finish:
+            return self.library.from_text(text, seed=seed, dims=dims, finish=finish)
         return self.library.from_text(text, seed=seed, dims=dims)
 
     def meta_of(self, obj: SceneObject) -> tuple[AssetMeta, Resolution]:
@@ -257,7 +266,10 @@ def place_floor(
     dims: Any = None,
 ) -> PlaceResult:
     """Places a floor object by ``rule`` (``wall``, ``corner``, ``free``, ``center``,
-    ``near``, ``around``; ``target`` names the object for the last two)."""
+    ``near``, ``around``, ``facing``, ``away``; ``target`` names the object for the last
+    four). ``facing``: against a wall, its front turned to the target, about
+    :data:`AWAY_DISTANCE` from it where it can; ``away``: anywhere free, as near to
+    :data:`AWAY_DISTANCE` from the target as it can, its front turned to it."""
     room = state.room(room_id)
     meta, res = state.asset(text, dims)
     w, ln, h = meta.extents
@@ -279,7 +291,14 @@ def place_floor(
             dx, dy = tgt.position.x - x, tgt.position.y - y
             yaw = math.atan2(dx, -dy)  # local -y -> (dx, dy)
             dist = math.hypot(dx, dy)
-            cands.append((-abs(dist - 2.5) + rng.uniform(0, 0.2), x, y, yaw))
+            cands.append((-abs(dist - AWAY_DISTANCE) + rng.uniform(0, 0.2), x, y, yaw))
+    elif rule == "away" and tgt is not None:
+        # anywhere free, about AWAY_DISTANCE from the target, turned to face it
+        for gx in np.arange(x0 + 0.3, x1 - 0.3 + 1e-9, 0.2):
+            for gy in np.arange(y0 + 0.3, y1 - 0.3 + 1e-9, 0.2):
+                dx, dy = tgt.position.x - float(gx), tgt.position.y - float(gy)
+                score = -abs(math.hypot(dx, dy) - AWAY_DISTANCE) + rng.uniform(0, 0.2)
+                cands.append((score, float(gx), float(gy), math.atan2(dx, -dy)))
     elif rule == "near" and tgt is not None:
         tfp = state.footprint(tgt)
         c, s = math.cos(tfp.yaw), math.sin(tfp.yaw)

@@ -33,6 +33,7 @@ TOOLS: tuple[str, ...] = (
     "render_views",
     "visual_critic",
     "physics_critic",
+    "route_critic",
     "get_scene_json",
 )
 
@@ -158,12 +159,13 @@ class ToolSession:
     ) -> dict[str, Any]:
         """Places ``count`` objects described by ``text``.
 
-        ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around;
-        ``target`` for near/around), ``wall`` (mounted at ``height`` m) or ``on_top`` (on a
-        support surface of ``target``: tops, shelf boards, seats, inside vessels). ``room_id``
-        picks the room (default: the first) for floor and wall placement. With no
-        ``placement``, the text may carry its constraint: "a lamp on the nightstand", "a tv
-        stand facing the sofa", "a plant in the corner", "a painting on the wall".
+        ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around,
+        facing, away; ``target`` for the last four), ``wall`` (mounted at ``height`` m) or
+        ``on_top`` (on a support surface of ``target``: tops, shelf boards, seats, inside
+        vessels). ``room_id`` picks the room (default: the first) for floor and wall
+        placement. With no ``placement``, the text may carry its constraint: "a lamp on the
+        nightstand", "a tv stand facing the sofa", "a plant in the corner", "a painting on
+        the wall".
         """
         state = self._require()
         if placement is None:
@@ -210,22 +212,27 @@ class ToolSession:
         placement: str = "floor",
         rule: str = "free",
         target: str | None = None,
+        room_id: str | None = None,
     ) -> dict[str, Any]:
-        """Moves an object (the same asset) elsewhere with the placement logic; what stands on
-        it moves along; restores everything on failure."""
+        """Moves an object (the same asset, id and task role) elsewhere with the placement
+        logic (``room_id`` picks the room of a floor placement, default the first); what
+        stands on it moves along; restores everything on failure."""
         state = self._require()
         obj = state.scene.object(object_id)
+        if room_id is not None:
+            state.scene.room(room_id)
         meta = state.metas.get(object_id)
         index = state.scene.objects.index(obj)
         state.scene.objects.remove(obj)
         text = obj.description or obj.category.replace("_", " ")
         state.reuse = state.meta_of(obj) if meta is None else (meta, state.meta_of(obj)[1])
+        role = obj.task_role
         if placement == "on_top" and target:
-            res = place_on(state, text, target, self._critic())
+            res = place_on(state, text, target, self._critic(), task_role=role)
         elif placement == "wall":
             res = place_wall(state, text, obj.position.z)
         else:
-            res = place_floor(state, text, rule, target=target)
+            res = place_floor(state, text, rule, room_id=room_id, target=target, task_role=role)
         state.reuse = None
         if not res.ok:
             state.scene.objects.insert(index, obj)
@@ -270,6 +277,7 @@ class ToolSession:
                 {
                     "id": o.id,
                     "category": o.category,
+                    "room_id": o.room_id,
                     "placement": o.placement.kind,
                     "support": o.placement.support_id,
                     "task_role": o.task_role,
@@ -322,6 +330,22 @@ class ToolSession:
             "stability_ratio": m["stability"]["ratio"],
             "unstable": m["stability"]["unstable"],
         }
+
+    @_safe
+    def route_critic(self, clear: bool = False) -> dict[str, Any]:
+        """The mobile task's route: whether the robot's base can stand within reach of the
+        object to pick and of the place support (at least 1.5 m apart) and drive between them
+        (``reason`` "" when it can, else no_route, no_pick_pose, no_place_pose, no_spawn_area,
+        no_place_support, place_support_too_close, place_support_too_small; ``applies`` is
+        false for a scene without a mobile task). With ``clear``, ``clear`` names the light
+        floor objects whose removal would open a blocked route."""
+        from factory.nav.route import check_route, is_mobile_task
+
+        scene = self.scene
+        if not is_mobile_task(scene):
+            return {"ok": True, "applies": False, "reason": ""}
+        verdict = check_route(scene, self.library.assets_dir, suggest_clear=clear)
+        return {"ok": True, "applies": True, **verdict.as_dict()}
 
     @_safe
     def get_scene_json(self) -> dict[str, Any]:

@@ -9,6 +9,12 @@ With ``validate.repair=true``, unstable objects whose settled pose is stable are
 other unstable objects and the smaller of two colliding objects are removed (with whatever
 stands on them), the scene is saved and recompiled, and every change is recorded in the
 report. Task objects are never removed silently: removing one is logged as a warning.
+
+Scene checks that live above this floor (the mobile task's route check,
+``factory.nav.route``) come in as ``checks``: name -> :data:`SceneCheck`, run on the final
+compiled model; their results go to the report (``validate.checks.<name>``), the rows and the
+summary (``checks``: per name, passed and failed by reason). ``factory.scenes.validate_stage``
+is the stage's entry point that passes them.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import mujoco
@@ -33,6 +40,10 @@ from factory.store import RunStore, atomic_write_json, atomic_write_text, file_l
 log = logging.getLogger(__name__)
 
 REPORT_SCHEMA_VERSION = 1
+
+SceneCheck = Callable[[Scene, mujoco.MjModel], "dict[str, Any] | None"]
+"""A scene check: ``check(scene, model)`` on the scene's compiled model returns a JSON-ready
+dict whose ``reason`` is ``""`` when the scene passes, or None when it does not apply."""
 
 
 def protocol_of(sim: Any) -> StabilityProtocol:
@@ -134,6 +145,7 @@ def validate_scene(
     cfg: Any,
     backend: Any,
     first: StabilityResult | None = None,
+    checks: Mapping[str, SceneCheck] | None = None,
 ) -> tuple[Scene, dict[str, Any]]:
     """Validates (and with ``cfg.validate.repair`` repairs) one scene.
 
@@ -144,6 +156,8 @@ def validate_scene(
         backend: a physics backend instance.
         first: the scene's stability result as it is, when already checked in a batch of
             its layout (:func:`~factory.sim.layout_batch.check_by_layout`).
+        checks: scene checks run on the (repaired) scene's model; their results go to the
+            report's ``checks``.
 
     Returns:
         the (possibly repaired) scene and its report dict.
@@ -167,6 +181,15 @@ def validate_scene(
         if not changes:
             break
         history.append({"round": r, "changes": changes})
+    results: dict[str, Any] = {}
+    for name, check in (checks or {}).items():
+        out = check(scene, model)
+        if out is not None:
+            results[name] = out
+            if out.get("reason"):
+                log.info(
+                    "scene %s: %s check: %s", scene.id, name, out.get("detail") or out["reason"]
+                )
     report = {
         "schema_version": REPORT_SCHEMA_VERSION,
         "scene_id": scene.id,
@@ -174,14 +197,16 @@ def validate_scene(
         "protocol": vars(protocol) | {"penetration_tol": None},
         "metrics": metrics,
         "repair": history,
+        "checks": results,
         "sim_seconds": result.seconds,
     }
     return scene, report
 
 
-def _row(scene_id: str, m: dict[str, Any]) -> dict[str, Any]:
+def _row(scene_id: str, m: dict[str, Any], checks: dict[str, Any] | None = None) -> dict[str, Any]:
     tri = m.get("collision_trimesh") or {}
     return {
+        "checks": {name: str(c.get("reason", "")) for name, c in (checks or {}).items()},
         "scene": scene_id,
         "objects": m["objects"],
         "collision_pct": 100 * m["collision"]["ratio"],
@@ -203,8 +228,20 @@ def _aggregate(rows: list[dict[str, Any]]) -> dict[str, Any]:
     def pct(num: float, den: float) -> float:
         return 100.0 * num / den if den else 0.0
 
+    passed: dict[str, int] = {}
+    failed: dict[str, dict[str, int]] = {}
+    for r in rows:
+        for name, reason in r.get("checks", {}).items():
+            passed.setdefault(name, 0)
+            fails = failed.setdefault(name, {})
+            if reason:
+                fails[reason] = fails.get(reason, 0) + 1
+            else:
+                passed[name] += 1
+    checks = {name: {"passed": passed[name], "failed": failed[name]} for name in sorted(passed)}
     return {
         "scenes": len(rows),
+        "checks": checks,
         "objects": n_obj,
         "objects_per_scene": n_obj / len(rows) if rows else 0.0,
         "collision_pct": pct(sum(r["collision_pct"] * r["objects"] for r in rows) / 100, n_obj),
@@ -239,11 +276,20 @@ def format_table(rows: list[dict[str, Any]], total: dict[str, Any]) -> str:
             f"{'  ' + rt:<{w}}  {c['objects']:>8}  {c['collision_pct']:>11.1f}  {'':>9}  "
             f"{c['stability_pct']:>11.1f}"
         )
+    for name, c in total.get("checks", {}).items():
+        failed = ", ".join(f"{k} {v}" for k, v in sorted(c["failed"].items()))
+        lines.append(
+            f"{name} check: {c['passed']} passed" + (f", failed: {failed}" if failed else "")
+        )
+        for r in rows:
+            if r.get("checks", {}).get(name):
+                lines.append(f"  {r['scene']}: {r['checks'][name]}")
     return "\n".join(lines)
 
 
-def run(ctx: StageContext) -> dict[str, Any]:
-    """Stage entry point."""
+def run(ctx: StageContext, checks: Mapping[str, SceneCheck] | None = None) -> dict[str, Any]:
+    """Stage entry point: every scene of the shard; ``checks`` are the scene checks of the
+    floors above (see the module's description)."""
     store: RunStore = ctx.require_store()
     cfg = ctx.cfg
     ids = store.scene_ids()
@@ -255,7 +301,12 @@ def run(ctx: StageContext) -> dict[str, Any]:
     backend = make_backend(cfg.sim)
     rows: list[dict[str, Any]] = []
     settings = json.dumps(
-        {"sim": vars(cfg.sim), "validate": vars(cfg.validate), "compile": vars(cfg.compile)},
+        {
+            "sim": vars(cfg.sim),
+            "validate": vars(cfg.validate),
+            "compile": vars(cfg.compile),
+            "checks": sorted(checks or {}),
+        },
         sort_keys=True,
     ).encode()
 
@@ -286,13 +337,14 @@ def run(ctx: StageContext) -> dict[str, Any]:
         digest = digest_of(scene_id)
         report_path = store.report_json(scene_id)
         if not cfg.force and store.is_done(scene_dir, "validate", digest):
-            rows.append(_row(scene_id, json.loads(report_path.read_text())["validate"]["metrics"]))
+            done = json.loads(report_path.read_text())["validate"]
+            rows.append(_row(scene_id, done["metrics"], done.get("checks")))
             return "skipped"
         if cfg.validate.batch_scenes > 1 and scene_id not in checked:
             prefetch(scene_id)
         scene = store.load_scene(scene_id)
         repaired, report = validate_scene(
-            scene, store.assets_dir, cfg, backend, first=checked.pop(scene_id, None)
+            scene, store.assets_dir, cfg, backend, first=checked.pop(scene_id, None), checks=checks
         )
         if report["repair"]:
             text = scene_to_json(repaired)
@@ -313,7 +365,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         existing.update(schema_version=REPORT_SCHEMA_VERSION, validate=report)
         atomic_write_json(report_path, existing)
         store.mark_done(scene_dir, "validate", digest, ["report.json"])
-        rows.append(_row(scene_id, report["metrics"]))
+        rows.append(_row(scene_id, report["metrics"], report["checks"]))
         return "done"
 
     counts = run_items("validate", mine, one)
@@ -335,4 +387,4 @@ def run(ctx: StageContext) -> dict[str, Any]:
     return {**counts, **{k: v for k, v in _aggregate(rows).items() if k != "per_room_type"}}
 
 
-__all__ = ["format_table", "protocol_of", "run", "validate_scene"]
+__all__ = ["SceneCheck", "format_table", "protocol_of", "run", "validate_scene"]

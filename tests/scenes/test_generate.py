@@ -81,14 +81,16 @@ def test_parse_task() -> None:
     assert parse_task("a cozy bedroom") is None
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_from_a_to_b_places_two_supports_apart(tmp_path: Path, seed: int) -> None:
     """ "Move X from A to B": X stands on A, and B is another floor support, marked
-    place_support, away from A (the mobile task's two places)."""
-    import math
+    place_support, at least 1.5 m from A, and the route check passes (the robot's base can
+    work at both and drive between them). Seed 3's room is full: the generator takes a light
+    object out to make room for B."""
+    from factory.nav.route import MIN_SUPPORT_SEPARATION, check_route
 
     lib = AssetLibrary(tmp_path / "assets")
-    scene, _ = generate_scene(
+    scene, report = generate_scene(
         "a living room where the robot moves the coke can from the coffee table to the desk",
         lib,
         seed=seed,
@@ -101,7 +103,33 @@ def test_from_a_to_b_places_two_supports_apart(tmp_path: Path, seed: int) -> Non
     source = scene.object(str(pick.placement.support_id))
     assert source.category == "coffee_table" and place.placement.kind == "floor"
     far = math.hypot(place.position.x - source.position.x, place.position.y - source.position.y)
-    assert far >= 1.2
+    assert far >= MIN_SUPPORT_SEPARATION
+    assert scene.task is not None and scene.task.kind == "mobile_pick_place"
+    verdict = check_route(scene, lib.assets_dir)
+    assert verdict.ok, verdict
+    assert any(c["tool"] == "route_critic" for c in report["trace"])
+
+
+def test_two_room_apartment_puts_the_place_support_in_the_study(tmp_path: Path) -> None:
+    """In a two-room apartment the desk goes to the study, and the route check passes
+    through the door between the rooms."""
+    from factory.nav.route import check_route
+
+    lib = AssetLibrary(tmp_path / "assets")
+    scene, _ = generate_scene(
+        "a two-room apartment with a living room and a study where the robot moves the coke "
+        "can from the coffee table to the desk",
+        lib,
+        seed=0,
+        config=AgentConfig(physics_critic=False, workers=1),
+    )
+    assert [r.room_type for r in scene.rooms] == ["living room", "office"]
+    roles = {o.task_role: o for o in scene.objects if o.task_role}
+    source = scene.object(str(roles["pick"].placement.support_id))
+    assert source.room_id == "living_room" and roles["place_support"].room_id == "office"
+    verdict = check_route(scene, lib.assets_dir)
+    assert verdict.ok, verdict
+    assert verdict.separation is not None and verdict.separation > 2.5
 
 
 def test_absurd_room_is_refused() -> None:
