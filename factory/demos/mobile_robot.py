@@ -41,10 +41,10 @@ import numpy as np
 from factory.demos.robot import (
     _KP,
     _KV,
+    CACHE_KEY,
     PANDA,
     ROBOSUITE_VERSION,
     SQUEEZE,
-    VISUAL_FACES,
     _look_quat,
     cached_mjcf,
     export_mjcf,
@@ -143,7 +143,7 @@ class MobileCameraRig:
 def mobile_cache_dir() -> Path:
     """Where the composed mobile robot MJCF and its meshes are kept (``FACTORY_ROBOT_CACHE``)."""
     root = os.environ.get("FACTORY_ROBOT_CACHE") or "~/.cache/factory/robots"
-    return Path(root).expanduser() / f"panda-omron-robosuite-{ROBOSUITE_VERSION}-v{VISUAL_FACES}"
+    return Path(root).expanduser() / f"panda-omron-robosuite-{ROBOSUITE_VERSION}-{CACHE_KEY}"
 
 
 def _robosuite_xml() -> str:

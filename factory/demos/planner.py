@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from factory.demos.robot import PANDA, RobotIndex
+from factory.nav.rrt import seed_ompl
 
 log = logging.getLogger(__name__)
 
@@ -227,7 +228,7 @@ def plan(
     if checker.segment_valid(q_start, q_goal, cfg.check_step):
         return PlanResult(np.stack([q_start, q_goal]), time.perf_counter() - t0)
     ou.setLogLevel(ou.LOG_WARN)
-    ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
+    seed_ompl(seed)
     space = ob.RealVectorStateSpace(7)
     bounds = ob.RealVectorBounds(7)
     for i in range(7):

@@ -21,9 +21,15 @@ import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
+
+from factory.demos.visual_mesh import SIMPLIFY_VERSION, VISUAL_FACES, simplify_visual_mesh
+
+if TYPE_CHECKING:
+    import xml.etree.ElementTree as ET
 
 log = logging.getLogger(__name__)
 
@@ -149,34 +155,15 @@ class CameraRig:
 ROBOSUITE_VERSION = "1.5.1"
 
 
-VISUAL_FACES = 2500
-"""Visual meshes of the robot are simplified to at most this many faces each (robosuite's have
-up to 15,000, 149,000 in all: nine tenths of a kitchen's triangles); collision meshes are kept."""
+CACHE_KEY = f"vis{VISUAL_FACES}-s{SIMPLIFY_VERSION}"
+"""Part of the robot caches' directory names: caches made with other visual meshes (another
+face budget or simplification) are not read, and a new one is made."""
 
 
 def robot_cache_dir() -> Path:
     """Where the composed robot MJCF and its meshes are kept (``FACTORY_ROBOT_CACHE``)."""
     root = os.environ.get("FACTORY_ROBOT_CACHE") or "~/.cache/factory/robots"
-    return Path(root).expanduser() / f"panda-robosuite-{ROBOSUITE_VERSION}-v{VISUAL_FACES}"
-
-
-def _simplify_obj(src: str, dst: Path, max_faces: int) -> None:
-    """Writes a visual OBJ with at most ``max_faces`` faces (fast-simplification)."""
-    import fast_simplification
-    import trimesh
-
-    mesh = trimesh.load(src, force="mesh", process=False)
-    assert isinstance(mesh, trimesh.Trimesh)
-    mesh.merge_vertices()  # OBJ corners are per face; decimation needs shared vertices
-    faces = len(mesh.faces)
-    if faces > max_faces:
-        verts, tris = fast_simplification.simplify(
-            np.asarray(mesh.vertices, np.float32),
-            np.asarray(mesh.faces, np.int64),
-            target_reduction=1.0 - max_faces / faces,
-        )
-        mesh = trimesh.Trimesh(verts, tris, process=False)
-    dst.write_text(trimesh.exchange.obj.export_obj(mesh, include_normals=False))
+    return Path(root).expanduser() / f"panda-robosuite-{ROBOSUITE_VERSION}-{CACHE_KEY}"
 
 
 def _robosuite_xml() -> str:
@@ -203,26 +190,40 @@ def _robosuite_xml() -> str:
     return str(robot.get_xml())
 
 
-def export_mjcf(xml: str, cache: Path) -> None:
+def is_visual_mesh(el: ET.Element) -> bool:
+    """Whether an MJCF element is one of robosuite's visual meshes (``<mesh>``, an OBJ or STL
+    file, ``_vis`` in its name: ``robot0_link0_vis_3``, ``gripper0_hand_vis``,
+    ``mobilebase0_omron_5_vis``); collision meshes are named without it."""
+    name, src = el.get("name") or "", el.get("file") or ""
+    return el.tag == "mesh" and "_vis" in name and src.lower().endswith((".obj", ".stl"))
+
+
+def export_mjcf(xml: str, cache: Path, max_faces: int = VISUAL_FACES) -> None:
     """Writes a robosuite MJCF ``xml`` (absolute file paths) with the files it references under
     ``cache`` (``robot.xml`` with relative paths, files under ``files/``), atomically; visual
-    meshes are simplified to :data:`VISUAL_FACES` faces."""
+    meshes (:func:`is_visual_mesh`) are simplified to ``max_faces`` faces each, more for a
+    mesh larger than 0.4 m (:func:`factory.demos.visual_mesh.simplify_visual_mesh`; the fixed
+    Panda's 135k visual faces become 27k, the mobile robot's 257k 38k), the others copied."""
     import xml.etree.ElementTree as ET
 
     root = ET.fromstring(xml)
     tmp = cache.with_name(cache.name + f".tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
+    faces = [0, 0]
     for k, el in enumerate(root.iter()):
         src = el.get("file")
         if not src:
             continue
         rel = f"files/{k:04d}_{Path(src).name}"
         (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        if el.tag == "mesh" and src.endswith(".obj") and "_vis" in el.get("name", ""):
-            _simplify_obj(src, tmp / rel, VISUAL_FACES)
+        if is_visual_mesh(el):
+            done = simplify_visual_mesh(src, tmp / rel, max_faces)
+            faces[0] += done.faces_in
+            faces[1] += done.faces_out
         else:
             shutil.copyfile(src, tmp / rel)
         el.set("file", rel)
+    log.info("robot cache %s: visual meshes simplified from %d to %d faces", cache.name, *faces)
     (tmp / "robot.xml").write_text(ET.tostring(root, encoding="unicode"))
     cache.parent.mkdir(parents=True, exist_ok=True)
     try:

@@ -1,16 +1,15 @@
-"""Timed base trajectories (x, y, yaw) along a planar path, with ruckig.
+"""Timed base trajectories (x, y, yaw) through base poses, with ruckig.
 
-Heading: the base faces its direction of motion. At the start and at each corner it turns in
-place to the next segment's heading, drives the segment straight, and at the end turns in place
-to the goal's yaw. A segment shorter than ``min_turn`` is driven sideways at the current
-heading instead (the base is holonomic), so that a small correction does not cost two turns.
-Yaw is unwrapped: each turn takes the shorter way round and the values stay continuous, as the
-base's hinge joint and position actuator expect.
+A pose path (k, 3) (x, y and unwrapped yaw; from :func:`factory.nav.se2.plan_se2_path`) is
+driven piece by piece, each piece a straight motion in SE(2) from one pose to the next: the
+base moves along the segment and turns at once (it is holonomic). Yaw is unwrapped: each piece
+takes the yaw difference as given, and the values stay continuous, as the base's hinge joint
+and position actuator expect.
 
-Timing: each piece (a straight drive, a turn, or a sideways correction with a turn) is timed
-rest to rest with ruckig on two coordinates, the distance along the segment and the yaw, with
-phase synchronization, so the base stays on the checked straight line. The planar speed is
-limited along the segment, hence ``|v| <= v_max`` in any direction.
+Timing: each piece is timed rest to rest with ruckig on two coordinates, the distance along the
+segment and the yaw, with phase synchronization, so the base stays on the checked straight
+motion. The planar speed is limited along the segment, hence ``|v| <= v_max`` in any
+direction.
 """
 
 from __future__ import annotations
@@ -81,44 +80,6 @@ class BaseTrajectory:
         return float(self.t[-1])
 
 
-def wrap_angle(a: float) -> float:
-    """``a`` (rad) wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
-def yaw_waypoints(
-    path: np.ndarray, start_yaw: float, goal_yaw: float, min_turn: float = 0.25
-) -> np.ndarray:
-    """Rest poses (m, 3) of a base that follows ``path`` (k, 2) facing its motion.
-
-    Args:
-        path: planar waypoints (m, world), start first.
-        start_yaw: the base's yaw at the start (rad).
-        goal_yaw: its yaw at the end (rad; any multiple of 2 pi, the turn takes the short way).
-        min_turn: segments shorter than this (m) are driven sideways without turning.
-    """
-    path = np.asarray(path, float)
-    if path.ndim != 2 or len(path) < 1 or path.shape[1] != 2:
-        raise NavError(f"a base path must be (k >= 1, 2), got shape {path.shape}")
-    yaw = float(start_yaw)
-    out = [(path[0, 0], path[0, 1], yaw)]
-    for a, b in itertools.pairwise(path):
-        d = b - a
-        length = math.hypot(d[0], d[1])
-        if length < 1e-9:
-            continue
-        if length >= min_turn:
-            heading = yaw + wrap_angle(math.atan2(d[1], d[0]) - yaw)
-            if abs(heading - yaw) > 1e-9:
-                yaw = heading
-                out.append((a[0], a[1], yaw))
-        out.append((b[0], b[1], yaw))
-    final = yaw + wrap_angle(goal_yaw - yaw)
-    if abs(final - yaw) > 1e-9:
-        out.append((path[-1, 0], path[-1, 1], final))
-    return np.array(out, float)
-
-
 def _time_piece(
     a: np.ndarray, b: np.ndarray, limits: BaseLimits, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -162,7 +123,8 @@ def time_base_path(
     """Times rest poses (m, 3) one piece after the other (see the module docstring).
 
     Args:
-        waypoints: base poses (x, y, unwrapped yaw), e.g. from :func:`yaw_waypoints`.
+        waypoints: base poses (x, y, unwrapped yaw), e.g. a path of
+            :func:`factory.nav.se2.plan_se2_path`.
         limits: speed limits; default :class:`BaseLimits`.
         dt: sample period (s).
 
@@ -192,16 +154,3 @@ def time_base_path(
         qdd=np.concatenate(qdds),
         waypoints=wps,
     )
-
-
-def base_trajectory(
-    path: np.ndarray,
-    start_yaw: float,
-    goal_yaw: float,
-    limits: BaseLimits | None = None,
-    dt: float = 0.02,
-    min_turn: float = 0.25,
-) -> BaseTrajectory:
-    """A planar path (k, 2) turned into a timed (x, y, yaw) trajectory: :func:`yaw_waypoints`
-    then :func:`time_base_path`."""
-    return time_base_path(yaw_waypoints(path, start_yaw, goal_yaw, min_turn), limits, dt)

@@ -1,17 +1,18 @@
 """Base paths for a base of a given footprint: OMPL RRTConnect in SE(2).
 
-:func:`factory.nav.rrt.plan_base_path` moves a disc; here the state is the base pose (x, y,
-yaw) and a pose is valid when its :class:`~factory.nav.footprint.Footprint` is free on the raw
-occupancy grid, so the base passes lengthwise where a disc around it would not fit, and turns
-where there is room to turn. Motions between states are straight in SE(2) (position linear,
-yaw linear the short way round), which is what a phase-synchronized ruckig piece of
-:func:`factory.nav.base_trajectory.time_base_path` drives.
+The state is the base pose (x, y, yaw) and a pose is valid when its
+:class:`~factory.nav.footprint.Footprint` is free on the raw occupancy grid, so the base passes
+lengthwise where a disc around it would not fit, and turns where there is room to turn (a
+planner for such a disc came first and was removed). Motions between states are straight in
+SE(2) (position linear, yaw linear the short way round), which is what a phase-synchronized
+ruckig piece of :func:`factory.nav.base_trajectory.time_base_path` drives.
 
 The search runs in OMPL's ``SE2StateSpace`` bounded by the grid; the path is shortened by
 OMPL's ``PathSimplifier`` and by cutting corners (:func:`shortcut_se2`), its yaws are unwrapped
 (:func:`~factory.nav.footprint.unwrap_yaw`) and the whole path is re-checked at a fine step
-before it is returned. Failures are results with reason ``nav_failed``. Seeding as in
-:mod:`factory.nav.rrt` (OMPL's generator is seeded once per process).
+before it is returned. Failures are results with reason ``nav_failed``. OMPL is seeded with
+the query's ``seed`` before each search (:func:`factory.nav.rrt.seed_ompl`), so a query's
+path depends on its seed alone, not on the queries before it in the process.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 from factory.nav.footprint import Footprint, unwrap_yaw, wrap
 from factory.nav.grid import OccupancyGrid
-from factory.nav.rrt import NAV_FAILED, BasePath, NavPlannerConfig, _seed, solve_rrt_connect
+from factory.nav.rrt import NAV_FAILED, BasePath, NavPlannerConfig, seed_ompl, solve_rrt_connect
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +78,7 @@ def plan_se2_path(
         start, goal: base poses (world).
         cfg: planner parameters (``timeout``, ``attempts``, ``simplify``, ``edge_step`` and
             ``check_step`` as shares of a grid cell).
-        seed: OMPL's seed (taken once per process).
+        seed: OMPL's seed for this query.
 
     Returns:
         the path (k, 3), yaws unwrapped from the start's, or ``ok=False`` with
@@ -108,7 +109,7 @@ def plan_se2_path(
     from ompl import util as ou
 
     ou.setLogLevel(ou.LOG_WARN)
-    _seed(seed)
+    seed_ompl(seed)
     space = ob.SE2StateSpace()
     bounds = ob.RealVectorBounds(2)
     xmin, ymin, xmax, ymax = grid.bounds

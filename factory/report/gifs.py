@@ -18,7 +18,9 @@ MAX_BYTES = 1_000_000
 """A GIF larger than this is thinned (every other frame) until it fits."""
 
 COLORS = 128
-"""Colours of a GIF's palette (one palette for all its frames)."""
+"""Entries of a GIF's palette (one palette for all its frames): 127 colours and the
+transparent index that marks a pixel unchanged from the frame before."""
+TRANSPARENT = COLORS - 1
 
 
 def subsample(n_frames: int, src_fps: float, fps: float) -> list[int]:
@@ -71,24 +73,38 @@ def to_gif(
             im = im.resize(out_size, Image.Resampling.LANCZOS)
         rgb.append(im)
     # One palette for all frames (from up to 16 of them, stacked), no dithering: unchanged
-    # pixels keep their index, so each frame stores only the box that changed (~2x smaller).
+    # pixels keep their index, so each frame stores only the box that changed (~2x smaller),
+    # and inside it a pixel equal to the frame before is the transparent index (frames are
+    # not disposed, so the one before shows through): long runs of it compress well, another
+    # ~2x for a moving camera (a mobile episode's five views: 7.2 -> 3.5 MB).
     sample = rgb[:: max(1, len(rgb) // 16)]
     strip = Image.fromarray(np.concatenate([np.asarray(im) for im in sample], axis=0), "RGB")
-    palette = strip.quantize(colors=COLORS, method=Image.Quantize.MEDIANCUT)
-    images = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in rgb]
+    palette = strip.quantize(colors=COLORS - 1, method=Image.Quantize.MEDIANCUT)
+    indices = [np.asarray(im.quantize(palette=palette, dither=Image.Dither.NONE)) for im in rgb]
+    colors = (palette.getpalette() or [])[: 3 * (COLORS - 1)]
+    colors += [0] * (3 * COLORS - len(colors))  # the last entry: transparent
     step = 1
     while True:
-        picked = images[::step]
+        picked = indices[::step]
+        images = []
+        for k, idx in enumerate(picked):
+            frame = idx.copy()
+            if k:
+                frame[idx == picked[k - 1]] = TRANSPARENT
+            im = Image.fromarray(frame.astype(np.uint8), "P")
+            im.putpalette(colors)
+            images.append(im)
         buf = io.BytesIO()
-        picked[0].save(
+        images[0].save(
             buf,
             format="GIF",
             save_all=True,
-            append_images=picked[1:],
+            append_images=images[1:],
             duration=max(20, round(1000 * step / fps)),
             loop=0,
             optimize=False,
             disposal=1,
+            transparency=TRANSPARENT,
         )
         data = buf.getvalue()
         if len(data) <= max_bytes or len(picked) == 1:

@@ -13,14 +13,16 @@ centre, with ``f`` chosen so that ``theta = fov / 2`` lands on the image circle 
 
 Rendering composes a cube map: :class:`FisheyeRenderer` draws the cube faces that the image
 needs (front, right, left, up, down; back only for wide fields of view) with 90-degree pinhole
-views from the camera's position, side by side into one offscreen buffer of one
-``mujoco.Renderer`` (the scene is updated once per frame, each face only re-projects it), reads
-RGB and depth back at once, and resamples them per fisheye pixel through a lookup table built
-at construction (face, pixel, bilinear weights for RGB, applied as one sparse matrix product;
-nearest pixel for depth). The faces are
-drawn by setting the OpenGL cameras of the ``mjvScene`` (position, forward and up vectors,
-frustum) after ``mjv_updateScene``, which gives each face its full orientation, roll included
-(a free ``MjvCamera`` cannot roll), and leaves the model untouched.
+views from the camera's position, each only over the window of it that the lens reads (at 180
+degrees the front half of a side face), side by side into one offscreen buffer of one
+``mujoco.Renderer`` (the scene is updated once per frame, each face only re-projects it; per
+face the geoms outside its frustum are skipped, :mod:`factory.sim.frustum`), reads RGB and
+depth back at once, and resamples them per fisheye pixel through a lookup table built at
+construction (face, pixel, bilinear weights for RGB, applied as one sparse matrix product;
+nearest pixel for depth). The faces are drawn by setting the OpenGL cameras of the
+``mjvScene`` (position, forward and up vectors, an off-centre frustum for the window) after
+``mjv_updateScene``, which gives each face its full orientation, roll included (a free
+``MjvCamera`` cannot roll), and leaves the model untouched.
 
 Depth is the **ray length** in metres: the Euclidean distance from the camera's position to the
 surface seen at each pixel (not the z-depth along the optical axis, which is undefined at and
@@ -59,7 +61,6 @@ FACES: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] 
     "down": ((0.0, -1.0, 0.0), (0.0, 0.0, -1.0)),
     "back": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
 }
-_ATLAS_COLUMNS = 3
 
 
 class FisheyeError(FactoryError):
@@ -219,16 +220,21 @@ def default_cube_size(spec: FisheyeSpec) -> int:
 class CubeLookup:
     """Where each fisheye pixel inside the image circle reads the atlas of cube faces.
 
-    The atlas is the offscreen buffer as OpenGL reads it (row 0 at the bottom): face ``k`` of
-    ``faces`` occupies the square ``[k // columns * size, +size) x [k % columns * size, +size)``
-    (rows x columns). Each face spans a frustum of half-width ``half_extent`` at unit distance,
-    slightly more than 90 degrees, so bilinear neighbours never leave their face.
+    Each face is a square pinhole view of ``size`` x ``size`` pixels spanning a frustum of
+    half-width ``half_extent`` at unit distance (slightly more than 90 degrees, so bilinear
+    neighbours never leave their face); only the window of it that some fisheye pixel reads is
+    drawn. The atlas is the offscreen buffer as OpenGL reads it (row 0 at the bottom), the
+    faces' windows side by side: face ``k`` of ``faces`` occupies columns
+    ``[lefts[k], lefts[k] + windows[k][2])`` and rows ``[0, windows[k][3])``.
 
     Attributes:
         faces: names of the faces drawn, in atlas order (a subset of :data:`FACES`).
-        size: face width = height (pixels).
-        columns: faces per atlas row.
-        atlas_shape: ``(rows * size, columns * size)`` pixels.
+        size: face width = height (pixels) of the whole face.
+        windows: per face ``(col0, row0, cols, rows)``: the window of the face's pixel grid
+            that is drawn (OpenGL orientation: columns to the right, rows up). A 180-degree
+            lens reads all of the front face and about half of each side face.
+        lefts: per face, the atlas column where its window starts.
+        atlas_shape: ``(rows, columns)`` of the atlas (pixels).
         half_extent: ``size / (size - 2)``: half the face's width at unit distance.
         pixels: ``(N,)`` int64 flat indices of the fisheye pixels inside the circle.
         bilinear: ``(N, 4)`` int64 flat atlas indices of the 4 bilinear neighbours.
@@ -239,7 +245,8 @@ class CubeLookup:
 
     faces: tuple[str, ...]
     size: int
-    columns: int
+    windows: tuple[tuple[int, int, int, int], ...]
+    lefts: tuple[int, ...]
     atlas_shape: tuple[int, int]
     half_extent: float
     pixels: np.ndarray = field(repr=False)
@@ -247,6 +254,18 @@ class CubeLookup:
     weights: np.ndarray = field(repr=False)
     nearest: np.ndarray = field(repr=False)
     ray_scale: np.ndarray = field(repr=False)
+
+    def frustum(self, k: int) -> tuple[float, float, float, float]:
+        """Face ``k``'s drawn window at unit distance: ``(left, right, bottom, top)`` (the
+        tangents of its edges along the face's right and up axes)."""
+        c0, r0, cols, rows = self.windows[k]
+        h, n = self.half_extent, self.size
+        return (
+            (2.0 * c0 / n - 1.0) * h,
+            (2.0 * (c0 + cols) / n - 1.0) * h,
+            (2.0 * r0 / n - 1.0) * h,
+            (2.0 * (r0 + rows) / n - 1.0) * h,
+        )
 
 
 def cube_lookup(spec: FisheyeSpec, size: int) -> CubeLookup:
@@ -257,7 +276,9 @@ def cube_lookup(spec: FisheyeSpec, size: int) -> CubeLookup:
         size: cube face size (pixels, >= 4).
 
     Returns:
-        the table; only the faces that some pixel inside the image circle uses are drawn.
+        the table; only the faces that some pixel inside the image circle uses are drawn, and
+        of each only the window of pixels that some fisheye pixel reads (bilinear neighbours
+        and the nearest pixel).
     """
     if size < 4:
         raise FisheyeError(f"cube face size must be >= 4 pixels, got {size}")
@@ -272,26 +293,37 @@ def cube_lookup(spec: FisheyeSpec, size: int) -> CubeLookup:
     slot = np.full(len(FACES), -1, dtype=np.int64)
     slot[used] = np.arange(len(used))
     k = slot[face_all]
-    columns = min(len(used), _ATLAS_COLUMNS)
-    rows = -(-len(used) // columns)
-    width = columns * size
     a = np.einsum("nj,nj->n", d, fwd[face_all])
     x = np.einsum("nj,nj->n", d, right[face_all]) / a
     y = np.einsum("nj,nj->n", d, up[face_all]) / a
     h = size / (size - 2.0)
     col = (x / h + 1.0) * size / 2.0 - 0.5  # OpenGL: column to the right, row up
     row = (y / h + 1.0) * size / 2.0 - 0.5
-    left = (k % columns) * size
-    bottom = (k // columns) * size
     c0 = np.clip(np.floor(col), 0, size - 2).astype(np.int64)
     r0 = np.clip(np.floor(row), 0, size - 2).astype(np.int64)
     tx = np.clip(col - c0, 0.0, 1.0)
     ty = np.clip(row - r0, 0.0, 1.0)
+    cn = np.clip(np.rint(col), 0, size - 1).astype(np.int64)
+    rn = np.clip(np.rint(row), 0, size - 1).astype(np.int64)
+    # each face's window: every pixel read (bilinear neighbours, nearest), side by side
+    windows: list[tuple[int, int, int, int]] = []
+    lefts: list[int] = []
+    width = 0
+    for j in range(len(used)):
+        on = k == j
+        wc0 = int(min(c0[on].min(), cn[on].min()))
+        wc1 = int(max(c0[on].max() + 1, cn[on].max()))
+        wr0 = int(min(r0[on].min(), rn[on].min()))
+        wr1 = int(max(r0[on].max() + 1, rn[on].max()))
+        windows.append((wc0, wr0, wc1 - wc0 + 1, wr1 - wr0 + 1))
+        lefts.append(width)
+        width += wc1 - wc0 + 1
+    win = np.array(windows, dtype=np.int64)
+    left = np.array(lefts, dtype=np.int64)[k] - win[k, 0]  # atlas column of face column 0
+    bottom = -win[k, 1]  # atlas row of face row 0
     base = (bottom + r0) * width + left + c0
     bilinear = np.stack([base, base + 1, base + width, base + width + 1], axis=1)
     weights = [(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty]
-    cn = np.clip(np.rint(col), 0, size - 1).astype(np.int64)
-    rn = np.clip(np.rint(row), 0, size - 1).astype(np.int64)
     nearest = (bottom + rn) * width + left + cn
     xs = ((cn + 0.5) * 2.0 / size - 1.0) * h
     ys = ((rn + 0.5) * 2.0 / size - 1.0) * h
@@ -299,8 +331,9 @@ def cube_lookup(spec: FisheyeSpec, size: int) -> CubeLookup:
     return CubeLookup(
         faces=names,
         size=size,
-        columns=columns,
-        atlas_shape=(rows * size, width),
+        windows=tuple(windows),
+        lefts=tuple(lefts),
+        atlas_shape=(int(win[:, 3].max()), width),
         half_extent=h,
         pixels=pixels,
         bilinear=bilinear,
@@ -334,7 +367,12 @@ class FisheyeRenderer:
         scene_option: visibility options; default geom groups 0-2 visible, sites hidden (as the
             demos' recording cameras).
         fast: no multisampling, shadows, reflections or skybox (as the demos' recording
-            cameras); ``False`` keeps the model's visual settings.
+            cameras), and infinite planes drawn as 16 quads
+            (:func:`factory.sim.render_model.render_model`); ``False`` keeps the model's visual
+            settings.
+        cull: per cube face, skip the geoms wholly outside the face's frustum
+            (:class:`factory.sim.frustum.FrustumCuller`; the same image, fewer triangles to
+            draw; nothing is skipped while shadows or reflections are on).
 
     Raises:
         FisheyeError: bad cube size or interpolation, or no OpenGL context could be made.
@@ -349,8 +387,11 @@ class FisheyeRenderer:
         interpolation: Interpolation = "bilinear",
         scene_option: mujoco.MjvOption | None = None,
         fast: bool = True,
+        cull: bool = True,
     ) -> None:
+        from factory.sim.frustum import FrustumCuller
         from factory.sim.gl import configure_gl
+        from factory.sim.render_model import render_model
 
         configure_gl("auto")
         import mujoco
@@ -364,14 +405,15 @@ class FisheyeRenderer:
         self.lookup = cube_lookup(spec, size)
         lk = self.lookup
         height, width = lk.atlas_shape
-        vis = model.vis
+        drawn = render_model(model) if fast else model  # infinite planes as 16 quads
+        vis = drawn.vis
         saved = (vis.global_.offwidth, vis.global_.offheight, vis.quality.offsamples)
         vis.global_.offwidth = max(vis.global_.offwidth, width)
         vis.global_.offheight = max(vis.global_.offheight, height)
         if fast:
             vis.quality.offsamples = 0
         try:
-            self.renderer = mujoco.Renderer(model, height=height, width=width)
+            self.renderer = mujoco.Renderer(drawn, height=height, width=width)
         except Exception as e:  # GL errors come in several types
             import os
 
@@ -391,13 +433,15 @@ class FisheyeRenderer:
             scene_option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
             scene_option.sitegroup[:] = 0
         self.option = scene_option
+        self.culler = FrustumCuller(drawn) if cull else None
         self._rgb = np.empty((height, width, 3), np.uint8)
         self._z = np.empty((height, width), np.float32)
         self._rect = mujoco.MjrRect(0, 0, width, height)
         self._viewports = [
-            mujoco.MjrRect((k % lk.columns) * size, (k // lk.columns) * size, size, size)
+            mujoco.MjrRect(lk.lefts[k], 0, lk.windows[k][2], lk.windows[k][3])
             for k in range(len(lk.faces))
         ]
+        self._windows = [lk.frustum(k) for k in range(len(lk.faces))]
         self._face_fwd = np.array([FACES[n][0] for n in lk.faces])  # (F, 3) camera frame
         self._face_up = np.array([FACES[n][1] for n in lk.faces])
         n, f = np.float32(spec.near), np.float32(spec.far)
@@ -481,34 +525,43 @@ class FisheyeRenderer:
         fwd = self._face_fwd @ rot.T
         up = self._face_up @ rot.T
         near = self.spec.near
-        half = self.lookup.half_extent * near
         gl = r._gl_context
         if gl is not None:
             gl.make_current()
         ctx = r._mjr_context
         scene = r.scene
+        culler = self.culler
+        if culler is not None:
+            culler.bind(scene, data)
         for k, viewport in enumerate(self._viewports):
+            left, right, bottom, top = self._windows[k]
             for glcam in scene.camera:  # both eyes of the (unused) stereo pair
                 glcam.pos[:] = pos
                 glcam.forward[:] = fwd[k]
                 glcam.up[:] = up[k]
-                glcam.frustum_center = 0.0
-                glcam.frustum_bottom = -half
-                glcam.frustum_top = half
+                # the face's window: an off-centre part of the face's frustum at the near plane
+                glcam.frustum_center = 0.5 * (left + right) * near
+                glcam.frustum_width = 0.5 * (right - left) * near
+                glcam.frustum_bottom = bottom * near
+                glcam.frustum_top = top * near
                 glcam.frustum_near = near
                 glcam.frustum_far = self.spec.far
                 glcam.orthographic = 0
+            if culler is not None:
+                culler.hide(viewport.width, viewport.height)
             mujoco.mjr_render(viewport, scene, ctx)
+        if culler is not None:
+            culler.restore()
         mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
 
     @property
     def atlas_rgb(self) -> np.ndarray:
-        """``(rows * size, columns * size, 3)`` uint8 faces of the last frame, OpenGL rows."""
+        """``atlas_shape + (3,)`` uint8 face windows of the last frame, OpenGL rows."""
         return self._rgb
 
     @property
     def atlas_z(self) -> np.ndarray:
-        """``(rows * size, columns * size)`` float32 reversed-Z depth buffer of the last frame."""
+        """``atlas_shape`` float32 reversed-Z depth buffer of the last frame."""
         return self._z
 
     def render(self, data: mujoco.MjData, camera: str | int) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,7 @@ pytest.importorskip("ruckig")
 
 from factory.demos import mobile_robot as mr
 from factory.demos.mobile_robot import (
+    BASE_FOOTPRINT,
     BASE_JOINTS,
     BASE_LIMITS,
     CAMERAS,
@@ -28,9 +29,9 @@ from factory.demos.mobile_robot import (
 from factory.nav import (
     BASE_COLLISION,
     OccupancyGrid,
-    base_trajectory,
-    plan_base_path,
+    plan_se2_path,
     recheck_base_trajectory,
+    time_base_path,
 )
 from factory.nav.grid import geom_points
 
@@ -140,8 +141,9 @@ def test_drive_along_a_trajectory() -> None:
     idx.stow(data)
     idx.drive_to(data, start)
     mujoco.mj_forward(model, data)
-    path = np.array([[0.0, 0.0], [1.5, 0.0], [1.5, 1.0]])
-    traj = base_trajectory(path, 0.0, math.pi, BASE_LIMITS, dt=0.01)
+    # driving while turning, as SE(2) paths do: forward turning left, then sideways on
+    poses = np.array([[0.0, 0.0, 0.0], [1.5, 0.0, math.pi / 2], [1.5, 1.0, math.pi]])
+    traj = time_base_path(poses, BASE_LIMITS, dt=0.01)
     steps = round(traj.dt / model.opt.timestep)
     lag, arm_dev = 0.0, 0.0
     for k in range(len(traj.t)):
@@ -160,7 +162,7 @@ def test_drive_along_a_trajectory() -> None:
 
 
 def test_grid_plan_and_recheck() -> None:
-    """The robot is no obstacle of its own grid; a path around a box passes the MuJoCo
+    """The robot is no obstacle of its own grid; an SE(2) path around a box passes the MuJoCo
     re-check, the straight path through it fails with ``base_collision``."""
     start, goal = (-1.0, 0.0, 0.0), (2.0, 0.0, 0.0)
     model = _scene(start, box=(0.5, 0.0))
@@ -171,17 +173,17 @@ def test_grid_plan_and_recheck() -> None:
     raw = OccupancyGrid.from_model(model, data, bounds=(-2.0, -2.0, 3.0, 2.0))
     assert raw.free(np.array(start[:2]))  # the robot itself is not an obstacle
     assert not raw.free(np.array([0.5, 0.0]))
-    grid = raw.inflate(FOOTPRINT_RADIUS)
 
-    through = base_trajectory(np.array([start[:2], goal[:2]]), 0.0, 0.0, dt=0.05)
+    through = time_base_path(np.array([start, goal]), dt=0.05)
     bad = recheck_base_trajectory(model, data.qpos, through.q, idx.base_qpos, idx.geoms)
     assert not bad.ok and bad.reason == BASE_COLLISION
     assert bad.max_penetration > 0.02
     assert bad.contact[1] == "world" and bad.contact[0].startswith("mobile/")
 
-    res = plan_base_path(grid, np.array(start[:2]), np.array(goal[:2]), seed=2)
+    res = plan_se2_path(raw, BASE_FOOTPRINT, np.array(start), np.array(goal), seed=2)
     assert res.ok, res.detail
-    around = base_trajectory(res.path, 0.0, 0.0, dt=0.05)
+    assert len(res.path) > 2  # around the box
+    around = time_base_path(res.path, dt=0.05)
     good = recheck_base_trajectory(model, data.qpos, around.q, idx.base_qpos, idx.geoms)
     assert good.ok and good.reason == "" and good.max_penetration <= 0.02
     assert good.samples == len(around.t)

@@ -150,6 +150,31 @@ def test_gif_helpers() -> None:
         assert im.size == (64, 64) and 1 < im.n_frames < 40  # thinned to fit
 
 
+def test_gif_frames_decode_exactly() -> None:
+    """A square moving over a still background (a few colours, so the palette is exact):
+    every decoded frame is the frame given, although each stores only what changed (the
+    rest transparent over the frame before)."""
+    import io
+
+    import numpy as np
+    from PIL import Image, ImageSequence
+
+    background = np.zeros((48, 64, 3), np.uint8)
+    background[:, :32] = (200, 60, 30)
+    background[24:] += np.uint8(40)
+    frames = []
+    for k in range(12):
+        f = background.copy()
+        f[10:20, 4 * k : 4 * k + 10] = (20, 220, 90)
+        frames.append(f)
+    data = to_gif(frames, 10.0, 64)
+    with Image.open(io.BytesIO(data)) as im:
+        decoded = [np.asarray(f.convert("RGB")) for f in ImageSequence.Iterator(im)]
+    assert len(decoded) == len(frames)
+    for got, want in zip(decoded, frames, strict=True):
+        assert np.array_equal(got, want)
+
+
 def test_markdown_is_safe() -> None:
     html = markdown_to_html(
         "# T\n[x](javascript:alert) [y](../secret) [z](meta/info.json) [w](https://a.org/b)"

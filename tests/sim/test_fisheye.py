@@ -85,13 +85,22 @@ def test_cube_lookup_uses_the_faces_it_needs() -> None:
     assert cube_lookup(FisheyeSpec(64, fov_deg=90.0), 32).faces == ("front",)
     five = cube_lookup(FisheyeSpec(64, fov_deg=180.0), 48)
     assert five.faces == ("front", "right", "left", "up", "down")
-    assert five.atlas_shape == (96, 144)
+    # the front face whole, of each side face the half towards the front (and a pixel)
+    assert five.windows[0] == (0, 0, 48, 48)
+    assert [w[2] * w[3] for w in five.windows[1:]] == [25 * 48, 25 * 48, 46 * 25, 46 * 25]
+    assert five.windows[1][0] == 0 and five.windows[2][0] + five.windows[2][2] == 48  # x
+    assert five.windows[3][1] == 0 and five.windows[4][1] + five.windows[4][3] == 48  # y
+    assert five.atlas_shape == (48, 48 + 25 + 25 + 46 + 46)
+    assert five.frustum(0) == pytest.approx((-48 / 46, 48 / 46, -48 / 46, 48 / 46))
+    narrow = cube_lookup(FisheyeSpec(64, fov_deg=60.0), 64)
+    inner = 64 * math.tan(math.radians(30.0)) * 62 / 64  # the 60-degree cone's width (px)
+    assert narrow.faces == ("front",) and inner <= narrow.windows[0][2] <= inner + 3
     six = cube_lookup(FisheyeSpec(64, fov_deg=270.0), 48)
     assert "back" in six.faces and len(six.faces) == 6
     n = int(FisheyeSpec(64).mask.sum())
     assert five.pixels.shape == (n,) and five.bilinear.shape == (n, 4)
     np.testing.assert_allclose(five.weights.sum(axis=1), 1.0, atol=1e-6)
-    size = 96 * 144
+    size = 48 * 190
     assert five.bilinear.min() >= 0 and five.bilinear.max() < size
     assert five.nearest.min() >= 0 and five.nearest.max() < size
     assert five.ray_scale.min() >= 1.0 and five.ray_scale.max() <= math.sqrt(3) * 1.05
