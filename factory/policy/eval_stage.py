@@ -55,6 +55,29 @@ def check_config(ec: Any) -> None:
         raise ConfigError("eval.scenes must be heldout, train or a non-empty list of scene ids")
 
 
+MOBILE_TASK = "mobile_pick_place"
+NO_MOBILE_ENV = (
+    "stage=eval has no mobile env yet: the closed-loop env (factory.policy.env) simulates the "
+    "fixed-base Panda only, and a mobile one (base target + arm joint targets + gripper as the "
+    "action, the five cameras, the sub-task as an observation, check_mobile_success as the "
+    "success check) is not written. Mobile policies can be trained (stage=train) but not "
+    "rolled out; evaluate fixed-base runs (task=pick_place) only"
+)
+
+
+def refuse_mobile(task: str, meta: dict[str, Any] | None, features: Any = None) -> None:
+    """Raises :class:`PolicyError` (:data:`NO_MOBILE_ENV`) for a mobile task, a mobile dataset
+    (``meta/factory.json`` layout) or a policy trained on one (it reads ``subtask_index``)."""
+    from factory.dataset.mobile_features import MOBILE, SUBTASK_KEY, meta_layout
+
+    if task == MOBILE_TASK:
+        raise PolicyError(f"task={task}: {NO_MOBILE_ENV}")
+    if meta is not None and meta_layout(meta) == MOBILE:
+        raise PolicyError(f"the dataset holds mobile episodes: {NO_MOBILE_ENV}")
+    if features is not None and SUBTASK_KEY in features:
+        raise PolicyError(f"the policy was trained on a mobile dataset: {NO_MOBILE_ENV}")
+
+
 # ---- the dataset
 
 
@@ -298,6 +321,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     check_config(ec)
     if ctx.shard.count > 1:
         raise ConfigError("stage=eval runs in one process: drop shard.index/shard.count")
+    refuse_mobile(str(cfg.task), None)
     store = ctx.require_store()
     run_dir = store.root
     ref = _policy_ref(cfg)
@@ -306,6 +330,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     policy = None
     if kind == "trained":
         policy = _load_trained(ref, run_dir, ec.device)
+        refuse_mobile(str(cfg.task), None, policy.info.features)
         name = slug(policy.info.name)
         dataset = Path(ec.dataset or policy.info.dataset)
         train_scenes = list(policy.info.scenes)
@@ -329,6 +354,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     if ec.name:
         name = slug(str(ec.name))
     meta = _dataset_meta(dataset)
+    refuse_mobile(str(cfg.task), meta)
     run_scenes = store.scene_ids()
     listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]
     if listed is not None:

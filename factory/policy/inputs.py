@@ -40,6 +40,18 @@ The model predicts (``train.action``):
 * ``joint``: the dataset's 8-D action as it is (arm joint targets, rad, + gripper, m): what
   LeRobot's own evaluation (``lerobot-eval`` on the ``factory`` env) can run unchanged.
 
+Mobile datasets (``task=mobile_pick_place``, recognised by their ``subtask_index`` feature;
+:mod:`factory.dataset.mobile_features`) read ``observation.state`` (11,): arm joints, gripper,
+base x, y (m, world) and yaw (rad), ``observation.ee_pose`` and ``subtask_index``, plus the
+images of the five cameras (left, right, wrist, fisheye_front, fisheye_back) for ``rgb`` and
+``rgbd``. The model then sees ``observation.state`` (20,): the 17 above (the tool pose by
+forward kinematics of the arm, in the robot's base frame) then the base pose x, y, yaw as
+recorded; ``observation.environment_state`` (4,): the sub-task as a one-hot vector
+(navigate_to_pick, pick, navigate_to_place, place); and predicts the arm action above followed
+by the base target x, y (m, world) and yaw (rad): 13 values for ``tool``/``tool_rel``, 11 for
+``joint``. There are no object poses in a mobile dataset, so ``state`` is proprioception and
+sub-task only (the policy cannot see where the object is).
+
 Why the base frame: the dataset's poses are in the world frame, and every scene puts the robot
 at another spot and heading. The base pose is recovered per frame from what every observation
 has: the recorded world tool pose composed with the inverse of the tool pose that forward
@@ -62,6 +74,7 @@ from typing import Any
 
 import numpy as np
 
+from factory.dataset.mobile_features import MOBILE_SUBTASKS, SUBTASK_KEY
 from factory.errors import PolicyError
 
 INPUTS = ("state", "rgb", "rgbd")
@@ -86,6 +99,16 @@ ENV_DIM = 24
 the two tool-to-object offsets (3 each)."""
 ACTION_DIMS = {"tool": 10, "tool_rel": 10, "joint": 8}
 """Model ``action`` size per ``train.action``."""
+MOBILE_CAMERAS = ("left", "right", "wrist", "fisheye_front", "fisheye_back")
+"""Cameras of mobile datasets, in the order the model reads them."""
+MOBILE_STATE_DIM = 11
+"""Dataset ``observation.state`` of mobile episodes: arm joints (7), gripper, base x, y, yaw."""
+BASE_DIM = 3
+"""Base pose / base target columns (x, y in m, yaw in rad; world frame) of mobile episodes."""
+MOBILE_ROBOT_DIM = ROBOT_DIM + BASE_DIM
+"""Model ``observation.state`` of mobile policies: the 17 of :data:`ROBOT_DIM` + base pose."""
+SUBTASK_DIM = len(MOBILE_SUBTASKS)
+"""Model ``observation.environment_state`` of mobile policies: the sub-task one-hot."""
 REFRESH = "re-run stage=dataset force=true (datasets written before this feature lack it)"
 
 
@@ -99,6 +122,8 @@ class InputSpec:
         image_size: (H, W) of the camera images (px); (0, 0) without images.
         depth_max_m: depth clipping range (m).
         action: what the model predicts (:data:`ACTIONS`).
+        mobile: a mobile-manipulation dataset (``task=mobile_pick_place``): base pose in the
+            state, the sub-task as input, the base target in the action.
     """
 
     inputs: str
@@ -106,11 +131,12 @@ class InputSpec:
     image_size: tuple[int, int] = (0, 0)
     depth_max_m: float = DEPTH_MAX_M
     action: str = "joint"
+    mobile: bool = False
 
     @property
     def action_dim(self) -> int:
         """Size of the model's ``action``."""
-        return ACTION_DIMS[self.action]
+        return ACTION_DIMS[self.action] + (BASE_DIM if self.mobile else 0)
 
     @property
     def depth(self) -> bool:
@@ -128,8 +154,11 @@ class InputSpec:
     def raw_features(self) -> dict[str, list[int]]:
         """Env / dataset observation key -> shape of one observation as the env gives it."""
         h, w = self.image_size
-        out: dict[str, list[int]] = {STATE: [8], EE_POSE: [7]}
-        if self.inputs == "state":
+        if self.mobile:
+            out: dict[str, list[int]] = {STATE: [MOBILE_STATE_DIM], EE_POSE: [7], SUBTASK_KEY: [1]}
+        else:
+            out = {STATE: [8], EE_POSE: [7]}
+        if self.inputs == "state" and not self.mobile:
             out[ENV_STATE] = [14]
         for k in self.image_keys():
             out[k] = [h, w, 3]
@@ -140,8 +169,11 @@ class InputSpec:
     def model_features(self) -> dict[str, list[int]]:
         """Model input key -> shape (lerobot's channel-first images)."""
         h, w = self.image_size
-        out: dict[str, list[int]] = {STATE: [ROBOT_DIM]}
-        if self.inputs == "state":
+        if self.mobile:
+            out: dict[str, list[int]] = {STATE: [MOBILE_ROBOT_DIM], ENV_STATE: [SUBTASK_DIM]}
+        else:
+            out = {STATE: [ROBOT_DIM]}
+        if self.inputs == "state" and not self.mobile:
             out[ENV_STATE] = [ENV_DIM]
         for k in self.visual_keys():
             out[k] = [3, h, w]
@@ -162,6 +194,8 @@ def input_spec(inputs: str, features: Mapping[str, Any], action: str = "joint") 
         raise PolicyError(f"unknown train.inputs {inputs!r}: use one of {', '.join(INPUTS)}")
     if action not in ACTIONS:
         raise PolicyError(f"unknown train.action {action!r}: use one of {', '.join(ACTIONS)}")
+    if SUBTASK_KEY in features:
+        return _mobile_spec(inputs, features, action)
     need = [STATE, EE_POSE, ACTION]
     if inputs == "state":
         need.append(ENV_STATE)
@@ -189,16 +223,68 @@ def input_spec(inputs: str, features: Mapping[str, Any], action: str = "joint") 
     return InputSpec(inputs, cams, (int(shape[0]), int(shape[1])), action=action)
 
 
+def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> InputSpec:
+    """:func:`input_spec` of a mobile dataset (``subtask_index`` among its features).
+
+    Raises:
+        PolicyError: the dataset lacks a feature or has another state/action layout, or its
+            cameras' images differ in size (lerobot's image policies need one size).
+    """
+    need = [STATE, EE_POSE, ACTION, SUBTASK_KEY]
+    missing = [k for k in need if k not in features]
+    if missing:
+        raise PolicyError(
+            f"the mobile dataset lacks {', '.join(missing)} (train.inputs={inputs}): {REFRESH}"
+        )
+    for key in (STATE, ACTION):
+        got = int(features[key]["shape"][0])
+        if got != MOBILE_STATE_DIM:
+            raise PolicyError(
+                f"the mobile dataset's {key} has {got} columns, expected {MOBILE_STATE_DIM} "
+                f"(arm 7, gripper, base x, y, yaw): {REFRESH}"
+            )
+    if inputs == "state":
+        return InputSpec("state", action=action, mobile=True)
+    cams = tuple(c for c in MOBILE_CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
+    if not cams:
+        raise PolicyError(
+            f"the mobile dataset has no camera images (train.inputs={inputs}): record demos "
+            "with rendering on (demos.render=true), then stage=dataset, or use "
+            "train.inputs=state"
+        )
+    if inputs == "rgbd":
+        missing = [f"{DEPTH_PREFIX}{c}" for c in cams if f"{DEPTH_PREFIX}{c}" not in features]
+        if missing:
+            raise PolicyError(
+                f"the dataset lacks {', '.join(missing)} (train.inputs=rgbd): export depth "
+                "with stage=dataset force=true, or use train.inputs=rgb"
+            )
+    sizes: dict[str, tuple[int, int]] = {}
+    for c in cams:
+        shape = features[f"{IMAGE_PREFIX}{c}"]["shape"]
+        sizes[c] = (int(shape[0]), int(shape[1]))
+    if len(set(sizes.values())) > 1:
+        raise PolicyError(
+            f"the mobile dataset's cameras differ in size ({sizes}; the fisheye images are "
+            "square): image policies need one size, so record the demos with "
+            "demos.width equal to demos.height, or use train.inputs=state"
+        )
+    return InputSpec(inputs, cams, sizes[cams[0]], action=action, mobile=True)
+
+
 def spec_from_features(
     inputs: str, features: Mapping[str, list[int]], depth_max_m: float, action: str = "joint"
 ) -> InputSpec:
     """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape)."""
-    cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
+    mobile = SUBTASK_KEY in features
+    cams = tuple(
+        c for c in (MOBILE_CAMERAS if mobile else CAMERAS) if f"{IMAGE_PREFIX}{c}" in features
+    )
     size = (0, 0)
     if cams:
         shape = features[f"{IMAGE_PREFIX}{cams[0]}"]
         size = (int(shape[0]), int(shape[1]))
-    return InputSpec(inputs, cams, size, float(depth_max_m), action)
+    return InputSpec(inputs, cams, size, float(depth_max_m), action, mobile)
 
 
 # ---- geometry: poses in the robot's base frame
@@ -271,6 +357,43 @@ def robot_features(state: np.ndarray) -> np.ndarray:
     return out.reshape(*state.shape[:-1], ROBOT_DIM).astype(np.float32)
 
 
+def mobile_robot_features(state: np.ndarray) -> np.ndarray:
+    """Model ``observation.state`` (..., 20) from a mobile dataset's ``observation.state``
+    (..., 11): :func:`robot_features` of the arm and gripper, then the base x, y (m, world) and
+    yaw (rad) as recorded."""
+    state = np.asarray(state, np.float32)
+    arm = robot_features(state[..., :8])
+    return np.concatenate([arm, state[..., 8:MOBILE_STATE_DIM]], axis=-1).astype(np.float32)
+
+
+def state_features(spec: InputSpec, state: np.ndarray) -> np.ndarray:
+    """Model ``observation.state`` of the spec's layout (fixed: (..., 17); mobile: (..., 20))."""
+    return mobile_robot_features(state) if spec.mobile else robot_features(state)
+
+
+def subtask_onehot(index: Any, lead: tuple[int, ...]) -> np.ndarray:
+    """Model ``observation.environment_state`` of mobile policies: the sub-task as a one-hot
+    vector (..., 4) in :data:`MOBILE_SUBTASKS` order.
+
+    Args:
+        index: sub-task indices, any shape holding ``prod(lead)`` values (``(..., 1)`` or
+            ``(...)``).
+        lead: the leading shape of the result (the state's, without its last axis).
+
+    Raises:
+        PolicyError: an index outside the sub-tasks.
+    """
+    idx = np.asarray(index).reshape(-1).astype(np.int64)
+    if idx.size and (idx.min() < 0 or idx.max() >= SUBTASK_DIM):
+        raise PolicyError(
+            f"sub-task indices {sorted(set(idx.tolist()))} are not indices into "
+            f"{list(MOBILE_SUBTASKS)}: {REFRESH}"
+        )
+    out = np.zeros((idx.size, SUBTASK_DIM), np.float32)
+    out[np.arange(idx.size), idx] = 1.0
+    return out.reshape(*lead, SUBTASK_DIM)
+
+
 def base_poses(state: np.ndarray, ee_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The robot base's world pose per frame from the joints and the world tool pose.
 
@@ -327,19 +450,21 @@ def rot6d_to_mat(r6: np.ndarray) -> np.ndarray:
 
 
 def model_actions(action: np.ndarray, kind: str) -> np.ndarray:
-    """The dataset's actions (..., 8) -> the model's (..., ``ACTION_DIMS[kind]``).
+    """The dataset's actions (..., 8 + k) -> the model's (..., ``ACTION_DIMS[kind]`` + k).
 
     ``tool`` and ``tool_rel``: forward kinematics of the joint targets: tool position (3, m)
     and 6D rotation (6) in the base frame, then the gripper command (m) (``tool_rel`` subtracts
-    the current tool position afterwards: :func:`relative_to`); ``joint``: unchanged.
+    the current tool position afterwards: :func:`relative_to`); ``joint``: unchanged. Columns
+    past the eighth (the base target x, y, yaw of mobile datasets) follow unchanged.
     """
     action = np.asarray(action, np.float32)
     if kind == "joint":
         return action
-    flat = action.reshape(-1, 8).astype(np.float64)
+    extra = action.shape[-1] - 8
+    flat = action.reshape(-1, 8 + extra).astype(np.float64)
     pos, rot = kinematics().tool_poses(flat[:, :7])
     out = np.concatenate([pos, rot6d(rot), flat[:, 7:]], axis=1)
-    return out.reshape(*action.shape[:-1], ACTION_DIMS["tool"]).astype(np.float32)
+    return out.reshape(*action.shape[:-1], ACTION_DIMS["tool"] + extra).astype(np.float32)
 
 
 def relative_to(actions: np.ndarray, tool_now: np.ndarray) -> np.ndarray:
@@ -432,8 +557,10 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
     import torch
 
     state = item[STATE].numpy()
-    out: dict[str, Any] = {STATE: torch.from_numpy(robot_features(state))}
-    if spec.inputs == "state":
+    out: dict[str, Any] = {STATE: torch.from_numpy(state_features(spec, state))}
+    if spec.mobile:
+        out[ENV_STATE] = torch.from_numpy(subtask_onehot(item[SUBTASK_KEY], state.shape[:-1]))
+    elif spec.inputs == "state":
         env = env_features(state, item[EE_POSE].numpy(), item[ENV_STATE].numpy())
         out[ENV_STATE] = torch.from_numpy(env)
     for k in spec.image_keys():
@@ -458,8 +585,10 @@ def convert_observation(spec: InputSpec, obs: Mapping[str, np.ndarray]) -> dict[
     import torch
 
     state = np.asarray(obs[STATE], np.float32)
-    out: dict[str, Any] = {STATE: torch.from_numpy(robot_features(state))}
-    if spec.inputs == "state":
+    out: dict[str, Any] = {STATE: torch.from_numpy(state_features(spec, state))}
+    if spec.mobile:
+        out[ENV_STATE] = torch.from_numpy(subtask_onehot(obs[SUBTASK_KEY], state.shape[:-1]))
+    elif spec.inputs == "state":
         env = env_features(state, np.asarray(obs[EE_POSE]), np.asarray(obs[ENV_STATE]))
         out[ENV_STATE] = torch.from_numpy(env)
     for k in spec.image_keys():

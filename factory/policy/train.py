@@ -51,6 +51,7 @@ from factory.policy.inputs import (
     EE_POSE,
     ENV_STATE,
     STATE,
+    SUBTASK_KEY,
     TOOL_POS,
     InputSpec,
     convert_sample,
@@ -58,7 +59,8 @@ from factory.policy.inputs import (
     env_features,
     model_actions,
     relative_to,
-    robot_features,
+    state_features,
+    subtask_onehot,
 )
 
 log = logging.getLogger(__name__)
@@ -201,10 +203,12 @@ class LowDimFrames:
 
         state = column(STATE)
         self.values: dict[str, np.ndarray] = {
-            STATE: robot_features(state),
+            STATE: state_features(spec, state),
             ACTION: model_actions(column(ACTION), spec.action),
         }
-        if spec.inputs == "state":
+        if spec.mobile:
+            self.values[ENV_STATE] = subtask_onehot(column(SUBTASK_KEY), state.shape[:-1])
+        elif spec.inputs == "state":
             self.values[ENV_STATE] = env_features(state, column(EE_POSE), column(ENV_STATE))
         self.episode = np.asarray(table.column("episode_index").to_numpy(), np.int64)
         eps = base.meta.episodes
@@ -217,6 +221,8 @@ class LowDimFrames:
             for e, t in zip(eps["episode_index"], eps["dataset_to_index"], strict=True)
         }
         self.delta: dict[str, list[int]] = dict(base.delta_indices or {})
+        if spec.mobile and SUBTASK_KEY in self.delta:  # the one-hot is read at its frames
+            self.delta[ENV_STATE] = self.delta[SUBTASK_KEY]
         self.raw_keys = list(spec.raw_features())
 
     def __len__(self) -> int:
@@ -417,17 +423,24 @@ def model_stats(
     """
     from lerobot.datasets.compute_stats import get_feature_stats
 
-    keys = [STATE, EE_POSE, ACTION] + ([ENV_STATE] if spec.inputs == "state" else [])
+    keys = [STATE, EE_POSE, ACTION]
+    if spec.mobile:
+        keys.append(SUBTASK_KEY)
+    elif spec.inputs == "state":
+        keys.append(ENV_STATE)
     rows = _low_dim(root, keys, episodes)
     if spec.action == "tool_rel":
         actions = relative_action_rows(base, spec, trainset, episodes)
     else:
         actions = model_actions(rows[ACTION], spec.action)
     stats: dict[str, Any] = {
-        STATE: get_feature_stats(robot_features(rows[STATE]), axis=0, keepdims=False),
+        STATE: get_feature_stats(state_features(spec, rows[STATE]), axis=0, keepdims=False),
         ACTION: get_feature_stats(actions, axis=0, keepdims=False),
     }
-    if spec.inputs == "state":
+    if spec.mobile:
+        onehot = subtask_onehot(rows[SUBTASK_KEY], rows[STATE].shape[:-1])
+        stats[ENV_STATE] = get_feature_stats(onehot, axis=0, keepdims=False)
+    elif spec.inputs == "state":
         env = env_features(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
         stats[ENV_STATE] = get_feature_stats(env, axis=0, keepdims=False)
     for k in spec.image_keys():
@@ -476,6 +489,7 @@ def model_meta(meta: Any, spec: InputSpec) -> Any:
         out.info["features"][ACTION]["names"] = [
             *(f"tool_{k}" for k in ("x", "y", "z", "r11", "r21", "r31", "r12", "r22", "r32")),
             "gripper",
+            *(["base_x", "base_y", "base_yaw"] if spec.mobile else []),
         ]
     return out
 

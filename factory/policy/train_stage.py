@@ -181,6 +181,13 @@ def run(ctx: StageContext) -> dict[str, Any]:
     root = dataset_root(store.root, tc.dataset)
     features = _dataset(root)[0]["features"]
     spec = input_spec(tc.inputs, features, tc.action)
+    if spec.mobile and spec.inputs == "state":
+        log.warning(
+            "train %s: the mobile dataset has no object poses, so train.inputs=state reads the "
+            "robot, its base pose and the sub-task only (blind to the object): use "
+            "train.inputs=rgb or rgbd for a policy that can find it",
+            tc.name,
+        )
     device = resolve_device(tc.device)
     policy_config(tc, spec, device)  # an unknown type or bad options fail before any write
     info = train_info(tc, spec, root)

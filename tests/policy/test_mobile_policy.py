@@ -1,0 +1,236 @@
+"""``stage=train`` on mobile pick-and-place datasets: the features map to the policy inputs
+(base pose in the state, the sub-task one-hot, the base target in the action), a training
+step runs and its samples equal lerobot's own; ``stage=eval`` refuses mobile data in one line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("lerobot")
+pytest.importorskip("robosuite")
+
+from factory.config import FactoryConfig, TrainConfig
+from factory.context import StageContext
+from factory.dataset.mobile_features import (
+    DONE_KEY,
+    MOBILE_ACTION_NAMES,
+    MOBILE_STATE_NAMES,
+    SUBTASK_KEY,
+    mobile_meta,
+)
+from factory.errors import PolicyError
+from factory.store import RunStore, Shard
+
+TINY = {
+    "diffusion": {
+        "horizon": 8,
+        "n_action_steps": 4,
+        "down_dims": [16, 32],
+        "diffusion_step_embed_dim": 16,
+        "num_inference_steps": 3,
+    }
+}
+FRAMES = 40
+HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+"""A Panda arm posture inside its joint limits (rad)."""
+
+
+def _episode(k: int) -> dict[str, np.ndarray]:
+    """One episode's columns: the arm sweeps about a posture, the base drives 1 m and turns,
+    the sub-tasks follow in order (a quarter of the frames each)."""
+    t = np.linspace(0.0, 1.0, FRAMES)[:, None]
+    arm = HOME + 0.2 * np.sin(2 * np.pi * t + k) * np.ones(7)
+    grip = np.where(t < 0.5, 0.08, 0.02)
+    base = np.concatenate([1.0 + t + 0.1 * k, 2.0 - 0.5 * t, 0.3 * t * (k + 1)], axis=1)
+    state = np.concatenate([arm, grip, base], axis=1).astype(np.float32)
+    action = np.concatenate([state[1:], state[-1:]]).astype(np.float32)
+    ee = np.tile(np.array([0.5, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0], np.float32), (FRAMES, 1))
+    subtask = np.minimum((np.arange(FRAMES) * 4) // FRAMES, 3)
+    done = np.r_[subtask[1:] != subtask[:-1], True]
+    return {"state": state, "action": action, "ee": ee, "subtask": subtask, "done": done}
+
+
+@pytest.fixture(scope="module")
+def mobile_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A merged mobile dataset of 2 episodes x 40 frames, written by lerobot with the
+    features of ``factory.dataset.mobile_features`` (no cameras) and a mobile
+    ``meta/factory.json``."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from factory.dataset.mobile_features import scalar_buffer
+
+    root = tmp_path_factory.mktemp("mobile") / "merged"
+    feats: dict[str, Any] = {
+        "observation.state": {"dtype": "float32", "shape": (11,), "names": MOBILE_STATE_NAMES},
+        "observation.ee_pose": {"dtype": "float32", "shape": (7,), "names": None},
+        "action": {"dtype": "float32", "shape": (11,), "names": MOBILE_ACTION_NAMES},
+        SUBTASK_KEY: {"dtype": "int64", "shape": (1,), "names": None},
+        DONE_KEY: {"dtype": "bool", "shape": (1,), "names": None},
+    }
+    ds = LeRobotDataset.create(
+        repo_id="factory/demos", fps=10, features=feats, root=root, use_videos=False
+    )
+    for k in range(2):
+        ep = _episode(k)
+        for f in range(FRAMES):
+            ds.add_frame(
+                {
+                    "observation.state": ep["state"][f],
+                    "observation.ee_pose": ep["ee"][f],
+                    "action": ep["action"][f],
+                    SUBTASK_KEY: np.array([ep["subtask"][f]], np.int64),
+                    DONE_KEY: np.array([ep["done"][f]], bool),
+                    "task": "move the can to the desk",
+                }
+            )
+        scalar_buffer(ds.episode_buffer)
+        ds.save_episode()
+    ds.finalize()
+    meta = {
+        "schema_version": 3,
+        "scenes": ["room_a"],
+        "episodes": [
+            {"episode_index": k, "scene_id": "room_a", "n_frames": FRAMES} for k in range(2)
+        ],
+        **mobile_meta(),
+    }
+    (root / "meta" / "factory.json").write_text(json.dumps(meta))
+    return root
+
+
+def _features(root: Path) -> dict[str, Any]:
+    return dict(json.loads((root / "meta" / "info.json").read_text())["features"])
+
+
+def test_mobile_features_map_to_policy_inputs(mobile_dataset: Path) -> None:
+    """State: joints, gripper, tool pose (base frame) + base x, y, yaw (20); the sub-task as a
+    one-hot (4); actions: tool pose + gripper + base target (13) or the 11 joint targets."""
+    import torch
+
+    from factory.policy.inputs import (
+        MOBILE_CAMERAS,
+        convert_observation,
+        input_spec,
+        model_actions,
+        robot_features,
+    )
+
+    feats = _features(mobile_dataset)
+    spec = input_spec("state", feats, "tool")
+    assert spec.mobile and spec.cameras == () and spec.action_dim == 13
+    assert spec.raw_features() == {
+        "observation.state": [11],
+        "observation.ee_pose": [7],
+        SUBTASK_KEY: [1],
+    }
+    assert spec.model_features() == {
+        "observation.state": [20],
+        "observation.environment_state": [4],
+    }
+    assert input_spec("state", feats, "joint").action_dim == 11
+
+    ep = _episode(0)
+    obs = {
+        "observation.state": ep["state"][:5],
+        "observation.ee_pose": ep["ee"][:5],
+        SUBTASK_KEY: np.array([0, 1, 2, 3, 3]),
+    }
+    model = convert_observation(spec, obs)
+    state = model["observation.state"].numpy()
+    assert state.shape == (5, 20)
+    assert np.allclose(state[:, :17], robot_features(ep["state"][:5, :8]))
+    assert np.array_equal(state[:, 17:], ep["state"][:5, 8:])  # base x, y, yaw as recorded
+    assert torch.equal(model["observation.environment_state"], torch.eye(4)[[0, 1, 2, 3, 3]])
+    act = model_actions(ep["action"][:5], "tool")
+    assert act.shape == (5, 13) and np.array_equal(act[:, 10:], ep["action"][:5, 8:])
+    assert np.array_equal(model_actions(ep["action"][:5], "joint"), ep["action"][:5])
+    with pytest.raises(PolicyError, match="sub-task indices"):
+        convert_observation(spec, {**obs, SUBTASK_KEY: np.array([0, 1, 2, 3, 4])})
+
+    # image inputs: the five cameras in order, one size for all of them
+    cams = {
+        f"observation.images.{c}": {"dtype": "video", "shape": [32, 32, 3]} for c in MOBILE_CAMERAS
+    }
+    rgb = input_spec("rgb", {**feats, **cams}, "tool")
+    assert rgb.cameras == MOBILE_CAMERAS and rgb.image_size == (32, 32)
+    assert rgb.model_features()["observation.images.fisheye_back"] == [3, 32, 32]
+    assert rgb.model_features()["observation.state"] == [20]
+    odd = {**cams, "observation.images.left": {"dtype": "video", "shape": [24, 32, 3]}}
+    with pytest.raises(PolicyError, match=r"demos\.width equal to demos\.height"):
+        input_spec("rgb", {**feats, **odd}, "tool")
+    with pytest.raises(PolicyError, match=r"lacks observation\.depth\.left"):
+        input_spec("rgbd", {**feats, **cams}, "tool")
+    short = {**feats, "action": {"dtype": "float32", "shape": [8]}}
+    with pytest.raises(PolicyError, match="action has 8 columns"):
+        input_spec("state", short, "tool")
+
+
+def test_mobile_policy_trains_and_its_samples_equal_lerobots_own(
+    mobile_dataset: Path, tmp_path: Path
+) -> None:
+    """stage=train on the mobile dataset writes a lerobot checkpoint whose model reads the
+    mobile features; the fast samples equal ``LeRobotDataset.__getitem__``'s, converted."""
+    import torch
+
+    from factory.policy.checkpoint import load_policy
+    from factory.policy.inputs import convert_sample, input_spec
+    from factory.policy.train import open_dataset, policy_config
+    from factory.policy.train_stage import run as train_stage
+
+    spec = input_spec("state", _features(mobile_dataset), "tool")
+    cfg = policy_config(TrainConfig(options=TINY), spec, "cpu")
+    base, trainset = open_dataset(mobile_dataset, spec, cfg, augment=False)
+    for idx in [0, 9, FRAMES - 1, FRAMES, 2 * FRAMES - 1]:
+        fast, slow = trainset[idx], convert_sample(spec, base[idx])
+        assert set(fast) == set(slow), idx
+        for k, v in slow.items():
+            assert fast[k].shape == v.shape, (idx, k)
+            assert torch.allclose(fast[k].float(), v.float(), atol=1e-5), (idx, k)
+    assert fast["observation.environment_state"].shape == (2, 4)  # n_obs_steps x sub-tasks
+    assert fast["action"].shape == (8, 13)
+
+    run = tmp_path / "run"
+    run.mkdir()
+    tc = TrainConfig(
+        name="mobile",
+        dataset=str(mobile_dataset),
+        steps=3,
+        batch_size=4,
+        save_every=3,
+        log_every=1,
+        threads=1,
+        device="cpu",
+        options=TINY,
+    )
+    ctx = StageContext(
+        FactoryConfig(stage="train", run_dir=str(run), train=tc), RunStore(run), Shard(0, 1)
+    )
+    result = train_stage(ctx)
+    assert result["steps"] == 3 and np.isfinite(result["loss"])
+    model_dir = Path(result["checkpoint"]) / "pretrained_model"
+    config = json.loads((model_dir / "config.json").read_text())
+    assert config["input_features"]["observation.state"]["shape"] == [20]
+    assert config["input_features"]["observation.environment_state"]["shape"] == [4]
+    assert config["output_features"]["action"]["shape"] == [13]
+    loaded = load_policy(str(model_dir), run, "cpu")
+    assert loaded.spec.mobile and SUBTASK_KEY in loaded.info.features
+
+
+def test_eval_refuses_mobile_in_one_line(mobile_dataset: Path) -> None:
+    """No mobile env exists: the task, a mobile dataset or a mobile policy is refused with
+    what is missing."""
+    from factory.policy.eval_stage import refuse_mobile
+
+    meta = json.loads((mobile_dataset / "meta" / "factory.json").read_text())
+    with pytest.raises(PolicyError, match="no mobile env"):
+        refuse_mobile("mobile_pick_place", None)
+    with pytest.raises(PolicyError, match="dataset holds mobile episodes"):
+        refuse_mobile("pick_place", meta)
+    with pytest.raises(PolicyError, match="trained on a mobile dataset"):
+        refuse_mobile("pick_place", None, {SUBTASK_KEY: [1]})
+    refuse_mobile("pick_place", {"schema_version": 3}, {"observation.state": [8]})
