@@ -255,6 +255,11 @@ class DemosConfig:
             episodes of a scene as worlds of one MuJoCo Warp model, rendered by its batch
             renderer; ``workers`` processes plan), ``auto`` (``warp`` when CUDA is present).
         gpu_batch: most worlds (episodes of one scene) per GPU call of the ``warp`` executor.
+        gpu_images_on_device: the ``warp`` executor keeps a call's images on the device and
+            copies them to host memory at the end of the call (one call's recordings in host
+            memory at a time, so calls of ~1,000 worlds fit); false copies every frame to the
+            host as it is drawn (two calls in host memory; 26,700 demos/h warm on an H200
+            node, the other mode 24,600 cold; docs/DEMOS.md).
         plan_timeout: seconds per RRTConnect query.
         speed: share of the Panda's velocity limit for free motions (acceleration and jerk
             use 0.6 and 0.4 of it).
@@ -289,6 +294,7 @@ class DemosConfig:
     render: bool = True
     executor: str = "auto"
     gpu_batch: int = 512
+    gpu_images_on_device: bool = True
     plan_timeout: float = 5.0
     speed: float = 0.5
     max_grasps: int = 12

@@ -233,11 +233,12 @@ def run_gpu(
         # end, once the previous call's writes are done: one call's recordings in host memory
         # at a time (twice the share), and the device's memory bounds a call too.
         shared = shared_frames.supported()
-        budget = memory_budget(2 * HOST_MEMORY_SHARE if shared else HOST_MEMORY_SHARE)
+        keep = shared and dc.gpu_images_on_device  # images on the device until a call ends
+        budget = memory_budget(2 * HOST_MEMORY_SHARE if keep else HOST_MEMORY_SHARE)
         from factory.sim.backend import cuda_available
 
         dev = device or ("cuda:0" if cuda_available() else "cpu")
-        on_device = device_budget(dev) if shared else None
+        on_device = device_budget(dev) if keep else None
         if on_device is not None:
             budget = on_device if budget is None else min(budget, on_device)
 
@@ -279,7 +280,7 @@ def run_gpu(
             out["cleared"] = list(setup.cleared)
             instruction = episode_instruction(setup)
             executor = WarpExecutor(
-                setup, rec_cfg, device=device, arenas=arena_pool, images_on_device=shared
+                setup, rec_cfg, device=device, arenas=arena_pool, images_on_device=keep
             )
             attempt = attempts[sid]
             t_scene = time.perf_counter()

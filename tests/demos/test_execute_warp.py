@@ -226,9 +226,9 @@ def test_gpu_calls_group_episodes_of_similar_length(monkeypatch: pytest.MonkeyPa
 
 @pytest.mark.slow
 def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
-    """The pipeline's mode (images stored on the device, copied to a shared arena at the end)
-    records the same images and states as copying every frame to the host (Warp's CPU device:
-    deterministic)."""
+    """The pipeline's modes (images stored on the device and copied to a shared arena at the
+    end, or every frame copied into an arena) record the same images and states as copying
+    every frame into ordinary arrays (Warp's CPU device: deterministic)."""
     from factory.demos.execute_warp import WarpExecutor
     from factory.demos.shared_frames import ArenaPool, supported
 
@@ -243,13 +243,14 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
     cfg = RecordConfig(width=24, height=24)
     plain = WarpExecutor(setup, cfg, device="cpu").execute(plans)
     pool = ArenaPool(1 << 24)
-    kept = WarpExecutor(setup, cfg, device="cpu", arenas=pool, images_on_device=True)
-    stored = kept.execute(plans)
-    assert kept.take_arenas()  # the images went to an arena
-    for a, b in zip(plain, stored, strict=True):
-        np.testing.assert_array_equal(a.state, b.state)
-        for cam in cfg.cameras:
-            assert a.rgb[cam].std() > 0
-            np.testing.assert_array_equal(a.rgb[cam], b.rgb[cam])
-            np.testing.assert_array_equal(a.depth[cam], b.depth[cam])
+    for on_device in (True, False):  # both ways of recording into shared arenas
+        kept = WarpExecutor(setup, cfg, device="cpu", arenas=pool, images_on_device=on_device)
+        stored = kept.execute(plans)
+        assert kept.take_arenas()  # the recordings went to an arena
+        for a, b in zip(plain, stored, strict=True):
+            np.testing.assert_array_equal(a.state, b.state)
+            for cam in cfg.cameras:
+                assert a.rgb[cam].std() > 0
+                np.testing.assert_array_equal(a.rgb[cam], b.rgb[cam])
+                np.testing.assert_array_equal(a.depth[cam], b.depth[cam])
     pool.close()
