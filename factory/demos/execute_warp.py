@@ -276,7 +276,7 @@ class WarpExecutor:
 
     def _execute(self, plans: list[EpisodePlan], headroom: float) -> list[Recording]:
         wp, mjw = self.wp, self.mjw
-        from factory.demos.warp_kernels import set_ctrl, tick, to_image_store, to_images
+        from factory.demos.warp_kernels import set_ctrl, tick, to_images
 
         cfg, setup = self.cfg, self.setup
         model, robot = setup.model, setup.robot
@@ -334,42 +334,22 @@ class WarpExecutor:
             mjw.forward(self.m, d)
             rc = self._render_context(n) if ncam else None
             if rc is not None:
-                rgb_dev = wp.zeros((n, ncam, npix, 3), dtype=wp.uint8)
+                # The image store: every frame of the call (kept on the device), or one frame
+                # that the host copies after each period; camera- then frame-major.
                 mm = cfg.depth == "uint16_mm"
-                mm_dev = wp.zeros((n, ncam, npix) if mm else (1, 1, 1), dtype=wp.uint16)
-                m_dev = wp.zeros((1, 1, 1) if mm else (n, ncam, npix), dtype=float)
-                depth_dev = mm_dev if mm else m_dev
+                nf = total + 1 if store else 1
+                frame_d = wp.zeros(1, dtype=int)
+                rgb_store = wp.empty((ncam, nf, n, 3 * npix), dtype=wp.uint8)
+                mm_store = wp.empty((ncam, nf, n, npix) if mm else (1, 1, 1, 1), wp.uint16)
+                m_store = wp.empty((1, 1, 1, 1) if mm else (ncam, nf, n, npix), dtype=float)
                 rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
                 depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
-                if store:
-                    nf = total + 1
-                    frame_d = wp.zeros(1, dtype=int)
-                    rgb_store = wp.empty((ncam, nf, n, 3 * npix), dtype=wp.uint8)
-                    mm_store = wp.empty((ncam, nf, n, npix) if mm else (1, 1, 1, 1), wp.uint16)
-                    m_store = wp.empty((1, 1, 1, 1) if mm else (ncam, nf, n, npix), dtype=float)
 
             def draw() -> None:
                 if rc is None:
                     return
                 mjw.refit_bvh(self.m, d, rc)
                 mjw.render(self.m, d, rc)
-                if store:
-                    wp.launch(
-                        to_image_store,
-                        dim=(n, ncam, npix),
-                        inputs=[
-                            rc.rgb_data,
-                            rc.depth_data,
-                            rgb_adr,
-                            depth_adr,
-                            npix,
-                            int(mm),
-                            frame_d,
-                        ],
-                        outputs=[rgb_store, mm_store, m_store],
-                    )
-                    wp.launch(tick, dim=1, inputs=[frame_d])
-                    return
                 wp.launch(
                     to_images,
                     dim=(n, ncam, npix),
@@ -379,10 +359,13 @@ class WarpExecutor:
                         rgb_adr,
                         depth_adr,
                         npix,
-                        int(cfg.depth == "uint16_mm"),
+                        int(mm),
+                        frame_d,
                     ],
-                    outputs=[rgb_dev, mm_dev, m_dev],
+                    outputs=[rgb_store, mm_store, m_store],
                 )
+                if store:
+                    wp.launch(tick, dim=1, inputs=[frame_d])
 
             def period() -> None:
                 for _ in range(per_frame):
@@ -408,7 +391,7 @@ class WarpExecutor:
                 contact_world=d.contact.worldid,
             )
             if rc is not None and not store:
-                sources.update(rgb=rgb_dev, depth=depth_dev)
+                sources.update(rgb=rgb_store, depth=mm_store if mm else m_store)
             sources = {k: a for k, a in sources.items() if a.size}
             mirrors = {
                 k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
@@ -505,28 +488,26 @@ class WarpExecutor:
             ``rgb[cam]`` (F, n, H, W, 3) and ``depth[cam]`` (F, n, H, W), views of the arena.
         """
         wp, cfg = self.wp, self.cfg
-        h, w = cfg.height, cfg.width
         nf = rgb.shape[1]
         depth = mm if cfg.depth == "uint16_mm" else m
-        dt = np.uint16 if cfg.depth == "uint16_mm" else np.float32
-        specs = [((nf, n, h, w, 3), np.uint8), ((nf, n, h, w), dt)] * len(cfg.cameras)
+        specs = {
+            k: v
+            for k, v in _Frames.specs(nf, n, 0, cfg).items()
+            if k.startswith(("rgb/", "depth/"))
+        }
         from factory.demos.shared_frames import Arena
 
-        arena = self.arenas.take(Arena.bytes_for(specs))
+        arena = self.arenas.take(Arena.bytes_for(list(specs.values())))
         self._arenas.append(arena)
         out_rgb: dict[str, np.ndarray] = {}
         out_depth: dict[str, np.ndarray] = {}
         for k, cam in enumerate(cfg.cameras):
-            out_rgb[cam] = arena.empty((nf, n, h, w, 3), np.uint8)
-            out_depth[cam] = arena.empty((nf, n, h, w), dt)
-            host = wp.array(
-                out_rgb[cam].reshape(nf, n, -1), dtype=wp.uint8, device="cpu", copy=False
-            )
-            wp.copy(host, rgb[k])
-            host = wp.array(
-                out_depth[cam].reshape(nf, n, -1), dtype=depth.dtype, device="cpu", copy=False
-            )
-            wp.copy(host, depth[k])
+            for out, key, src in ((out_rgb, f"rgb/{cam}", rgb), (out_depth, f"depth/{cam}", depth)):
+                out[cam] = arena.empty(*specs[key])
+                host = wp.array(
+                    out[cam].reshape(nf, n, -1), dtype=src.dtype, device="cpu", copy=False
+                )
+                wp.copy(host, src[k])
         wp.synchronize()
         return out_rgb, out_depth
 
@@ -550,7 +531,7 @@ class WarpExecutor:
             host: host copies of the frame's device arrays (``qpos``, ``xpos``, ``rgb``, ...,
                 ``contact_*``; world-major).
             action: (n, 8) each world's recorded action of this frame.
-            images: whether ``host`` holds RGB (n, ncam, H*W, 3) and depth (n, ncam, H*W).
+            images: whether ``host`` holds RGB (ncam, 1, n, 3*H*W) and depth (ncam, 1, n, H*W).
         """
         lay = self.layout
         robot = self.setup.robot
@@ -591,8 +572,8 @@ class WarpExecutor:
             h, w = self.cfg.height, self.cfg.width
             rgb, depth = host["rgb"], host["depth"]
             for k, cam in enumerate(self.cfg.cameras):
-                frames.rgb[cam][frame] = rgb[:, k].reshape(n, h, w, 3)
-                frames.depth[cam][frame] = depth[:, k].reshape(n, h, w)
+                frames.rgb[cam][frame] = rgb[k, 0].reshape(n, h, w, 3)
+                frames.depth[cam][frame] = depth[k, 0].reshape(n, h, w)
 
 
 @dataclass

@@ -35,41 +35,16 @@ def to_images(
     depth_adr: wp.array(dtype=int),
     npix: int,
     depth_mm: int,
-    rgb_out: wp.array4d(dtype=wp.uint8),
-    mm_out: wp.array3d(dtype=wp.uint16),
-    m_out: wp.array3d(dtype=float),
-):
-    """The renderer's packed ARGB pixels and planar depth (m) of camera ``c`` of world ``w`` ->
-    ``rgb_out[w, c, p]`` (uint8 RGB) and ``mm_out[w, c, p]`` (uint16 mm, when ``depth_mm``) or
-    ``m_out[w, c, p]`` (float32 m); ``p`` runs over the ``npix`` pixels row by row from the top."""
-    w, c, p = wp.tid()
-    val = packed[w, rgb_adr[c] + p]
-    rgb_out[w, c, p, 0] = wp.uint8((val >> wp.uint32(16)) & wp.uint32(0xFF))
-    rgb_out[w, c, p, 1] = wp.uint8((val >> wp.uint32(8)) & wp.uint32(0xFF))
-    rgb_out[w, c, p, 2] = wp.uint8(val & wp.uint32(0xFF))
-    z = depth[w, depth_adr[c] + p]
-    if depth_mm != 0:
-        mm_out[w, c, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
-    else:
-        m_out[w, c, p] = z
-
-
-@wp.kernel
-def to_image_store(
-    packed: wp.array2d(dtype=wp.uint32),
-    depth: wp.array2d(dtype=float),
-    rgb_adr: wp.array(dtype=int),
-    depth_adr: wp.array(dtype=int),
-    npix: int,
-    depth_mm: int,
     frame: wp.array(dtype=int),
     rgb_out: wp.array4d(dtype=wp.uint8),
     mm_out: wp.array4d(dtype=wp.uint16),
     m_out: wp.array4d(dtype=float),
 ):
-    """As :func:`to_images`, into the call's image store on the device: ``rgb_out[c, f, w,
-    3 p + k]``, ``mm_out[c, f, w, p]`` or ``m_out[c, f, w, p]`` for frame ``f = frame[0]``
-    (camera-major, then frame-major: camera ``c``'s block is the host's ``(F, n, H, W, 3)``)."""
+    """The renderer's packed ARGB pixels and planar depth (m) of camera ``c`` of world ``w`` ->
+    the image store: ``rgb_out[c, f, w, 3 p + k]`` (uint8 RGB), ``mm_out[c, f, w, p]`` (uint16
+    mm, when ``depth_mm``) or ``m_out[c, f, w, p]`` (float32 m), for frame ``f = frame[0]``;
+    ``p`` runs over the ``npix`` pixels row by row from the top. Camera-major, then
+    frame-major: camera ``c``'s block is the host's ``(F, n, H, W, 3)``."""
     w, c, p = wp.tid()
     f = frame[0]
     val = packed[w, rgb_adr[c] + p]
