@@ -39,6 +39,7 @@ from factory.demos.execute import (
 )
 from factory.demos.pick_place import EpisodePlan, SceneSetup
 from factory.demos.robot import CAMERAS
+from factory.demos.world_schedule import WorldSchedule
 
 log = logging.getLogger(__name__)
 
@@ -254,8 +255,15 @@ class WarpExecutor:
             cam_active=names,
         )
 
-    def execute(self, plans: list[EpisodePlan]) -> list[Recording]:
+    def execute(self, plans: list[EpisodePlan], worlds: int | None = None) -> list[Recording]:
         """Runs ``plans`` together and records them (one recording per plan, success checked).
+
+        Args:
+            plans: the episodes (of this scene).
+            worlds: worlds of the call; fewer than ``len(plans)`` packs the episodes onto them
+                back to back (:func:`~factory.demos.world_schedule.packed_schedule`: no world
+                waits for the longest episode); None: one world per episode, all starting
+                together (:func:`~factory.demos.world_schedule.padded_schedule`).
 
         Worlds whose contact or constraint buffers overflowed are run again with doubled
         buffers (twice at most); if they still overflow their outcome is ``sim_overflow``.
@@ -263,60 +271,60 @@ class WarpExecutor:
         n = len(plans)
         if n == 0:
             return []
-        recs = self._execute(plans, headroom=3.0)
+        recs = self._execute(plans, headroom=3.0, worlds=worlds)
         for grow in (6.0, 12.0):
             again = [i for i, r in enumerate(recs) if r.outcome and r.outcome.reason == OVERFLOW]
             if not again:
                 break
             log.info("warp demos: %d world(s) overflowed; re-running with more room", len(again))
-            redo = self._execute([plans[i] for i in again], headroom=grow)
+            redo = self._execute([plans[i] for i in again], headroom=grow, worlds=worlds)
             for i, r in zip(again, redo, strict=True):
                 recs[i] = r
         return recs
 
-    def _execute(self, plans: list[EpisodePlan], headroom: float) -> list[Recording]:
+    def _execute(
+        self, plans: list[EpisodePlan], headroom: float, worlds: int | None
+    ) -> list[Recording]:
         wp, mjw = self.wp, self.mjw
-        from factory.demos.warp_kernels import set_ctrl, tick, to_images
+        from factory.demos.warp_kernels import begin, set_ctrl, starts, tick, to_images
+        from factory.demos.world_schedule import packed_schedule, padded_schedule
 
         cfg, setup = self.cfg, self.setup
         model, robot = setup.model, setup.robot
-        n, per_frame = len(plans), self.per_frame
+        per_frame = self.per_frame
         t0 = time.perf_counter()
-        lengths = [len(p.ctrl) for p in plans]
+        lengths = np.array([len(p.ctrl) for p in plans], np.int64)
         n_frames = [int(np.ceil(t / per_frame)) + 1 for t in lengths]
-        total = max(n_frames) - 1
-        steps = max(1, total * per_frame)
-        ctrl = np.empty((n, steps, model.nu), np.float32)
-        for i, p in enumerate(plans):
-            k = min(len(p.ctrl), steps)
-            ctrl[i, :k] = p.ctrl[:k]
-            ctrl[i, k:] = p.ctrl[-1]
+        if worlds is not None and worlds < len(plans):
+            sched = packed_schedule(n_frames, worlds)
+        else:
+            sched = padded_schedule(n_frames)
+        n, nb, n_ep = sched.worlds, sched.boundaries, len(plans)
+        # The episodes' controls and recorded targets one after another: (sum of steps, nu|8).
+        offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        ctrl = np.concatenate([p.ctrl for p in plans]).astype(np.float32)
+        targets = np.concatenate([p.targets for p in plans])
         q0 = np.stack([p.qpos0 for p in plans])
         nconmax, njmax = buffer_sizes(model, q0, headroom)
-        # Template states: the CPU executor's initial state of each world (reset, qpos0,
+        # Template states: the CPU executor's initial state of each episode (reset, qpos0,
         # first control, forward); the parts that never change on the device come from here.
         data = mujoco.MjData(model)
         nstate = mujoco.mj_stateSize(model, STATE_SPEC)
-        template = np.empty((n, nstate))
+        template = np.empty((n_ep, nstate))
         for i, p in enumerate(plans):
             mujoco.mj_resetData(model, data)
             data.qpos[:] = p.qpos0
-            data.ctrl[:] = ctrl[i, 0]
+            data.ctrl[:] = p.ctrl[0]
             mujoco.mj_forward(model, data)
             mujoco.mj_getState(model, data, template[i], STATE_SPEC)
         mujoco.mj_resetData(model, data)
-        targets = np.empty((n, steps, 8), np.float32)
-        for i, p in enumerate(plans):
-            k = min(len(p.targets), steps)
-            targets[i, :k] = p.targets[:k]
-            targets[i, k:] = p.targets[-1]
         ncam = len(cfg.cameras) if cfg.render else 0
         store = self.images_on_device and ncam > 0  # images stay on the device until the end
         arena = None
         if self.arenas is not None and not store:
-            arena = self.arenas.take(_Frames.nbytes(total + 1, n, nstate, cfg))
+            arena = self.arenas.take(_Frames.nbytes(sched.n_rows, nstate, cfg))
             self._arenas.append(arena)
-        frames = _Frames.allocate(total + 1, n, nstate, cfg, arena, images=not store)
+        frames = _Frames.allocate(sched.n_rows, nstate, cfg, arena, images=not store)
         npix = cfg.width * cfg.height
         pick = model.body(setup.objects.pick.id).id
         target = model.body(setup.objects.target.id).id
@@ -324,24 +332,38 @@ class WarpExecutor:
         robot_geom = np.zeros(model.ngeom, bool)
         robot_geom[robot.geoms] = True
         allowed = np.isin(model.geom_bodyid, [pick, target, support])
-        worst = np.zeros(n)
+        worst = np.zeros(n_ep)
+        first = sched.episode[0]
         with wp.ScopedDevice(self.device):
             d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
-            d.qpos.assign(wp.array(q0.astype(np.float32), dtype=float))
+            d.qpos.assign(wp.array(q0[first].astype(np.float32), dtype=float))
             plan_d = wp.array(ctrl, dtype=float)
+            offset_d = wp.array(offsets.astype(np.int32), dtype=int)
+            length_d = wp.array(lengths.astype(np.int32), dtype=int)
+            episode_d = wp.array(sched.episode, dtype=int)
+            frame_d = wp.array(sched.frame, dtype=int)
             step_d = wp.zeros(1, dtype=int)
-            wp.launch(set_ctrl, dim=(n, model.nu), inputs=[plan_d, step_d], outputs=[d.ctrl])
+            ctrl_in = [plan_d, offset_d, length_d, episode_d, frame_d, step_d, per_frame]
+            wp.launch(set_ctrl, dim=(n, model.nu), inputs=ctrl_in, outputs=[d.ctrl])
             mjw.forward(self.m, d)
+            if sched.resets:
+                start_d = wp.array(sched.start, dtype=bool)
+                reset_d = wp.zeros(n, dtype=bool)
+                qpos0_d = wp.array(q0.astype(np.float32), dtype=float)
+                overflow_of = wp.zeros(n_ep, dtype=int)
+                # reset_data's kernels are made per call: load them outside the capture.
+                mjw.reset_data(self.m, d, reset=reset_d)
             rc = self._render_context(n) if ncam else None
             if rc is not None:
-                # The image store: every frame of the call (kept on the device), or one frame
-                # that the host copies after each period; camera- then frame-major.
+                # The image store: a row per filed frame of the call (kept on the device), or a
+                # row per world that the host copies after each period; camera-major.
                 mm = cfg.depth == "uint16_mm"
-                nf = total + 1 if store else 1
-                frame_d = wp.zeros(1, dtype=int)
-                rgb_store = wp.empty((ncam, nf, n, 3 * npix), dtype=wp.uint8)
-                mm_store = wp.empty((ncam, nf, n, npix) if mm else (1, 1, 1, 1), wp.uint16)
-                m_store = wp.empty((1, 1, 1, 1) if mm else (ncam, nf, n, npix), dtype=float)
+                nr = sched.n_rows if store else n
+                img_rows = sched.row if store else np.where(sched.row >= 0, np.arange(n), -1)
+                rows_d = wp.array(img_rows.astype(np.int32), dtype=int)
+                rgb_store = wp.empty((ncam, nr, 3 * npix), dtype=wp.uint8)
+                mm_store = wp.empty((ncam, nr, npix) if mm else (1, 1, 1), wp.uint16)
+                m_store = wp.empty((1, 1, 1) if mm else (ncam, nr, npix), dtype=float)
                 rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
                 depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
 
@@ -360,20 +382,32 @@ class WarpExecutor:
                         depth_adr,
                         npix,
                         int(mm),
-                        frame_d,
+                        rows_d,
+                        step_d,
+                        per_frame,
                     ],
                     outputs=[rgb_store, mm_store, m_store],
                 )
-                if store:
-                    wp.launch(tick, dim=1, inputs=[frame_d])
 
             def period() -> None:
                 for _ in range(per_frame):
-                    wp.launch(
-                        set_ctrl, dim=(n, model.nu), inputs=[plan_d, step_d], outputs=[d.ctrl]
-                    )
+                    wp.launch(set_ctrl, dim=(n, model.nu), inputs=ctrl_in, outputs=[d.ctrl])
                     mjw.step(self.m, d)
                     wp.launch(tick, dim=1, inputs=[step_d])
+                if sched.resets:  # worlds whose next episode starts now
+                    wp.launch(
+                        starts,
+                        dim=n,
+                        inputs=[start_d, episode_d, step_d, per_frame, d.overflow],
+                        outputs=[reset_d, overflow_of],
+                    )
+                    mjw.reset_data(self.m, d, reset=reset_d)
+                    wp.launch(
+                        begin,
+                        dim=n,
+                        inputs=[reset_d, episode_d, step_d, per_frame, qpos0_d, plan_d, offset_d],
+                        outputs=[d.qpos, d.ctrl],
+                    )
                 mjw.forward(self.m, d)
                 draw()
 
@@ -411,9 +445,10 @@ class WarpExecutor:
             t1 = time.perf_counter()
             host = grab()
             frames_s += time.perf_counter() - t1
-            for f in range(total + 1):
+            ep_step = _EpisodeSteps(offsets, lengths, per_frame)
+            for b in range(nb):
                 t1 = time.perf_counter()
-                if f < total:  # frame f + 1 runs on the GPU while frame f is filed
+                if b + 1 < nb:  # boundary b + 1 runs on the GPU while boundary b is filed
                     if self.graph and captured is None:
                         with wp.ScopedCapture() as cap:
                             period()
@@ -423,13 +458,14 @@ class WarpExecutor:
                     else:
                         period()
                 t2 = time.perf_counter()
-                step = np.minimum((f + 1) * per_frame, np.asarray(lengths)) - 1
                 self._record(
-                    f,
+                    b,
+                    sched,
                     host,
                     frames,
                     template,
-                    targets[np.arange(n), step],
+                    targets,
+                    ep_step,
                     robot_geom,
                     allowed,
                     worst,
@@ -437,20 +473,27 @@ class WarpExecutor:
                     rc is not None and not store,
                 )
                 t3 = time.perf_counter()
-                if f < total:
+                if b + 1 < nb:
                     host = grab()
                 frames_s += (t2 - t1) + (time.perf_counter() - t3)
                 copy_s += t3 - t2
-            overflow = d.overflow.numpy().copy()
+            overflow = np.zeros(n_ep, np.int64)
+            if sched.resets:
+                overflow |= overflow_of.numpy()
+            last = sched.episode[-1]
+            on = last >= 0
+            np.bitwise_or.at(overflow, last[on], d.overflow.numpy()[on])
             if store:  # the call's images, one block per camera, into an arena
                 t4 = time.perf_counter()
-                frames.rgb, frames.depth = self._images_to_host(rgb_store, mm_store, m_store, n)
+                frames.rgb, frames.depth = self._images_to_host(
+                    rgb_store, mm_store, m_store, sched.n_rows
+                )
                 del rgb_store, mm_store, m_store
                 copy_s += time.perf_counter() - t4
         self.times.frames += frames_s
         self.times.copy += copy_s
         t3 = time.perf_counter()
-        recs = frames.recordings(n_frames, cfg)
+        recs = frames.recordings(sched.rows, n_frames, cfg)
         finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
         from factory.demos.task import Outcome
 
@@ -461,16 +504,17 @@ class WarpExecutor:
                 {"nconmax": nconmax, "njmax": njmax, "overflow_bits": float(overflow[i])},
             )
         for r in recs:
-            r.sim_seconds = frames_s / n
-            r.render_seconds = copy_s / n
+            r.sim_seconds = frames_s / n_ep
+            r.render_seconds = copy_s / n_ep
         finish_s = time.perf_counter() - t3
         self.times.finish += finish_s
         log.info(
-            "warp call: %d worlds x %d frames (%d steps each): setup %.1f s, GPU and copies "
-            "%.1f s, filing %.1f s, success checks %.1f s",
+            "warp call: %d episodes on %d worlds x %d frames (%.0f %% busy): setup %.1f s, GPU "
+            "and copies %.1f s, filing and image copies %.1f s, success checks %.1f s",
+            n_ep,
             n,
-            total + 1,
-            steps,
+            nb,
+            100 * sched.busy(),
             setup_s,
             frames_s,
             copy_s,
@@ -479,33 +523,37 @@ class WarpExecutor:
         return recs
 
     def _images_to_host(
-        self, rgb: Any, mm: Any, m: Any, n: int
+        self, rgb: Any, mm: Any, m: Any, n_rows: int
     ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """Copies the device image stores of a call (``rgb``: (ncam, F, n, 3 H W) uint8;
-        ``mm``/``m``: (ncam, F, n, H W) depth) into an arena taken now from :attr:`arenas`.
+        """Copies the device image stores of a call (``rgb``: (ncam, R, 3 H W) uint8;
+        ``mm``/``m``: (ncam, R, H W) depth) into an arena taken now from :attr:`arenas`,
+        page-locked for the copy where CUDA allows (:meth:`Arena.pin`).
 
         Returns:
-            ``rgb[cam]`` (F, n, H, W, 3) and ``depth[cam]`` (F, n, H, W), views of the arena.
+            ``rgb[cam]`` (R, H, W, 3) and ``depth[cam]`` (R, H, W), views of the arena.
         """
         wp, cfg = self.wp, self.cfg
-        nf = rgb.shape[1]
         depth = mm if cfg.depth == "uint16_mm" else m
         specs = {
             k: v
-            for k, v in _Frames.specs(nf, n, 0, cfg).items()
+            for k, v in _Frames.specs(n_rows, 0, cfg).items()
             if k.startswith(("rgb/", "depth/"))
         }
         from factory.demos.shared_frames import Arena
 
-        arena = self.arenas.take(Arena.bytes_for(list(specs.values())))
+        nbytes = Arena.bytes_for(list(specs.values()))
+        arena = self.arenas.take(nbytes)
         self._arenas.append(arena)
+        dev = wp.get_device(self.device)
+        if dev.is_cuda:
+            arena.pin(nbytes, int(dev.context))
         out_rgb: dict[str, np.ndarray] = {}
         out_depth: dict[str, np.ndarray] = {}
         for k, cam in enumerate(cfg.cameras):
             for out, key, src in ((out_rgb, f"rgb/{cam}", rgb), (out_depth, f"depth/{cam}", depth)):
                 out[cam] = arena.empty(*specs[key])
                 host = wp.array(
-                    out[cam].reshape(nf, n, -1), dtype=src.dtype, device="cpu", copy=False
+                    out[cam].reshape(n_rows, -1), dtype=src.dtype, device="cpu", copy=False
                 )
                 wp.copy(host, src[k])
         wp.synchronize()
@@ -513,46 +561,54 @@ class WarpExecutor:
 
     def _record(
         self,
-        frame: int,
+        b: int,
+        sched: WorldSchedule,
         host: dict[str, np.ndarray],
         frames: _Frames,
         template: np.ndarray,
-        action: np.ndarray,
+        targets: np.ndarray,
+        ep_step: _EpisodeSteps,
         robot_geom: np.ndarray,
         allowed: np.ndarray,
         worst: np.ndarray,
         bodies: tuple[int, int],
         images: bool,
     ) -> None:
-        """Files frame ``frame`` of every world into ``frames`` (whole-batch array operations;
-        worlds past their episode's end are recorded and never read).
+        """Files the frames of boundary ``b`` into their rows of ``frames`` (whole-batch array
+        operations over the worlds that record a frame there).
 
         Args:
-            host: host copies of the frame's device arrays (``qpos``, ``xpos``, ``rgb``, ...,
-                ``contact_*``; world-major).
-            action: (n, 8) each world's recorded action of this frame.
-            images: whether ``host`` holds RGB (ncam, 1, n, 3*H*W) and depth (ncam, 1, n, H*W).
+            host: host copies of the boundary's device arrays (``qpos``, ``xpos``, ``rgb``,
+                ..., ``contact_*``; world-major).
+            template: (episodes, nstate) each episode's initial state.
+            targets: (sum of the episodes' steps, 8) their recorded actions, one after another.
+            worst: (episodes,) deepest robot penetration so far (m), updated.
+            images: whether ``host`` holds RGB (ncam, n, 3*H*W) and depth (ncam, n, H*W).
         """
         lay = self.layout
         robot = self.setup.robot
-        n = len(template)
-        states = frames.state[frame]
-        states[:] = template
+        live = np.flatnonzero(sched.row[b] >= 0)
+        if live.size == 0:
+            return
+        rows = sched.row[b, live]
+        ep = sched.episode[b, live]
+        states = template[ep]
         for name in DYNAMIC:
             if name in lay and lay[name].stop > lay[name].start and name in host:
-                states[:, lay[name]] = host[name].reshape(n, -1)
+                states[:, lay[name]] = host[name].reshape(sched.worlds, -1)[live]
+        frames.state[rows] = states
         qpos = states[:, lay["qpos"]]
-        frames.joint_pos[frame] = qpos[:, robot.qpos]
+        frames.joint_pos[rows] = qpos[:, robot.qpos]
         fingers = qpos[:, robot.finger_qpos]
-        frames.gripper[frame, :, 0] = fingers[:, 0] - fingers[:, 1]
-        frames.ee_pose[frame, :, :3] = host["site_xpos"][:, robot.site]
-        frames.ee_pose[frame, :, 3:] = quat_from_mat(host["site_xmat"][:, robot.site])
-        xpos, xquat = host["xpos"], host["xquat"]
-        a, b = bodies
-        frames.env_state[frame] = np.concatenate(
-            [xpos[:, a], xquat[:, a], xpos[:, b], xquat[:, b]], axis=1
+        frames.gripper[rows, 0] = fingers[:, 0] - fingers[:, 1]
+        frames.ee_pose[rows, :3] = host["site_xpos"][live, robot.site]
+        frames.ee_pose[rows, 3:] = quat_from_mat(host["site_xmat"][live, robot.site])
+        xpos, xquat = host["xpos"][live], host["xquat"][live]
+        a, c = bodies
+        frames.env_state[rows] = np.concatenate(
+            [xpos[:, a], xquat[:, a], xpos[:, c], xquat[:, c]], axis=1
         )
-        frames.action[frame] = action
+        frames.action[rows] = targets[ep_step.action_index(ep, sched.frame[b, live])]
         # Robot penetration: the deepest contact between a robot geom and a geom that is not
         # the pick object, the target or its support (as the CPU executor's check).
         nacon = min(int(host["nacon"][0]), len(host.get("contact_dist", ())))
@@ -561,25 +617,42 @@ class WarpExecutor:
             dist = host["contact_dist"][:nacon]
             world = host["contact_world"][:nacon]
             g1, g2 = geom[:, 0], geom[:, 1]
-            ok = (g1 >= 0) & (g2 >= 0)
+            ok = (g1 >= 0) & (g2 >= 0) & (world >= 0) & (world < sched.worlds)
             g1, g2, dist, world = g1[ok], g2[ok], dist[ok], world[ok]
             one = robot_geom[g1] != robot_geom[g2]
             other = np.where(robot_geom[g1], g2, g1)
-            hit = one & ~allowed[other]
+            hit = one & ~allowed[other] & (sched.row[b, world] >= 0)
             if hit.any():
-                np.maximum.at(worst, world[hit], np.maximum(0.0, -dist[hit]))
+                np.maximum.at(worst, sched.episode[b, world[hit]], np.maximum(0.0, -dist[hit]))
         if images:
             h, w = self.cfg.height, self.cfg.width
             rgb, depth = host["rgb"], host["depth"]
             for k, cam in enumerate(self.cfg.cameras):
-                frames.rgb[cam][frame] = rgb[k, 0].reshape(n, h, w, 3)
-                frames.depth[cam][frame] = depth[k, 0].reshape(n, h, w)
+                frames.rgb[cam][rows] = rgb[k, live].reshape(-1, h, w, 3)
+                frames.depth[cam][rows] = depth[k, live].reshape(-1, h, w)
+
+
+@dataclass(frozen=True)
+class _EpisodeSteps:
+    """Where each episode's steps lie in the call's concatenated controls and targets."""
+
+    offsets: np.ndarray
+    lengths: np.ndarray
+    per_frame: int
+
+    def action_index(self, ep: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        """Row of the recorded action of frame ``frame`` of episodes ``ep``: the target of the
+        last step of the period that follows the frame (the episode's last one past its end)."""
+        step = np.minimum((frame + 1) * self.per_frame, self.lengths[ep]) - 1
+        return self.offsets[ep] + step
 
 
 @dataclass
 class _Frames:
-    """Every world's recorded signals, frame-major: ``state`` (F, n, nstate), ``joint_pos``
-    (F, n, 7), ... , ``rgb[cam]`` (F, n, H, W, 3); episode ``i`` is ``[:frames_i, i]``."""
+    """The call's recorded signals in flat rows, one row per filed frame: ``state`` (R, nstate),
+    ``joint_pos`` (R, 7), ... , ``rgb[cam]`` (R, H, W, 3); an episode's frames are the rows of
+    its :attr:`WorldSchedule.rows` slice (strided for a padded call, a block for a packed one).
+    """
 
     state: np.ndarray
     joint_pos: np.ndarray
@@ -591,46 +664,45 @@ class _Frames:
     depth: dict[str, np.ndarray]
 
     @staticmethod
-    def specs(f: int, n: int, nstate: int, cfg: RecordConfig) -> dict[str, Any]:
+    def specs(rows: int, nstate: int, cfg: RecordConfig) -> dict[str, Any]:
         """``name -> (shape, dtype)`` of every buffer (``rgb/<cam>``, ``depth/<cam>``)."""
         depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
         cams = cfg.cameras if cfg.render else ()
         out: dict[str, Any] = {
-            "state": ((f, n, nstate), np.float64),
-            "joint_pos": ((f, n, 7), np.float64),
-            "gripper": ((f, n, 1), np.float64),
-            "ee_pose": ((f, n, 7), np.float64),
-            "action": ((f, n, 8), np.float64),
-            "env_state": ((f, n, 14), np.float64),
+            "state": ((rows, nstate), np.float64),
+            "joint_pos": ((rows, 7), np.float64),
+            "gripper": ((rows, 1), np.float64),
+            "ee_pose": ((rows, 7), np.float64),
+            "action": ((rows, 8), np.float64),
+            "env_state": ((rows, 14), np.float64),
         }
         for c in cams:
-            out[f"rgb/{c}"] = ((f, n, cfg.height, cfg.width, 3), np.uint8)
-            out[f"depth/{c}"] = ((f, n, cfg.height, cfg.width), depth_type)
+            out[f"rgb/{c}"] = ((rows, cfg.height, cfg.width, 3), np.uint8)
+            out[f"depth/{c}"] = ((rows, cfg.height, cfg.width), depth_type)
         return out
 
     @classmethod
-    def nbytes(cls, f: int, n: int, nstate: int, cfg: RecordConfig) -> int:
+    def nbytes(cls, rows: int, nstate: int, cfg: RecordConfig) -> int:
         """Bytes of every buffer together (page-aligned, as an arena places them)."""
         from factory.demos.shared_frames import Arena
 
-        return Arena.bytes_for(list(cls.specs(f, n, nstate, cfg).values()))
+        return Arena.bytes_for(list(cls.specs(rows, nstate, cfg).values()))
 
     @classmethod
     def allocate(
         cls,
-        f: int,
-        n: int,
+        rows: int,
         nstate: int,
         cfg: RecordConfig,
         arena: Any = None,
         images: bool = True,
     ) -> _Frames:
-        """Buffers for ``f`` frames of ``n`` worlds: zero-filled, or in ``arena`` as they
-        are (:meth:`WarpExecutor._record` writes every element of every frame); without
-        ``images`` the RGB and depth buffers are left out (filled in later)."""
+        """Buffers of ``rows`` frames: zero-filled, or in ``arena`` as they are
+        (:meth:`WarpExecutor._record` writes every row an episode reads); without ``images``
+        the RGB and depth buffers are left out (filled in later)."""
         made = {
             k: (np.zeros(shape, dt) if arena is None else arena.empty(shape, dt))
-            for k, (shape, dt) in cls.specs(f, n, nstate, cfg).items()
+            for k, (shape, dt) in cls.specs(rows, nstate, cfg).items()
             if images or not k.startswith(("rgb/", "depth/"))
         }
         return cls(
@@ -644,21 +716,23 @@ class _Frames:
             depth={k[6:]: a for k, a in made.items() if k.startswith("depth/")},
         )
 
-    def recordings(self, n_frames: list[int], cfg: RecordConfig) -> list[Recording]:
-        """One :class:`Recording` per world: views of its frames (no copies)."""
+    def recordings(
+        self, rows: list[slice], n_frames: list[int], cfg: RecordConfig
+    ) -> list[Recording]:
+        """One :class:`Recording` per episode: views of its rows (no copies)."""
         out = []
-        for i, f in enumerate(n_frames):
+        for sl, f in zip(rows, n_frames, strict=True):
             out.append(
                 Recording(
                     time=np.arange(f) / cfg.fps,
-                    state=self.state[:f, i],
-                    joint_pos=self.joint_pos[:f, i],
-                    gripper=self.gripper[:f, i],
-                    ee_pose=self.ee_pose[:f, i],
-                    action=self.action[:f, i],
-                    env_state=self.env_state[:f, i],
-                    rgb={c: a[:f, i] for c, a in self.rgb.items()},
-                    depth={c: a[:f, i] for c, a in self.depth.items()},
+                    state=self.state[sl],
+                    joint_pos=self.joint_pos[sl],
+                    gripper=self.gripper[sl],
+                    ee_pose=self.ee_pose[sl],
+                    action=self.action[sl],
+                    env_state=self.env_state[sl],
+                    rgb={c: a[sl] for c, a in self.rgb.items()},
+                    depth={c: a[sl] for c, a in self.depth.items()},
                 )
             )
         return out

@@ -2,12 +2,13 @@
 
 Scenes are taken one after another. The episode slots of a scene are planned in a pool of
 ``spawn``ed worker processes (one plan per task, each worker keeping the scene's planner), the
-plans are executed and recorded together as the worlds of one MuJoCo Warp model
-(:class:`~factory.demos.execute_warp.WarpExecutor`, up to ``demos.gpu_batch`` worlds per
-call), and the successful recordings are written by a few processes while the GPU goes on; they
-read the images in place from the call's shared memory (:mod:`factory.demos.shared_frames`). While
-the GPU runs a scene, the pool already plans the next scene's episodes, so neither waits for
-the other as long as planning keeps up. Failed slots are planned again with their next seed
+plans are executed and recorded together on the worlds of one MuJoCo Warp model
+(:class:`~factory.demos.execute_warp.WarpExecutor`: up to ``demos.gpu_batch`` worlds per call,
+each world taking its next episode as soon as its last one ends), and the successful
+recordings are written by a few processes while the GPU goes on; they read the images in
+place from the call's shared memory (:mod:`factory.demos.shared_frames`). While the GPU runs a
+scene, the pool already plans the next scene's episodes, so neither waits for the other as long
+as planning keeps up. Failed slots are planned again with their next seed
 (``demos.attempts``), exactly as on the CPU path: the same seeds give the same plans, so the CPU
 and GPU executors record the same episodes up to float32 physics.
 """
@@ -70,14 +71,17 @@ def plan_slot(
         attempt += 1
 
 
-WRITERS = 6
-"""Processes writing (compressing) recorded episodes while the GPU goes on. Threads do not
-help: zarr runs every write of a process on one event loop, about 6 times the cost of the
-compression itself."""
+def writer_count() -> int:
+    """Processes writing (compressing) recorded episodes while the GPU goes on: half the cores
+    (2-8). Threads do not help: zarr runs every write of a process on one event loop, about 3
+    times the cost of the compression itself (0.25 s per 65 MB episode on one core)."""
+    import os
+
+    return max(2, min(8, (os.cpu_count() or 2) // 2))
 
 
 HOST_MEMORY_SHARE = 0.35
-"""Share of the host's available memory one GPU call's recordings may take (the frame-major
+"""Share of the host's available memory one GPU call's recordings may take (the call's frame
 buffers; the episodes' recordings are views into them). The previous call's recordings may
 still be in memory while they are written, so two calls take at most 70 % of it."""
 
@@ -108,46 +112,33 @@ def device_budget(device: str) -> int | None:
     return int(GPU_MEMORY_SHARE * dev.free_memory) if dev.is_cuda else None
 
 
-def worlds_that_fit(
-    plans: list[Any], rec_cfg: Any, timestep: float, budget: int | None = None
-) -> int:
-    """How many of ``plans`` one GPU call may record without exhausting host memory.
-
-    A world's recording holds ``frames x cameras x height x width`` pixels of RGB (3 bytes) and
-    depth (2 or 4 bytes) plus small per-frame signals; frames come from the longest plan.
-
-    Args:
-        budget: bytes the call may take; None: :func:`memory_budget` now.
-    """
-    if not plans:
-        return 1
-    frames = max(len(p.ctrl) for p in plans) * timestep * rec_cfg.fps + 2
+def episode_bytes(plan: Any, rec_cfg: Any, timestep: float) -> int:
+    """Bytes of host memory one episode's recording takes: ``frames x cameras x height x
+    width`` pixels of RGB (3 bytes) and depth (2 or 4 bytes) plus small per-frame signals."""
+    frames = len(plan.ctrl) * timestep * rec_cfg.fps + 2
     depth_bytes = 2 if rec_cfg.depth == "uint16_mm" else 4
     pixels = len(rec_cfg.cameras) * rec_cfg.height * rec_cfg.width if rec_cfg.render else 0
-    per_world = frames * (pixels * (3 + depth_bytes) + 4096)
-    if budget is None:
-        budget = memory_budget()
-    if budget is None:  # pragma: no cover - non-POSIX
-        return len(plans)
-    return max(1, int(budget // per_world))
+    return int(frames * (pixels * (3 + depth_bytes) + 4096))
 
 
-def length_chunks(
+def gpu_calls(
     planned: list[tuple[int, int, Any]],
     gpu_batch: int,
     rec_cfg: Any,
     timestep: float,
     scene_id: str = "",
     budget: int | None = None,
-) -> list[list[tuple[int, int, Any]]]:
-    """The planned episodes of a scene in GPU calls of similar length.
+) -> list[tuple[list[tuple[int, int, Any]], int]]:
+    """The planned episodes of a scene in GPU calls, and the worlds of each call.
 
-    A call runs until its longest episode ends; shorter ones hold their last control and are
-    still simulated and rendered. Sorting the episodes by length before cutting them into calls
-    keeps that padding small when a scene has more episodes than one call takes. Calls are of
-    equal size (at most ``gpu_batch`` worlds, and at most what host memory holds for their
-    recordings, :func:`worlds_that_fit`, which lets calls of shorter episodes take more
-    worlds), so no call is left with a handful of worlds.
+    A call packs its episodes onto worlds back to back
+    (:func:`~factory.demos.world_schedule.packed_schedule`; at most ``gpu_batch`` worlds, and
+    no more than keep the call about as long as its longest episode,
+    :func:`~factory.demos.world_schedule.worlds_for`), so episode lengths cost little padding
+    and a scene needs one call as long as its recordings fit in memory: ``budget`` bytes per
+    call (a share of host memory, and of device memory when images stay on the device). Where
+    they do not, the episodes are dealt, longest first, over as few calls as fit, so that every
+    call has the same mix of lengths.
 
     Args:
         planned: ``(slot, seed, EpisodePlan)`` of one scene.
@@ -155,37 +146,39 @@ def length_chunks(
         rec_cfg: the recording config (frames, cameras, image size).
         timestep: physics step (s).
         scene_id: for the log.
-        budget: bytes of host memory a call may take (None: :func:`memory_budget` now).
+        budget: bytes of memory a call's recordings may take (None: :func:`memory_budget`).
 
     Returns:
-        the calls, each a list of ``planned`` items, shortest episodes first.
+        ``(episodes, worlds)`` per call.
     """
     if not planned:
         return []
-    order = sorted(planned, key=lambda item: len(item[2].ctrl))
-    out: list[list[tuple[int, int, Any]]] = []
-    start, capped = 0, False
-    while start < len(order):
-        rest = len(order) - start
-        size = min(gpu_batch, rest)
-        chunk = [p for _, _, p in order[start : start + size]]
-        fit = worlds_that_fit(chunk, rec_cfg, timestep, budget)
-        while fit < size:  # fewer, shorter episodes: fits better
-            size = max(1, fit)
-            capped = True
-            chunk = [p for _, _, p in order[start : start + size]]
-            fit = worlds_that_fit(chunk, rec_cfg, timestep, budget)
-        calls = -(-rest // size)
-        size = -(-rest // calls)  # the calls left of equal size
-        out.append(order[start : start + size])
-        start += size
-    if capped:
+    if budget is None:
+        budget = memory_budget()
+    order = sorted(planned, key=lambda item: (-len(item[2].ctrl), item[0]))
+    size = [episode_bytes(p, rec_cfg, timestep) for _, _, p in order]
+    calls = 1 if budget is None else max(1, -(-sum(size) // max(1, budget)))
+    while True:
+        groups = [order[j::calls] for j in range(calls)]
+        used = [sum(size[j::calls]) for j in range(calls)]
+        if budget is None or max(used) <= budget or calls >= len(order):
+            break
+        calls += 1
+    if calls > 1:
         log.info(
-            "scene %s: %s worlds per GPU call (host memory for the recordings; demos.gpu_batch=%d)",
+            "scene %s: %d GPU calls of %s episodes (memory for the recordings: %.1f GB a call)",
             scene_id,
-            "/".join(str(len(c)) for c in out),
-            gpu_batch,
+            calls,
+            "/".join(str(len(g)) for g in groups),
+            (budget or 0) / 1e9,
         )
+    from factory.demos.world_schedule import worlds_for
+
+    per_frame = max(1, round(1.0 / (rec_cfg.fps * timestep)))
+    out = []
+    for g in groups:
+        frames = [-(-len(p.ctrl) // per_frame) + 1 for _, _, p in g]
+        out.append((g, worlds_for(frames, gpu_batch)))
     return out
 
 
@@ -213,7 +206,7 @@ def run_gpu(
     ctx = mp.get_context("spawn")
     with (
         ProcessPoolExecutor(max(1, workers), mp_context=ctx, initializer=_init_worker) as pool,
-        ProcessPoolExecutor(WRITERS, mp_context=ctx, initializer=_init_worker) as writers,
+        ProcessPoolExecutor(writer_count(), mp_context=ctx, initializer=_init_worker) as writers,
         ThreadPoolExecutor(1) as prep,
     ):
 
@@ -303,7 +296,7 @@ def run_gpu(
                     elif isinstance(res, str):
                         out["failures"]["scene_unusable"] += 1
                 done: set[int] = set()
-                for chunk in length_chunks(
+                for chunk, worlds in gpu_calls(
                     planned, dc.gpu_batch, rec_cfg, setup.model.opt.timestep, sid, budget
                 ):
                     # At most two calls' recordings in memory: this one's and the last one's
@@ -313,7 +306,7 @@ def run_gpu(
                         settle(*in_flight.pop(0))
                     waited["writes"] += time.perf_counter() - t_wait
                     t0 = time.perf_counter()
-                    recs = executor.execute([p for _, _, p in chunk])
+                    recs = executor.execute([p for _, _, p in chunk], worlds=worlds)
                     arenas = executor.take_arenas()
                     out["simulate"] += time.perf_counter() - t0
                     writes: list[Future[Any]] = []

@@ -83,6 +83,39 @@ class Arena:
         self._used = 0
         self.reused = False
         self.path = f"/proc/{os.getpid()}/fd/{self.fd}"
+        self._pinned = 0
+        self._pin_context = 0
+
+    def pin(self, nbytes: int, context: int) -> bool:
+        """Page-locks the arena's first ``nbytes`` for the GPU's copies into it
+        (:mod:`factory.demos.host_pinning`); a registration that is already large enough is
+        kept, a smaller one replaced.
+
+        Args:
+            nbytes: bytes from the arena's start that copies will write.
+            context: the CUDA context (a Warp device's ``context``).
+
+        Returns:
+            whether that range is page-locked.
+        """
+        from factory.demos import host_pinning
+
+        need = min(self.size, -(-int(nbytes) // ALIGN) * ALIGN)
+        if self._pinned >= need:
+            return True
+        self.unpin()
+        if host_pinning.register(self._addr, need, context):
+            self._pinned, self._pin_context = need, context
+            return True
+        return False
+
+    def unpin(self) -> None:
+        """Ends the page-locking of :meth:`pin` (if any)."""
+        if self._pinned:
+            from factory.demos import host_pinning
+
+            host_pinning.unregister(self._addr, self._pin_context)
+            self._pinned = 0
 
     @staticmethod
     def bytes_for(specs: list[tuple[tuple[int, ...], Any]]) -> int:
@@ -132,6 +165,7 @@ class Arena:
     def release(self) -> None:
         """Closes the memory file: no new reader can map it; the pages are freed once the
         views still alive (here and in readers) are gone."""
+        self.unpin()
         if self.fd is not None:
             os.close(self.fd)
             self.fd = None

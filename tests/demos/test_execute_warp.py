@@ -105,7 +105,7 @@ def test_gpu_executor_agrees_with_cpu(setup) -> None:
 @pytest.mark.slow
 def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     """The GPU pipeline end to end on Warp's CPU device (kernels compile in about 2-3 min):
-    three slots in two calls of the executor, stored by the writer processes, replayable."""
+    three slots packed onto two worlds of one call, stored by the writer processes, replayable."""
     from factory.demos.episodes import EpisodeStore
     from factory.demos.gpu_pipeline import run_gpu
     from factory.demos.slots import StageEnv, WorkItem
@@ -172,34 +172,16 @@ def test_quat_from_mat_is_mujocos() -> None:
     assert np.allclose(quat_from_mat(mats.reshape(500, 3, 3)), ref, atol=1e-12)
 
 
-def test_worlds_per_call_fit_in_host_memory(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A GPU call records no more worlds than a share of the available host memory holds."""
+def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scene's episodes go to the GPU in as few calls as memory allows, each packing its
+    episodes onto at most ``gpu_batch`` worlds with little idle time; calls share the mix of
+    lengths and stay within the memory budget."""
     import os
     from types import SimpleNamespace
 
     from factory.demos import gpu_pipeline
     from factory.demos.execute import RecordConfig
-
-    plans = [SimpleNamespace(ctrl=np.zeros((5000, 9))) for _ in range(512)]  # 10 s at 2 ms
-    cfg = RecordConfig(fps=20.0, width=128, height=128, cameras=("left", "right", "wrist"))
-    page = os.sysconf("SC_PAGE_SIZE")
-    monkeypatch.setattr(os, "sysconf", lambda k: 4 * 2**30 // page if "PAGES" in k else page)
-    per_world = 202 * (3 * 128 * 128 * 5 + 4096)  # 202 frames, RGB + uint16 depth
-    n = gpu_pipeline.worlds_that_fit(plans, cfg, 0.002)
-    assert n == int(gpu_pipeline.HOST_MEMORY_SHARE * 4 * 2**30 // per_world)
-    assert 1 <= n < 512
-    off = RecordConfig(fps=20.0, cameras=("left",), render=False)
-    assert gpu_pipeline.worlds_that_fit(plans, off, 0.002) >= 512
-
-
-def test_gpu_calls_group_episodes_of_similar_length(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A scene's episodes go to the GPU sorted by length, in calls of equal size within
-    ``gpu_batch`` and the host-memory cap, so a call's padding to its longest episode is small."""
-    import os
-    from types import SimpleNamespace
-
-    from factory.demos import gpu_pipeline
-    from factory.demos.execute import RecordConfig
+    from factory.demos.world_schedule import packed_schedule
 
     rng = np.random.default_rng(0)
     steps = rng.integers(3000, 9000, 1100)
@@ -207,21 +189,63 @@ def test_gpu_calls_group_episodes_of_similar_length(monkeypatch: pytest.MonkeyPa
     cfg = RecordConfig(fps=20.0, width=64, height=64, cameras=("left", "right", "wrist"))
     page = os.sysconf("SC_PAGE_SIZE")
     monkeypatch.setattr(os, "sysconf", lambda k: 2**40 // page if "PAGES" in k else page)
-    calls = gpu_pipeline.length_chunks(planned, 512, cfg, 0.002)
-    assert [len(c) for c in calls] == [367, 367, 366]  # 3 calls of 512 at most, balanced
-    assert sorted(k for c in calls for k, _, _ in c) == list(range(1100))
-    lengths = [len(p.ctrl) for c in calls for _, _, p in c]
-    assert lengths == sorted(lengths)
-    padded = sum(len(c) * max(len(p.ctrl) for _, _, p in c) for c in calls)
-    unsorted = 512 * steps[:512].max() + 512 * steps[512:1024].max() + 76 * steps[1024:].max()
-    assert padded < 0.8 * unsorted
-    # Host memory caps the calls: 4 GiB available, 128 px images.
+    calls = gpu_pipeline.gpu_calls(planned, 1024, cfg, 0.002)
+    frames = [int(np.ceil(len(p.ctrl) / 25)) + 1 for _, _, p in calls[0][0]]
+    worlds = -(-sum(frames) // max(frames))  # the call lasts about its longest episode
+    assert [(len(c), w) for c, w in calls] == [(1100, worlds)]  # one call
+    assert 700 < worlds < 800
+    # Packed: under 15 % idle; one world per episode would idle a third of the time.
+    assert packed_schedule(frames, worlds).busy() > 0.85 > 0.7 > np.mean(frames) / max(frames)
+    assert gpu_pipeline.gpu_calls(planned, 512, cfg, 0.002)[0][1] == 512  # gpu_batch caps
+    # 4 GiB of host memory, 128 px images: several calls, each within the budget.
     monkeypatch.setattr(os, "sysconf", lambda k: 4 * 2**30 // page if "PAGES" in k else page)
     big = RecordConfig(fps=20.0, width=128, height=128, cameras=("left", "right", "wrist"))
-    calls = gpu_pipeline.length_chunks(planned, 512, big, 0.002)
-    most = max(gpu_pipeline.worlds_that_fit([p for _, _, p in c], big, 0.002) for c in calls)
-    assert all(len(c) <= most for c in calls) and len(calls) > 3
-    assert gpu_pipeline.length_chunks([], 512, cfg, 0.002) == []
+    budget = gpu_pipeline.memory_budget()
+    assert budget is not None
+    calls = gpu_pipeline.gpu_calls(planned, 512, big, 0.002)
+    assert len(calls) > 3
+    assert sorted(k for c, _ in calls for k, _, _ in c) == list(range(1100))
+    for c, w in calls:
+        assert sum(gpu_pipeline.episode_bytes(p, big, 0.002) for _, _, p in c) <= budget
+        assert w <= min(512, len(c))
+    means = [np.mean([len(p.ctrl) for _, _, p in c]) for c, _ in calls]
+    assert max(means) - min(means) < 0.1 * np.mean(means)  # the same mix of lengths
+    assert gpu_pipeline.gpu_calls([], 512, cfg, 0.002) == []
+
+
+@pytest.mark.parametrize(
+    "device",
+    [
+        pytest.param("cpu", marks=pytest.mark.slow),
+        pytest.param("cuda:0", marks=pytest.mark.gpu),
+    ],
+)
+def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> None:
+    """Three episodes packed onto two worlds (the third starts in the world of the shortest
+    as soon as it ends, through ``mujoco_warp.reset_data``; on CUDA inside the captured
+    graph) record the states and images that three worlds starting together record."""
+    from factory.demos.execute_warp import WarpExecutor
+
+    planner = EpisodePlanner(setup)
+    plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
+    assert len(plans) >= 3
+    # Short episodes of different lengths: the first 1.2-2 s of each.
+    plans = [
+        dataclasses.replace(p, ctrl=p.ctrl[:k], targets=p.targets[:k])
+        for p, k in zip(plans[:3], (1000, 600, 700), strict=True)
+    ]
+    cfg = RecordConfig(width=16, height=16)
+    ex = WarpExecutor(setup, cfg, device=device)
+    padded = ex.execute(plans)
+    packed = ex.execute(plans, worlds=2)
+    for a, b in zip(padded, packed, strict=True):
+        assert len(a.state) == len(b.state)
+        np.testing.assert_allclose(a.state, b.state, atol=1e-5)
+        np.testing.assert_array_equal(a.action, b.action)
+        for cam in cfg.cameras:
+            assert np.mean(a.rgb[cam] != b.rgb[cam]) < 0.01
+        assert a.outcome is not None and b.outcome is not None
+        assert a.outcome.reason == b.outcome.reason
 
 
 @pytest.mark.slow
