@@ -176,39 +176,71 @@ class Arena:
 
 
 class ArenaPool:
-    """Arenas reused call after call.
+    """Arenas reused call after call, within a budget of bytes.
 
     Writing into fresh shared memory costs a page fault per 4 KiB page, four to five times the
-    copy itself (measured: 3.8 against 0.8 ms per 6 MB frame block); an arena given back keeps
-    its pages, so the next call writes at memory speed.
+    copy itself (measured: 3.8 against 0.8 ms per 6 MB frame block), and page-locking it for
+    the GPU's copies (:meth:`Arena.pin`) costs as much again; an arena given back keeps its
+    pages (and its registration), so the next call writes at memory speed.
 
     Args:
-        capacity: bytes of a new arena (at least what a call asks for); arenas are files whose
-            pages are taken when first written, so an unused capacity costs nothing.
-        reclaim: called when no free arena fits, before a new one is made: it should wait for
-            the readers of arenas in use and :meth:`give` them back.
+        capacity: bytes all arenas together may take (pages are taken when first written).
+        reclaim: called when no free arena fits and a new one would exceed ``capacity``: it
+            should wait for the readers of arenas in use and :meth:`give` them back.
+        headroom: a new arena is this much larger than asked (within the capacity), so that
+            later, slightly larger calls reuse it.
     """
 
-    def __init__(self, capacity: int, reclaim: Callable[[], None] | None = None) -> None:
+    def __init__(
+        self,
+        capacity: int,
+        reclaim: Callable[[], None] | None = None,
+        headroom: float = 1.25,
+    ) -> None:
         self.capacity = int(capacity)
         self.reclaim = reclaim
+        self.headroom = float(headroom)
         self._free: list[Arena] = []
         self._all: list[Arena] = []
 
+    @property
+    def total(self) -> int:
+        """Bytes of every arena, free or in use."""
+        return sum(a.size for a in self._all)
+
     def take(self, nbytes: int) -> Arena:
-        """An arena with room for ``nbytes``: a free one if one is large enough, else one
-        freed by ``reclaim`` (the owner waits for the readers of arenas in use and gives
-        them back), else a new one."""
-        fits = [a for a in self._free if a.size >= nbytes]
-        if not fits and self.reclaim is not None and len(self._all) > len(self._free):
+        """An arena with room for ``nbytes``: a free one if one is large enough, else a new
+        one if the capacity allows (free arenas too small for it are released first), else
+        one freed by ``reclaim`` (the owner waits for the readers of arenas in use), else a
+        new one beyond the capacity."""
+        arena = self.reserve(nbytes)
+        if arena is None and self.reclaim is not None and len(self._all) > len(self._free):
             self.reclaim()
-            fits = [a for a in self._free if a.size >= nbytes]
+            arena = self.reserve(nbytes)
+        if arena is None:
+            arena = Arena(int(nbytes))
+            self._all.append(arena)
+        return arena
+
+    def reserve(self, nbytes: int) -> Arena | None:
+        """An arena with room for ``nbytes`` if one is free or can be made within the
+        capacity now (without waiting for readers); None otherwise."""
+        fits = [a for a in self._free if a.size >= nbytes]
         if fits:
             arena = min(fits, key=lambda a: a.size)
             self._free.remove(arena)
             arena.reset()
             return arena
-        arena = Arena(max(int(nbytes), self.capacity))
+        for small in list(self._free):  # too small for this call: make room
+            if self.total + nbytes <= self.capacity:
+                break
+            self._free.remove(small)
+            self._all.remove(small)
+            small.release()
+        room = self.capacity - self.total
+        if nbytes > room:
+            return None
+        arena = Arena(min(room, int(self.headroom * nbytes)))
         self._all.append(arena)
         return arena
 

@@ -240,7 +240,9 @@ def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> N
     packed = ex.execute(plans, worlds=2)
     for a, b in zip(padded, packed, strict=True):
         assert len(a.state) == len(b.state)
-        np.testing.assert_allclose(a.state, b.state, atol=1e-5)
+        # Warp's CPU device is deterministic; on CUDA the order of contacts (atomics across
+        # worlds) differs with the number of worlds, so float32 sums differ in the last bits.
+        np.testing.assert_allclose(a.state, b.state, atol=1e-5 if device == "cpu" else 3e-3)
         np.testing.assert_array_equal(a.action, b.action)
         for cam in cfg.cameras:
             assert np.mean(a.rgb[cam] != b.rgb[cam]) < 0.01

@@ -54,13 +54,13 @@ def test_arena_refuses_overflow_and_foreign_arrays() -> None:
 def test_pool_reuses_arenas_given_back() -> None:
     pool = ArenaPool(1 << 20)
     a = pool.take(4096)
-    assert a.size == 1 << 20  # new arenas take the pool's capacity
+    assert a.size == 5120  # what was asked and a quarter more
     x = a.empty((8,), np.int64)
     x[:] = 7
     b = pool.take(4096)  # a is still in use: another arena
     assert b is not a
     pool.give(a)
-    c = pool.take(1 << 19)
+    c = pool.take(4096)
     assert c is a
     assert (c.empty((8,), np.int64) == 7).all()  # reused as it is
     c.reset()
@@ -68,3 +68,20 @@ def test_pool_reuses_arenas_given_back() -> None:
     assert pool.take(2 << 20).size == 2 << 20  # larger than the capacity: its own size
     pool.close()
     assert a.fd is None and b.fd is None
+
+
+def test_pool_waits_for_readers_only_beyond_its_capacity() -> None:
+    """A small arena is made beside a large one in use (no waiting for its readers); a call
+    that would exceed the capacity reclaims first, and free arenas too small are released."""
+    given: list[Arena] = []
+    pool = ArenaPool(1 << 20, reclaim=lambda: [pool.give(x) for x in given if x not in pool._free])
+    big = pool.take(600_000)
+    given.append(big)
+    small = pool.take(100_000)  # fits beside the big one: no reclaim
+    assert small is not big and big not in pool._free
+    assert pool.total <= 1 << 20
+    given.append(small)
+    again = pool.take(700_000)  # would exceed the capacity: readers reclaimed, big reused
+    assert again is big
+    assert pool.reserve(900_000) is None  # small is free but too small; big in use
+    pool.close()
