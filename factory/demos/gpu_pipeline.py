@@ -228,6 +228,7 @@ def run_gpu(
         shared = shared_frames.supported()
         keep = shared and dc.gpu_images_on_device  # images on the device until a call ends
         budget = memory_budget(2 * HOST_MEMORY_SHARE if keep else HOST_MEMORY_SHARE)
+        capacity = memory_budget(2 * HOST_MEMORY_SHARE)  # every arena together
         from factory.sim.backend import cuda_available
 
         dev = device or ("cuda:0" if cuda_available() else "cpu")
@@ -243,10 +244,14 @@ def run_gpu(
                 arena_pool.give(arena)
 
         def reclaim() -> None:
+            t_wait = time.perf_counter()
             while in_flight:
                 settle(*in_flight.pop(0))
+            reclaimed[0] += time.perf_counter() - t_wait
 
-        arena_pool = ArenaPool(budget or 0, reclaim) if shared else None
+        reclaimed = [0.0]  # seconds the arena pool waited for writers
+
+        arena_pool = ArenaPool(capacity or budget or 0, reclaim) if shared else None
 
         if scenes:
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
@@ -278,6 +283,7 @@ def run_gpu(
             attempt = attempts[sid]
             t_scene = time.perf_counter()
             waited = {"plans": 0.0, "writes": 0.0}
+            reclaimed_before = reclaimed[0]
             while futures:
                 planned: list[tuple[int, int, Any]] = []
                 t_wait = time.perf_counter()
@@ -299,10 +305,13 @@ def run_gpu(
                 for chunk, worlds in gpu_calls(
                     planned, dc.gpu_batch, rec_cfg, setup.model.opt.timestep, sid, budget
                 ):
-                    # At most two calls' recordings in memory: this one's and the last one's
-                    # (still being written).
+                    # Calls whose writes are done give their arenas back. The arena pool's
+                    # byte budget bounds the recordings in memory (it waits for writers only
+                    # when a call would exceed it); without arenas, at most two calls' worth.
+                    while in_flight and all(w.done() for w in in_flight[0][0]):
+                        settle(*in_flight.pop(0))
                     t_wait = time.perf_counter()
-                    while len(in_flight) > 1:
+                    while arena_pool is None and len(in_flight) > 1:
                         settle(*in_flight.pop(0))
                     waited["writes"] += time.perf_counter() - t_wait
                     t0 = time.perf_counter()
@@ -336,6 +345,7 @@ def run_gpu(
                 if bar is not None:
                     bar.update(len(futures) - len(retry))
                 futures = submit(sid, retry, attempt) if retry else []
+            waited["writes"] += reclaimed[0] - reclaimed_before  # inside GPU calls
             out["warp_seconds"] = vars(executor.times)
             out["waited_s"] = waited
             log.info(
