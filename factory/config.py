@@ -47,6 +47,9 @@ class AssetsConfig:
         trellis_retries: retries after a failed request.
         fallback: fall back to ``procedural`` when the backend fails (logged, recorded).
         texture_size: size (px) of the procedural assets' textures (64, 128, 256 or 512).
+        real_meshes: with the procedural backend, use the textured real meshes that installed
+            packages ship with a licence (robosuite's can, bottle, milk, cereal, bread, lemon)
+            where one matches the request; ``false``: procedural only.
     """
 
     backend: str = "procedural"
@@ -56,6 +59,7 @@ class AssetsConfig:
     trellis_retries: int = 2
     fallback: bool = True
     texture_size: int = 256
+    real_meshes: bool = True
 
 
 @dataclass
@@ -204,18 +208,28 @@ class ValidateConfig:
 
 @dataclass
 class RenderConfig:
-    """``stage=render``: top-down and four corner views (PNG) of each scene.
+    """``stage=render``: top-down, plan, corner and per-room views (PNG) of each scene.
 
     Attributes:
         width, height: image size (px).
-        views: which views to write (``top``, ``corner_0`` .. ``corner_3``).
+        views: which views to write (``top``, ``plan`` (orthographic floor plan),
+            ``corner_0`` .. ``corner_3``, ``rooms`` (one ``room_<id>`` per room of a home),
+            ``room_<id>``).
         gl: OpenGL backend: ``auto`` (EGL, then OSMesa), ``egl``, ``osmesa``, ``glfw``.
     """
 
     width: int = 640
     height: int = 480
     views: list[str] = field(
-        default_factory=lambda: ["top", "corner_0", "corner_1", "corner_2", "corner_3"]
+        default_factory=lambda: [
+            "top",
+            "plan",
+            "corner_0",
+            "corner_1",
+            "corner_2",
+            "corner_3",
+            "rooms",
+        ]
     )
     gl: str = "auto"
 
@@ -234,6 +248,46 @@ class ExportConfig:
 
 
 @dataclass
+class AppearanceConfig:
+    """``demos.appearance``: appearance randomisation per episode (domain randomisation for
+    policy data), drawn from the episode's seed and recorded in its metadata
+    (``EpisodeInfo.appearance``). The task objects and the robot never change.
+
+    Attributes:
+        enabled: randomise (off: every episode sees the scene's own look).
+        colors: tint background objects, floors and walls (``color_jitter``).
+        textures: dress a share (``texture_swap``) of the background objects in the materials
+            (textures and colours) of another object of the scene.
+        lights: move the ceiling lights (``light_pos``) and scale the intensity
+            (``light_intensity``) and colour (``light_color``) of every light.
+        camera: move the recording cameras (``camera_pos``) and turn them
+            (``camera_angle``).
+        color_jitter: largest relative change of a colour channel (0.15: x0.85 .. x1.15,
+            a common factor for brightness and a smaller one per channel).
+        texture_swap: share of the background objects that wear another object's materials.
+        light_pos: largest horizontal shift of a ceiling light (m).
+        light_intensity: largest relative change of a light's intensity.
+        light_color: largest warm/cool shift of a light's colour (relative, red against
+            blue).
+        camera_pos: largest shift of a camera along each axis (m).
+        camera_angle: largest rotation of a camera (deg).
+    """
+
+    enabled: bool = True
+    colors: bool = True
+    textures: bool = True
+    lights: bool = True
+    camera: bool = True
+    color_jitter: float = 0.15
+    texture_swap: float = 0.3
+    light_pos: float = 0.3
+    light_intensity: float = 0.3
+    light_color: float = 0.1
+    camera_pos: float = 0.01
+    camera_angle: float = 1.5
+
+
+@dataclass
 class DemosConfig:
     """``stage=demos``: planned, recorded robot demonstrations in every scene (task=...).
 
@@ -245,6 +299,12 @@ class DemosConfig:
         workers: processes running work items in parallel (0: one per core; 1: this process).
         nthread: simulation threads per worker (0: the cores divided among the workers).
         randomize: new task-object poses per episode (configuration-level randomization).
+        appearance: appearance randomisation per episode (colours, textures, lights, camera
+            poses; :class:`AppearanceConfig`, on by default; the ``cpu`` executor applies it,
+            the ``warp`` executor not yet).
+        shadows: the recording's images have the ceiling lights' shadows (MuJoCo's shadow
+            maps cost about 2.5x the rendering time per image on a CPU, so they are off by
+            default; scene renders have them).
         fps: recording rate (Hz).
         width, height: image size (px).
         cameras: ``left``, ``right`` (third-person views of the table), ``wrist``.
@@ -254,12 +314,13 @@ class DemosConfig:
             and EGL/OSMesa rendering in ``workers`` processes), ``warp`` (the GPU: the
             episodes of a scene as worlds of one MuJoCo Warp model, rendered by its batch
             renderer; ``workers`` processes plan), ``auto`` (``warp`` when CUDA is present).
-        gpu_batch: most worlds (episodes of one scene) per GPU call of the ``warp`` executor.
+        gpu_batch: most worlds per GPU call of the ``warp`` executor; a call packs a scene's
+            episodes onto its worlds back to back (a world starts its next episode as soon as
+            its last one ends), so it may run more episodes than worlds.
         gpu_images_on_device: the ``warp`` executor keeps a call's images on the device and
             copies them to host memory at the end of the call (one call's recordings in host
             memory at a time, so calls of ~1,000 worlds fit); false copies every frame to the
-            host as it is drawn (two calls in host memory; 26,700 demos/h warm on an H200
-            node, the other mode 24,600 cold; docs/DEMOS.md).
+            host as it is drawn (docs/DEMOS.md has both modes' measured rates).
         plan_timeout: seconds per RRTConnect query.
         speed: share of the Panda's velocity limit for free motions (acceleration and jerk
             use 0.6 and 0.4 of it).
@@ -286,6 +347,8 @@ class DemosConfig:
     workers: int = 1
     nthread: int = 0
     randomize: bool = True
+    appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
+    shadows: bool = False
     fps: float = 20.0
     width: int = 128
     height: int = 128

@@ -292,7 +292,7 @@ CATEGORIES: dict[str, Category] = {
     ),
     # ---- appliances and electronics
     "refrigerator": _c(
-        T.appliance,
+        T.refrigerator,
         (0.75, 0.7, 1.8),
         ("steel", "plastic"),
         (50, 140),
@@ -300,7 +300,7 @@ CATEGORIES: dict[str, Category] = {
         synonyms=("fridge", "freezer"),
     ),
     "oven": _c(
-        T.appliance,
+        T.oven,
         (0.6, 0.6, 0.9),
         ("steel", "plastic"),
         (30, 90),
@@ -308,10 +308,10 @@ CATEGORIES: dict[str, Category] = {
         synonyms=("stove", "range", "cooker"),
     ),
     "dishwasher": _c(
-        T.appliance, (0.6, 0.6, 0.85), ("steel", "plastic"), (30, 70), rooms=("kitchen",)
+        T.dishwasher, (0.6, 0.6, 0.85), ("steel", "plastic"), (30, 70), rooms=("kitchen",)
     ),
     "washing_machine": _c(
-        T.appliance,
+        T.washing_machine,
         (0.6, 0.6, 0.85),
         ("plastic", "steel"),
         (50, 100),
@@ -319,7 +319,7 @@ CATEGORIES: dict[str, Category] = {
         synonyms=("washer", "dryer"),
     ),
     "microwave": _c(
-        T.appliance,
+        T.microwave,
         (0.5, 0.38, 0.3),
         ("steel", "plastic"),
         (8, 25),
@@ -476,7 +476,7 @@ CATEGORIES: dict[str, Category] = {
         group="decor",
     ),
     "clock": _c(
-        T.can,
+        T.clock,
         (0.35, 0.05, 0.35),
         ("plastic", "glass"),
         (0.3, 2.5),
@@ -531,13 +531,22 @@ CATEGORIES: dict[str, Category] = {
         synonyms=("carpet", "mat"),
     ),
     "cushion": _c(
-        T.block(0.1),
+        T.pillow,
         (0.45, 0.45, 0.15),
         ("fabric", "fabric"),
         (0.2, 2),
         placement="on_top",
         rooms=_LIV + _BED,
         synonyms=("pillow", "throw pillow"),
+        group="decor",
+    ),
+    "curtain": _c(
+        T.curtain,
+        (1.4, 0.12, 2.2),
+        ("fabric", "metal"),
+        (1.5, 20),
+        rooms=_LIV + _BED,
+        synonyms=("curtains", "drapes", "drape"),
         group="decor",
     ),
     "picture_frame": _c(
@@ -648,6 +657,30 @@ CATEGORIES: dict[str, Category] = {
         synonyms=("wine bottle", "water bottle"),
         group="manipulable",
     ),
+    "milk_carton": _c(
+        T.block(1.0),
+        (0.07, 0.07, 0.2),
+        ("cardboard", "cardboard"),
+        (0.1, 1.5),
+        placement="on_top",
+        rooms=("kitchen",),
+        synonyms=("milk", "carton of milk", "juice carton"),
+        colors=((0.96, 0.96, 0.94, 1), (0.2, 0.4, 0.8, 1)),
+        group="manipulable",
+        fill=3.0,
+    ),
+    "cereal_box": _c(
+        T.block(1.0),
+        (0.19, 0.07, 0.28),
+        ("cardboard", "cardboard"),
+        (0.05, 1.2),
+        placement="on_top",
+        rooms=("kitchen",),
+        synonyms=("cereal", "box of cereal", "cereals"),
+        colors=((0.9, 0.7, 0.15, 1), (0.8, 0.2, 0.15, 1)),
+        group="manipulable",
+        fill=0.45,
+    ),
     "can": _c(
         T.can,
         (0.066, 0.066, 0.12),
@@ -655,7 +688,7 @@ CATEGORIES: dict[str, Category] = {
         (0.02, 0.45),
         placement="on_top",
         rooms=_KIT,
-        synonyms=("soda can", "tin", "tin can"),
+        synonyms=("soda can", "tin", "tin can", "coke can", "cola can", "coke", "cola", "soda"),
         group="manipulable",
     ),
     "jar": _c(
@@ -727,6 +760,18 @@ CATEGORIES: dict[str, Category] = {
         group="manipulable",
         synonyms=("lime",),
         colors=((0.95, 0.85, 0.2, 1), (0.95, 0.85, 0.2, 1)),
+    ),
+    "bread": _c(
+        T.fruit(1.5),
+        (0.25, 0.12, 0.1),
+        ("organic", "organic"),
+        (0.01, 1.2),
+        placement="on_top",
+        rooms=_KIT,
+        synonyms=("loaf", "bread loaf", "loaf of bread", "toast", "slice of bread", "bread slice"),
+        colors=((0.78, 0.55, 0.3, 1), (0.78, 0.55, 0.3, 1)),
+        group="manipulable",
+        fill=0.4,
     ),
     "tomato": _c(
         T.fruit(),

@@ -31,11 +31,13 @@ class Part:
         fill: solid fraction for mass (1: solid; < 1: a box standing in for a frame, a
             cushion or an appliance's hollow body).
         name: what the part is (``top``, ``leg_0``, ``shell`` ...).
-        mapping: how its texture is laid on (:mod:`.uv`): ``planar``, ``revolved`` or
-            ``sphere``.
+        mapping: how its texture is laid on (:mod:`.uv`): ``planar``, ``revolved``,
+            ``sphere`` or ``rounded``.
         labels: for ``revolved`` parts, each vertex's (section, profile point) of the
             revolve (:func:`.uv.revolve_labels`; the UVs are made from them and the final
-            mesh), else ``None``.
+            mesh); for ``rounded`` parts (:func:`.primitives.rounded_box`), each vertex's
+            unit offset direction from the inner box, the radius and the box's rotation
+            (V, 13, :func:`.uv.rounded_uv`); else ``None``.
     """
 
     visual: trimesh.Trimesh

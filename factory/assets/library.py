@@ -6,13 +6,20 @@
   :data:`~.catalog.CATEGORIES`;
 * ``mesh_library``: a folder of GLB/OBJ/PLY/STL files described by ``metadata.json``
   (``[{"file", "category", "tags", "license", "y_up"?}]``); the best entry for the text
-  (category match, then tag overlap) is repaired, decimated, scaled and decomposed with CoACD;
+  (category match, then tag overlap) is repaired, decimated, scaled and decomposed with CoACD.
+  A library with ``{"schema_version", "entries"}`` may hold textured entries (``texture``,
+  ``collision``, ``density``: :mod:`.realmesh`), such as the one :mod:`.packaged` imports;
+  those are used as they are, scaled by the request's size words;
 * ``trellis``: an HTTP text-to-3D server (``POST <url>`` with ``{"prompt", "seed"}`` JSON,
   answering mesh bytes (GLB/PLY/OBJ; ``Content-Type`` or ``format`` says which); timeouts,
   retries, the same post-processing. On failure it falls back to ``procedural`` when
   ``fallback`` is set (logged and recorded in the asset's provenance), else raises.
 
-Every asset records its license and provenance in ``meta.json``. Procedural parts are
+With ``real_meshes`` (``assets.real_meshes``, on by default) the procedural backend first
+looks for a textured real mesh of the request in the packages installed (robosuite's can,
+bottle, milk, cereal, bread and lemon: :mod:`.packaged`, imported once into
+``assets/packaged/``); "a coke can" is then robosuite's can, "a red can" still a procedural
+one. Every asset records its license and provenance in ``meta.json``. Procedural parts are
 textured (:mod:`factory.textures`): each part's OBJ carries UVs in the part's mapping
 (:mod:`.uv`), its PNG lies in the asset folder (a hard link into ``assets/textures/``), and its
 meta entry names the texture, the look, the weathering and the MuJoCo finish.
@@ -70,6 +77,8 @@ class AssetLibrary:
         trellis: the server settings (``trellis`` backend).
         fallback: on a backend failure, fall back to ``procedural`` (logged) instead of raising.
         texture_size: size (px) of the procedural parts' textures (64..512).
+        real_meshes: the procedural backend uses installed packages' textured meshes where one
+            matches the request (:func:`.packaged.choose`).
     """
 
     def __init__(
@@ -80,6 +89,7 @@ class AssetLibrary:
         trellis: TrellisConfig | None = None,
         fallback: bool = True,
         texture_size: int = 256,
+        real_meshes: bool = True,
     ) -> None:
         if backend not in BACKENDS:
             raise AssetError(f"asset backend {backend!r} is not one of {', '.join(BACKENDS)}")
@@ -97,6 +107,7 @@ class AssetLibrary:
         self.library_dir = Path(library_dir) if library_dir else None
         self.trellis = trellis or TrellisConfig()
         self.fallback = fallback
+        self.real_meshes = bool(real_meshes)
 
     @classmethod
     def from_config(cls, cfg: Any, assets_dir: str | Path) -> AssetLibrary:
@@ -110,6 +121,7 @@ class AssetLibrary:
             ),
             fallback=cfg.fallback,
             texture_size=getattr(cfg, "texture_size", 256),
+            real_meshes=getattr(cfg, "real_meshes", True),
         )
 
     # ---- front
@@ -134,7 +146,7 @@ class AssetLibrary:
         if spec.texture_size != self.texture_size:
             spec = replace(spec, texture_size=self.texture_size)
         if self.backend == "procedural":
-            return self._procedural(spec)
+            return (self._real_mesh(spec) if self.real_meshes else None) or self._procedural(spec)
         key = spec.key() | {"text": spec.text}
         asset_id = asset_id_for(self.backend, key)
         hit = cached(self.assets_dir, asset_id)
@@ -251,6 +263,49 @@ class AssetLibrary:
             "reflectance": app.finish.reflectance,
         }
 
+    # ---- textured real meshes of installed packages
+    def _real_mesh(self, spec: AssetSpec) -> AssetMeta | None:
+        """The textured real mesh for ``spec`` from an installed package, or ``None`` (no
+        package, no entry for the request, or the import failed: logged)."""
+        if spec.category not in _PACKAGED_CATEGORIES:
+            return None
+        from factory.assets.packaged import choose, packaged_library
+
+        try:
+            lib = packaged_library(self.assets_dir)
+        except AssetError as e:
+            log.warning("packaged meshes unavailable (%s); using procedural assets", e)
+            return None
+        entry = choose(lib.entries, spec) if lib is not None else None
+        if lib is None or entry is None:
+            return None
+        try:
+            return self._textured_entry(lib.folder, entry, spec)
+        except AssetError as e:
+            log.warning("packaged mesh %s failed (%s); using procedural", entry.get("name"), e)
+            return None
+
+    def _textured_entry(self, folder: Path, entry: dict[str, Any], spec: AssetSpec) -> AssetMeta:
+        """The asset of a textured library entry, scaled by the request's size words (its
+        dimensions over the category's typical ones); one asset per entry and scale."""
+        from factory.assets.realmesh import build_textured_asset
+
+        factors = _factors(spec)
+        key = {
+            "library": str(entry.get("provenance", {}).get("package", folder.name)),
+            "library_key": folder.name,
+            "entry": str(entry.get("name", entry["file"])),
+            "scale": list(factors),
+        }
+        asset_id = asset_id_for("mesh_library", key)
+        return build(
+            self.assets_dir,
+            asset_id,
+            lambda d: build_textured_asset(
+                folder, entry, factors, d, asset_id, "mesh_library", key | spec.key()
+            ),
+        )
+
     # ---- mesh library
     def _library_entries(self) -> list[dict[str, Any]]:
         assert self.library_dir is not None
@@ -261,6 +316,13 @@ class AssetLibrary:
             raise AssetError(f"mesh library {self.library_dir} has no metadata.json") from None
         except json.JSONDecodeError as e:
             raise AssetError(f"{meta_path} is not valid JSON ({e.msg})") from None
+        if isinstance(entries, dict):  # {"schema_version", "entries"}: an imported library
+            if entries.get("schema_version") != 1:
+                raise AssetError(
+                    f"{meta_path}: schema_version {entries.get('schema_version')!r} is not 1; "
+                    "re-import the library"
+                )
+            entries = entries.get("entries")
         if not isinstance(entries, list) or not all(
             isinstance(e, dict) and "file" in e for e in entries
         ):
@@ -281,6 +343,12 @@ class AssetLibrary:
                 f"no mesh in {self.library_dir} matches {spec.text or spec.category!r}"
             )
         assert self.library_dir is not None
+        if best.get("texture"):
+            from factory.assets.realmesh import build_textured_asset
+
+            return build_textured_asset(
+                self.library_dir, best, _factors(spec), folder, asset_id, "mesh_library", spec.key()
+            )
         path = self.library_dir / str(best["file"])
         mesh = load_mesh(path)
         return self._finish(
@@ -385,6 +453,21 @@ class AssetLibrary:
             materials=list(mats),
             request=spec.key(),
         )
+
+
+_PACKAGED_CATEGORIES = frozenset({"can", "bottle", "milk_carton", "cereal_box", "bread", "lemon"})
+"""Categories some installed package may have a textured mesh of (a cheap test before the
+package is looked for)."""
+
+
+def _factors(spec: AssetSpec) -> tuple[float, float, float]:
+    """Per-axis scale of a real mesh for a request: its dimensions over the category's typical
+    ones ("a small can": 0.78 each), 1 without dimensions or category."""
+    cat = CATEGORIES.get(spec.category)
+    if spec.dims is None or cat is None:
+        return (1.0, 1.0, 1.0)
+    f = [round(float(d) / float(c), 4) for d, c in zip(spec.dims, cat.dims, strict=True)]
+    return (f[0], f[1], f[2])
 
 
 def _same_look(parts: list[Part]) -> list[list[Part]]:

@@ -104,14 +104,14 @@ def decompose(
     for verts, faces in parts:
         hull = trimesh.Trimesh(verts, faces).convex_hull
         if len(hull.vertices) > MAX_HULL_VERTICES:
-            hull = _reduce_hull(hull)
+            hull = reduce_hull(hull)
         hulls.append(hull)
     if not hulls:
         raise AssetError("convex decomposition produced no parts")
     return hulls
 
 
-def _reduce_hull(hull: trimesh.Trimesh) -> trimesh.Trimesh:
+def reduce_hull(hull: trimesh.Trimesh) -> trimesh.Trimesh:
     """Keeps the hull's 64 most spread vertices (farthest-point sampling), re-hulled."""
     v = np.asarray(hull.vertices)
     idx = [int(np.argmax(np.linalg.norm(v - v.mean(0), axis=1)))]

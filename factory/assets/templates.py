@@ -5,6 +5,10 @@ bounding box matches them), two materials and two colours (primary, secondary), 
 generator for style details (leg shape, number of boards, proportions), and returns a
 :class:`~.geometry.Shape` in the object frame (z up, centred in x and y, bottom at z = 0; the
 front faces -y).
+
+Furniture with rounded edges (table tops, cases) uses :func:`.primitives.rounded_box`; the
+upholstered templates live in :mod:`.upholstery`, fixtures and decor (toilet, clock, lamp,
+plant, curtain) in :mod:`.fixtures` and appliances in :mod:`.appliances`, re-exported here.
 """
 
 from __future__ import annotations
@@ -13,9 +17,21 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+import trimesh
 
+from factory.assets.appliances import dishwasher as dishwasher
+from factory.assets.appliances import microwave as microwave
+from factory.assets.appliances import oven as oven
+from factory.assets.appliances import refrigerator as refrigerator
+from factory.assets.appliances import washing_machine as washing_machine
+from factory.assets.fixtures import clock as clock
+from factory.assets.fixtures import curtain as curtain
+from factory.assets.fixtures import lamp as lamp
+from factory.assets.fixtures import plant as plant
+from factory.assets.fixtures import toilet as toilet
 from factory.assets.geometry import (
     Container,
+    Part,
     Shape,
     Support,
     box,
@@ -24,9 +40,14 @@ from factory.assets.geometry import (
     frame_box,
     shell,
 )
+from factory.assets.primitives import rounded_box
+from factory.assets.upholstery import bed as bed
+from factory.assets.upholstery import pillow as pillow
+from factory.assets.upholstery import sofa as sofa
 
 RGBA = tuple[float, float, float, float]
 Template = Callable[[np.ndarray, tuple[str, str], tuple[RGBA, RGBA], np.random.Generator], Shape]
+_PULL: RGBA = (0.72, 0.72, 0.74, 1.0)
 
 
 def _legs(
@@ -57,7 +78,10 @@ def table(
     s = Shape()
     top = float(np.clip(0.04 * h + 0.01, 0.02, 0.06))
     leg = float(np.clip(0.06 * min(w, ln), 0.03, 0.08))
-    s.add(box((w, ln, top), (0, 0, h - top / 2), mats[0], cols[0], "top"))
+    radius = min(0.45 * top, 0.02) if rng.integers(4) else 0.15 * top  # rounded or crisp
+    s.add(
+        rounded_box((w, ln, top), (0, 0, h - top / 2), mats[0], cols[0], radius, "top", segments=1)
+    )
     _legs(s, w, ln, h - top, leg, mats[1], cols[1], bool(rng.integers(2)), inset=0.02 * min(w, ln))
     s.supports.append(Support("top", h, (-w / 2, -ln / 2, w / 2, ln / 2)))
     return s
@@ -70,18 +94,36 @@ def desk(
     w, ln, h = d
     s = Shape()
     top = 0.03
-    s.add(box((w, ln, top), (0, 0, h - top / 2), mats[0], cols[0], "top"))
+    s.add(
+        rounded_box((w, ln, top), (0, 0, h - top / 2), mats[0], cols[0], 0.012, "top", segments=1)
+    )
     pw = min(0.4, 0.35 * w)
     side = 1 if rng.integers(2) else -1
     s.add(
-        box(
+        rounded_box(
             (pw, ln * 0.9, h - top),
             (side * (w / 2 - pw / 2), 0, (h - top) / 2),
             mats[0],
             cols[1],
+            0.008,
             "pedestal",
+            segments=1,
         )
     )
+    for k in range(3):  # drawer fronts and their pulls on the pedestal's front
+        zc = (h - top) * (0.83 - 0.3 * k)
+        dx = side * (w / 2 - pw / 2)
+        front = rounded_box(
+            (pw - 0.02, 0.006, 0.26 * (h - top)),
+            (dx, -ln * 0.45 - 0.003, zc),
+            mats[0],
+            cols[1],
+            0.002,
+            f"drawer_{k}",
+            segments=1,
+        )
+        s.add(front)
+        s.add(box((0.1, 0.012, 0.012), (dx, -ln * 0.45 - 0.012, zc), "steel", _PULL, f"pull_{k}"))
     for k, y in enumerate((-ln / 2 + 0.03, ln / 2 - 0.03)):
         s.add(
             box(
@@ -138,80 +180,10 @@ def stool(
     return s
 
 
-def sofa(
-    d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
-) -> Shape:
-    """Upholstered base, back (at +y) and arms: sofas, armchairs, loveseats."""
-    w, ln, h = d
-    s = Shape()
-    seat_h = 0.45 * h
-    arm = float(np.clip(0.12 * w, 0.08, 0.2))
-    back = float(np.clip(0.22 * ln, 0.12, 0.25))
-    fill = 0.12
-    s.add(
-        box(
-            (w - 2 * arm, ln - back, seat_h),
-            (0, -back / 2, seat_h / 2),
-            mats[0],
-            cols[0],
-            "base",
-            fill,
-        )
-    )
-    s.add(box((w, back, h), (0, ln / 2 - back / 2, h / 2), mats[0], cols[0], "back", fill))
-    arm_h = seat_h + float(rng.uniform(0.1, 0.2)) * h
-    for k, sx in enumerate((-1, 1)):
-        s.add(
-            box(
-                (arm, ln - back, arm_h),
-                (sx * (w / 2 - arm / 2), -back / 2, arm_h / 2),
-                mats[0],
-                cols[1],
-                f"arm_{k}",
-                fill,
-            )
-        )
-    s.supports.append(Support("seat", seat_h, (-w / 2 + arm, -ln / 2, w / 2 - arm, ln / 2 - back)))
-    return s
-
-
-def bed(
-    d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
-) -> Shape:
-    """Frame, mattress and a headboard at +y."""
-    w, ln, h = d
-    s = Shape()
-    frame_h = 0.25 * h
-    mat_h = 0.22 * h
-    head_t = 0.06
-    s.add(
-        box(
-            (w, ln - head_t, frame_h),
-            (0, -head_t / 2, frame_h / 2),
-            mats[1],
-            cols[1],
-            "frame",
-            0.06,
-        )
-    )
-    s.add(
-        box(
-            (w * 0.97, (ln - head_t) * 0.98, mat_h),
-            (0, -head_t / 2, frame_h + mat_h / 2),
-            "foam",
-            cols[0],
-            "mattress",
-            1.0,
-        )
-    )
-    s.add(box((w, head_t, h), (0, ln / 2 - head_t / 2, h / 2), mats[1], cols[1], "headboard", 0.5))
-    top = frame_h + mat_h
-    s.supports.append(Support("mattress", top, (-w * 0.48, -ln / 2, w * 0.48, ln / 2 - head_t)))
-    return s
-
-
 def case(boards_range: tuple[int, int], open_front: bool, open_top: bool = False) -> Template:
-    """A panel case: shelves and bookcases (open front, boards), cabinets, appliances."""
+    """A panel case with softened (bevelled) edges: shelves and bookcases (open front,
+    boards), cabinets, wardrobes and dressers (closed front: doors or drawers with handles,
+    standing proud of the case within the requested depth)."""
 
     def build(
         d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
@@ -219,23 +191,117 @@ def case(boards_range: tuple[int, int], open_front: bool, open_top: bool = False
         w, ln, h = d
         t = float(np.clip(0.02 * max(w, h), 0.012, 0.03))
         boards = int(rng.integers(boards_range[0], boards_range[1] + 1))
+        hd = 0.0 if open_front else float(min(0.03, 0.08 * ln))
         parts, supports, containers = frame_box(
-            (w, ln, h), t, mats[0], cols[0], open_front, open_top, boards
+            (w, ln - hd, h), t, mats[0], cols[0], open_front, open_top, boards
         )
-        s = Shape(parts, supports, containers)
+        s = Shape([_bevelled(p, 0.3 * t, hd / 2) for p in parts])  # top and sides rounded
+        s.supports = [
+            Support(sp.name, sp.z, _shift_rect(sp.rect, hd / 2), sp.clearance) for sp in supports
+        ]
+        s.containers = [
+            Container(
+                c.name, (c.lo[0], c.lo[1] + hd / 2, c.lo[2]), (c.hi[0], c.hi[1] + hd / 2, c.hi[2])
+            )
+            for c in containers
+        ]
+        if not open_front:
+            _fronts(s, w, ln, h, hd, mats[0], cols[0], rng)
         return s
 
     return build
 
 
+def _shift_rect(
+    rect: tuple[float, float, float, float], dy: float
+) -> tuple[float, float, float, float]:
+    return (rect[0], rect[1] + dy, rect[2], rect[3] + dy)
+
+
+def _bevelled(p: Part, radius: float, dy: float = 0.0) -> Part:
+    """The case panel ``p`` (an axis-aligned box) moved by ``dy`` along y; the outline's
+    panels (top and sides) become rounded boxes of the same bounds, the others (back,
+    bottom, boards, a closed front behind its doors) stay boxes: fewer triangles to draw."""
+    if not p.name.endswith(("_top", "_left", "_right")):
+        shift = trimesh.transformations.translation_matrix((0.0, dy, 0.0))
+        p.visual.apply_transform(shift)
+        for c in p.collision:
+            c.apply_transform(shift)
+        return p
+    lo, hi = p.visual.bounds
+    ext = hi - lo
+    c = (lo + hi) / 2
+    return rounded_box(
+        (float(ext[0]), float(ext[1]), float(ext[2])),
+        (float(c[0]), float(c[1]) + dy, float(c[2])),
+        p.material,
+        p.rgba,
+        radius,
+        p.name,
+        p.fill,
+        segments=1,
+    )
+
+
+def _fronts(
+    s: Shape,
+    w: float,
+    ln: float,
+    h: float,
+    hd: float,
+    mat: str,
+    rgba: RGBA,
+    rng: np.random.Generator,
+) -> None:
+    """Doors or drawer fronts over a closed case's front (y = -ln/2 + hd), with pulls in
+    front of them. The fronts share one collision slab; the pulls are visual."""
+    y_case = -ln / 2 + hd
+    ft = 0.4 * hd
+    gap = 0.003
+    drawers = h <= 1.2 * w and bool(rng.integers(2))
+    rows = int(np.clip(round(h / 0.22), 2, 5)) if drawers else 1
+    cols_n = (2 if w > 1.0 else 1) if drawers else (2 if w > 0.6 else 1)
+    cw = (w - gap) / cols_n
+    rh = (h - gap) / rows
+    pd = hd - ft
+    for i in range(cols_n):
+        for j in range(rows):
+            x0 = -w / 2 + gap + i * cw
+            z0 = gap + j * rh
+            front = box(
+                (cw - gap, ft, rh - gap),
+                (x0 + (cw - gap) / 2, y_case - ft / 2, z0 + (rh - gap) / 2),
+                mat,
+                rgba,
+                f"front_{i}_{j}",
+                0.5,
+            )
+            front.collision = []
+            if i == 0 and j == 0:
+                slab = trimesh.creation.box(extents=(w, ft, h))
+                front.collision = [slab.apply_translation((0.0, y_case - ft / 2, h / 2))]
+            s.add(front)
+            if drawers:
+                ext = (min(0.3 * cw, 0.16), pd, 0.012)
+                at = (x0 + (cw - gap) / 2, y_case - ft - pd / 2, z0 + 0.6 * (rh - gap))
+            else:
+                edge = 0.12 if (cols_n == 2 and i == 1) else 0.88
+                ext = (0.012, pd, min(0.3 * h, 0.25))
+                at = (x0 + (cw - gap) * edge, y_case - ft - pd / 2, min(0.5 * h, 1.0))
+            pull = box(ext, at, "steel", _PULL, f"pull_{i}_{j}")
+            pull.collision = []
+            s.add(pull)
+
+
 def appliance(
     d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
 ) -> Shape:
-    """A closed box body with a front panel line and a handle (fridges, ovens, washers)."""
+    """A closed, rounded body with a handle (arcade machines; the kitchen and laundry
+    appliances have their own templates in :mod:`.appliances`)."""
     w, ln, h = d
     s = Shape()
     hd = min(0.03, 0.1 * ln)
-    s.add(box((w, ln - hd, h), (0, hd / 2, h / 2), mats[0], cols[0], "body", 0.08))
+    s.add(rounded_box((w, ln - hd, h), (0, hd / 2, h / 2), mats[0], cols[0], 0.02, "body", 0.08))
     hh = min(0.6 * h, 0.4)
     s.add(
         box(
@@ -492,94 +558,6 @@ def banana(
                 f"segment_{k}",
             )
         )
-    return s
-
-
-def lamp(
-    d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
-) -> Shape:
-    """A base, a pole and a shade (table and floor lamps)."""
-    w, ln, h = d
-    r = min(w, ln) / 2
-    s = Shape()
-    base_h = 0.05 * h
-    shade_h = float(rng.uniform(0.25, 0.35)) * h
-    s.add(cylinder(0.6 * r, base_h, 0.0, mats[1], cols[1], name="base"))
-    s.add(
-        cylinder(
-            max(0.01, 0.06 * r),
-            h - base_h - shade_h,
-            base_h,
-            mats[1],
-            cols[1],
-            name="pole",
-            sections=8,
-        )
-    )
-    s.add(
-        cylinder(
-            r, shade_h, h - shade_h, "fabric", cols[0], name="shade", radius_top=0.7 * r, fill=0.05
-        )
-    )
-    return s
-
-
-def plant(
-    d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
-) -> Shape:
-    """A pot with soil and a leafy crown."""
-    w, ln, h = d
-    r = min(w, ln) / 2
-    s = Shape()
-    pot_h = float(rng.uniform(0.3, 0.4)) * h
-    s.add(cylinder(0.7 * r, pot_h, 0.0, mats[0], cols[0], name="pot", radius_top=0.8 * r))
-    crown = h - pot_h
-    s.add(ellipsoid((r, r, crown / 2), (0, 0, pot_h + crown / 2), "plant", cols[1], "leaves", 0.15))
-    return s
-
-
-def toilet(
-    d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
-) -> Shape:
-    """A pedestal, a bowl and a cistern at +y."""
-    w, ln, h = d
-    s = Shape()
-    seat_h = 0.5 * h
-    tank_l = 0.22 * ln
-    s.add(
-        box(
-            (0.5 * w, 0.5 * ln, seat_h * 0.8),
-            (0, -0.05 * ln, seat_h * 0.4),
-            mats[0],
-            cols[0],
-            "pedestal",
-            0.3,
-        )
-    )
-    s.add(
-        shell(
-            0.35 * w,
-            0.5 * min(w, ln - tank_l),
-            0.2 * seat_h,
-            0.01,
-            0.01,
-            mats[0],
-            cols[0],
-            z0=seat_h * 0.8,
-            xy=(0.0, -tank_l / 2),
-            name="bowl",
-        )
-    )
-    s.add(
-        box(
-            (w, tank_l, h - seat_h * 0.8),
-            (0, ln / 2 - tank_l / 2, seat_h * 0.8 + (h - seat_h * 0.8) / 2),
-            mats[0],
-            cols[0],
-            "cistern",
-            0.3,
-        )
-    )
     return s
 
 

@@ -158,7 +158,16 @@ class ConfigurationBatch:
 
 
 def _movable_task_objects(scene: Scene, ids: list[str] | None) -> list[str]:
+    """The task objects configuration variants re-pose: ``ids``, else those with a
+    ``task_role`` except a mobile task's place support standing on the floor (the desk the
+    object goes onto is furniture the task uses where it stands, as the pick's support is).
+
+    Raises:
+        AugmentError: none, or one is not on a support surface or carries other objects.
+    """
     objs = task_objects(scene, ids)
+    if not ids:
+        objs = [o for o in objs if not (o.task_role == "place_support" and _on_floor(o))]
     if not objs:
         raise AugmentError(
             f"scene {scene.id!r} has no task-relevant objects for configuration-level "
@@ -170,6 +179,10 @@ def _movable_task_objects(scene: Scene, ids: list[str] | None) -> list[str]:
         if _children(scene, obj.id):
             raise AugmentError(f"task object {obj.id!r} carries other objects; cannot move it")
     return [o.id for o in objs]
+
+
+def _on_floor(obj: SceneObject) -> bool:
+    return obj.placement.kind != "on_top" or obj.placement.support_id is None
 
 
 def configurations(

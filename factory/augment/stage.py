@@ -16,7 +16,10 @@ are sharded (each shard makes all variants of its parents), one call of
 configurations (seed from (seed, parent)), and one batched whole-scene check
 (:func:`factory.augment.check.verify_whole_scene`, the same verdict as :func:`check_physics`)
 confirms them all. Those variants move only task objects on their supports, not the floor's
-furniture, and are not route-checked.
+furniture; for a mobile-task parent whose variants move the pick object (its reach changes)
+they are route-checked too, as rows of the parent's model
+(:func:`factory.augment.routes.configuration_routes`), and those that fail are dropped and
+counted with the route check's reason (``P: no_pick_pose``, ``P: no_route``, ...).
 """
 
 from __future__ import annotations
@@ -129,6 +132,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     """Stage entry point."""
     from factory.augment.check import verify_whole_scene
     from factory.augment.distinct import Distinctness
+    from factory.augment.routes import configuration_routes
     from factory.console import FILE_ONLY
     from factory.context import run_items
     from factory.scenes.build import compile_one, render_one
@@ -205,6 +209,15 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 why[k] = "" if verdict.ok[k] else "physics"
                 if why[k]:
                     log.info("variant %s__%s%d dropped: %s", parent_id, tag, k, verdict.reasons[k])
+            ok = [k for k in range(len(found)) if not why[k]]
+            if ok:  # the mobile task's route, for the physically valid ones
+                routes = configuration_routes(parent, found.ids, found.poses[ok], store.assets_dir)
+                for k, reason in zip(ok, routes, strict=True):
+                    if reason:
+                        why[k] = reason
+                        log.info(
+                            "variant %s__%s%d dropped: route check %s", parent_id, tag, k, reason
+                        )
             batches[parent_id] = (seed, found, why)
         return batches[parent_id]
 

@@ -21,6 +21,7 @@ import numpy as np
 from factory.errors import StoreError
 from factory.schema.episode import (
     EPISODE_SCHEMA_VERSION,
+    READABLE_EPISODE_VERSIONS,
     EpisodeInfo,
     episode_info_from_dict,
     episode_info_to_dict,
@@ -63,10 +64,12 @@ class EpisodeStore:
         except Exception as e:
             raise StoreError(f"{self.path} is not a zarr episode store: {e}") from None
         attrs = dict(root.attrs)
-        if attrs.get("kind") != STORE_KIND or attrs.get("schema_version") != EPISODE_SCHEMA_VERSION:
+        version = attrs.get("schema_version")
+        if attrs.get("kind") != STORE_KIND or version not in READABLE_EPISODE_VERSIONS:
             raise StoreError(
                 f"{self.path}: not a factory episode store of schema_version "
-                f"{EPISODE_SCHEMA_VERSION} (attributes {attrs}); move it away or use a new run_dir"
+                f"{' or '.join(map(str, READABLE_EPISODE_VERSIONS))} (attributes {attrs}); move "
+                "it away or use a new run_dir"
             )
 
     def _ensure_root(self) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -37,6 +38,8 @@ class RecordConfig:
         cameras: recording cameras (``left``, ``right``, ``wrist``).
         depth: ``uint16_mm`` (millimetres) or ``float32`` (metres).
         render: render images (off: states and robot signals only).
+        shadows: draw the lights' shadows (MuJoCo's shadow maps, :data:`SHADOW_SIZE` px;
+            about 2.5x the rendering time).
     """
 
     fps: float = 20.0
@@ -45,6 +48,11 @@ class RecordConfig:
     cameras: tuple[str, ...] = ("left", "right", "wrist")
     depth: str = "uint16_mm"
     render: bool = True
+    shadows: bool = False
+
+
+SHADOW_SIZE = 1024
+"""Shadow map size (px) of the recording renderer (scene renders use the model's 4096)."""
 
 
 @dataclass
@@ -57,7 +65,9 @@ class Recording:
         and quaternion (w, x, y, z) in the world frame; action: (F, 8) next arm joint targets
         (rad) and gripper command (m; negative squeezes); rgb: camera -> (F, H, W, 3) uint8;
         depth: camera -> (F, H, W) uint16 mm or float32 m; env_state: (F, 14) pick object
-        and target poses, see :func:`object_poses`.
+        and target poses, see :func:`object_poses`; appearance: the episode's appearance
+        randomisation as recorded (an :class:`~factory.schema.episode.EpisodeAppearance`),
+        ``None`` when none was applied.
     """
 
     time: np.ndarray
@@ -70,6 +80,7 @@ class Recording:
     depth: dict[str, np.ndarray] = field(default_factory=dict)
     env_state: np.ndarray = field(default_factory=lambda: np.zeros((0, 14)))
     outcome: Outcome | None = None
+    appearance: Any = None
     sim_seconds: float = 0.0
     render_seconds: float = 0.0
 
@@ -77,8 +88,8 @@ class Recording:
 class FrameRenderer:
     """Renders the recording cameras of a composed model: RGB and depth from one GL pass.
 
-    Shadows, reflections, the skybox and multisampling are off (they cost more than the image
-    itself at this size);
+    Reflections, the skybox and multisampling are off (they cost more than the image itself
+    at this size), and shadows unless ``cfg.shadows`` (shadow maps of :data:`SHADOW_SIZE`);
     collision geoms (group 3) and sites are hidden. Depth is the depth buffer of the RGB pass,
     so it matches the image: transparent geoms (window glass) do not occlude.
     """
@@ -91,12 +102,14 @@ class FrameRenderer:
         self.cfg = cfg
         n = len(cfg.cameras)
         model.vis.quality.offsamples = 0  # no multisampling: 1.7x faster on Mesa at 128 px
+        if cfg.shadows:
+            model.vis.quality.shadowsize = min(int(model.vis.quality.shadowsize), SHADOW_SIZE)
         if n * cfg.width > model.vis.global_.offwidth or cfg.height > model.vis.global_.offheight:
             model.vis.global_.offwidth = max(model.vis.global_.offwidth, n * cfg.width)
             model.vis.global_.offheight = max(model.vis.global_.offheight, cfg.height)
         self.renderer = mujoco.Renderer(model, cfg.height, n * cfg.width)
         flags = self.renderer.scene.flags
-        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = cfg.shadows
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
         flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
         self.option = mujoco.MjvOption()
@@ -248,6 +261,7 @@ def execute(
     cfg: RecordConfig,
     nthread: int = 0,
     renderer: FrameRenderer | None = None,
+    looks: list[tuple[Any, Any]] | None = None,
 ) -> list[Recording]:
     """Runs the planned episodes of one scene together and records them.
 
@@ -257,6 +271,11 @@ def execute(
         cfg: what to record.
         nthread: simulation threads (0: one per core).
         renderer: a renderer to reuse (made if None and ``cfg.render``).
+        looks: per plan, its appearance (an
+            :class:`~factory.schema.episode.EpisodeAppearance`) and the model fields it sets
+            (a :class:`~factory.demos.appearance.ModelPatch`), written into the model before
+            each of its frames is drawn; the model is restored at the end. ``None``: the
+            model as it is.
 
     Returns:
         one recording per plan, with its success check.
@@ -297,6 +316,8 @@ def execute(
     worst = np.zeros(n)
     recs = new_recordings(n_frames, cfg, nstate)
     sim_s = render_s = 0.0
+    if looks is not None:
+        from factory.demos.appearance import apply_patch
 
     def record(frame: int, states: np.ndarray) -> float:
         """Records frame ``frame`` of every episode from the batch's states (n, nstate)."""
@@ -305,6 +326,8 @@ def execute(
             if frame >= n_frames[i]:
                 continue
             rec = recs[i]
+            if looks is not None:
+                apply_patch(model, looks[i][1])
             mujoco.mj_setState(model, data, states[i], STATE_SPEC)
             mujoco.mj_forward(model, data)
             worst[i] = max(worst[i], robot_penetration(model, data, robot_geom, allowed))
@@ -323,16 +346,28 @@ def execute(
                     rec.depth[c][frame] = dp
         return time.perf_counter() - t0
 
-    render_s += record(0, batch.state)
-    for f in range(total):
-        t0 = time.perf_counter()
-        batch.rollout(per_frame, control=ctrl[:, f * per_frame : (f + 1) * per_frame], record=())
-        sim_s += time.perf_counter() - t0
-        render_s += record(f + 1, batch.state)
+    own_look = None
+    if looks is not None:
+        from factory.demos.appearance import PATCH_FIELDS
+
+        own_look = {f: np.array(getattr(model, f)) for f in PATCH_FIELDS}
+    try:
+        render_s += record(0, batch.state)
+        for f in range(total):
+            t0 = time.perf_counter()
+            ctl = ctrl[:, f * per_frame : (f + 1) * per_frame]
+            batch.rollout(per_frame, control=ctl, record=())
+            sim_s += time.perf_counter() - t0
+            render_s += record(f + 1, batch.state)
+    finally:
+        if own_look is not None:
+            for name, value in own_look.items():
+                np.copyto(getattr(model, name), value)
     if renderer is None and own is not None:
         own.close()
     finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
-    for rec in recs:
+    for i, rec in enumerate(recs):
+        rec.appearance = looks[i][0] if looks is not None else None
         rec.sim_seconds = sim_s / n
         rec.render_seconds = render_s / n
     return recs

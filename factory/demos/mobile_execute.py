@@ -226,7 +226,7 @@ class MobileRenderer:
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
-def _penetrations(
+def penetrations(
     data: mujoco.MjData,
     base_geom: np.ndarray,
     arm_geom: np.ndarray,
@@ -349,7 +349,7 @@ def simulate(
             data.ctrl[:] = ctrl[s]
             mujoco.mj_step(model, data)
             if data.ncon:
-                b, a = _penetrations(data, base_geom, arm_geom, arm_allowed, base_allowed)
+                b, a = penetrations(data, base_geom, arm_geom, arm_allowed, base_allowed)
                 worst_b, worst_a = max(worst_b, b), max(worst_a, a)
         record(f)
     if subtask is not None:
@@ -414,21 +414,71 @@ def check_mobile_success(
     above_tol: float = 0.03,
     penetration_tol: float = 0.02,
 ) -> Outcome:
-    """Whether an executed mobile episode succeeded.
+    """Whether an executed mobile episode succeeded (:func:`mobile_outcome` of its last frame).
 
-    The object rose with the hand during ``pick`` (else ``slip``), its bottom ends within
+    The lift is the object's height at the first frame of ``navigate_to_place`` above its
+    height at the start; the settling motion is measured over the last 0.5 s.
+    """
+    model = setup.model
+    qs = slice(1, 1 + model.nq)
+    adr = int(model.jnt_qposadr[model.body_jntadr[model.body(setup.objects.pick.id).id]])
+    hold = max(1, round(0.5 * fps))
+    k = max(1, round(1.0 / (fps * float(model.opt.timestep))))
+    start_z = float(rec.state[0, qs][adr + 2])
+    lift_frame = min(len(rec.state) - 1, plan.phases["navigate_to_place"] // k)
+    lifted = float(rec.state[lift_frame, qs][adr + 2]) - start_z
+    return mobile_outcome(
+        setup,
+        rec.state[-1],
+        rec.state[max(0, len(rec.state) - 1 - hold)],
+        lifted,
+        rec.max_base_penetration,
+        rec.max_arm_penetration,
+        settle_tol,
+        speed_tol,
+        above_tol,
+        penetration_tol,
+    )
+
+
+def mobile_outcome(
+    setup: MobileSetup,
+    state_end: np.ndarray,
+    state_before: np.ndarray,
+    lifted: float,
+    base_penetration: float,
+    arm_penetration: float,
+    settle_tol: float = 0.005,
+    speed_tol: float = 0.02,
+    above_tol: float = 0.03,
+    penetration_tol: float = 0.02,
+    data: mujoco.MjData | None = None,
+) -> Outcome:
+    """The mobile task's success check on an episode's last state (shared by the demos and the
+    closed-loop env, :mod:`factory.policy.mobile_env`).
+
+    The object rose with the hand (``lifted`` >= 3 cm, else ``slip``), its bottom ends within
     ``above_tol`` (m) above the place support's top and its centre inside the support's
     footprint (else ``not_on_target``), no finger touches it (``not_released``), it moved less
-    than ``settle_tol`` (m) over the last 0.5 s and its speed is below ``speed_tol`` (m/s)
-    (``unstable``); the base never pressed more than ``penetration_tol`` (m) into the scene
-    (``base_collision``) nor the arm or hand into anything but the task objects (``collision``).
+    than ``settle_tol`` (m) since ``state_before`` (0.5 s earlier) and its speed is below
+    ``speed_tol`` (m/s) (``unstable``); the base never pressed more than ``penetration_tol`` (m)
+    into the scene (``base_collision``) nor the arm or hand into anything but the task objects
+    (``collision``).
+
+    Args:
+        setup: the composed scene.
+        state_end, state_before: integration states (nstate,) at the end and 0.5 s before.
+        lifted: how high the object was lifted (m).
+        base_penetration, arm_penetration: deepest contacts over the episode (m).
+        settle_tol, speed_tol, above_tol, penetration_tol: the tolerances above.
+        data: scratch data to use (else a new one).
     """
     model, robot = setup.model, setup.robot
     objs = setup.objects
     qs = slice(1, 1 + model.nq)
     vs = slice(1 + model.nq, 1 + model.nq + model.nv)
-    data = mujoco.MjData(model)
-    mujoco.mj_setState(model, data, rec.state[-1], STATE_SPEC)
+    data = data if data is not None else mujoco.MjData(model)
+    mujoco.mj_setState(model, data, state_end, STATE_SPEC)
     mujoco.mj_forward(model, data)
     pick = model.body(objs.pick.id).id
     support = model.body(objs.place_support.id).id
@@ -444,16 +494,10 @@ def check_mobile_success(
     inside = bool(
         abs(local[0]) <= sup.dimensions.width / 2 and abs(local[1]) <= sup.dimensions.length / 2
     ) and bool((centre[:2] >= sup_box[:2]).all() and (centre[:2] <= sup_box[3:5]).all())
-    hold = max(1, round(0.5 * fps))
-    q_end = rec.state[-1, qs]
-    q_before = rec.state[max(0, len(rec.state) - 1 - hold), qs]
+    q_end = state_end[qs]
+    q_before = state_before[qs]
     moved = float(np.linalg.norm(q_end[adr : adr + 3] - q_before[adr : adr + 3]))
-    speed = float(np.linalg.norm(rec.state[-1, vs][dof : dof + 3]))
-    dt = float(model.opt.timestep)
-    k = max(1, round(1.0 / (fps * dt)))
-    start_z = float(rec.state[0, qs][adr + 2])
-    lift_frame = min(len(rec.state) - 1, plan.phases["navigate_to_place"] // k)
-    lifted = float(rec.state[lift_frame, qs][adr + 2]) - start_z
+    speed = float(np.linalg.norm(state_end[vs][dof : dof + 3]))
     touching = False
     for c in data.contact[: data.ncon]:
         bodies = [int(model.geom_bodyid[c.geom[0]]), int(model.geom_bodyid[c.geom[1]])]
@@ -467,12 +511,12 @@ def check_mobile_success(
         "inside_footprint": float(inside),
         "settle_motion_m": moved,
         "final_speed_m_s": speed,
-        "base_penetration_m": rec.max_base_penetration,
-        "robot_penetration_m": rec.max_arm_penetration,
+        "base_penetration_m": base_penetration,
+        "robot_penetration_m": arm_penetration,
     }
-    if rec.max_base_penetration > penetration_tol:
+    if base_penetration > penetration_tol:
         return Outcome(False, BASE_COLLISION, details)
-    if rec.max_arm_penetration > penetration_tol:
+    if arm_penetration > penetration_tol:
         return Outcome(False, COLLISION, details)
     if lifted < 0.03:
         return Outcome(False, "slip", details)

@@ -4,11 +4,16 @@
 MobileSetup`), each deterministic in its seed in a fresh process (OMPL's generator is seeded
 once per process):
 
-1. spawns the base at a random free pose of the region that holds the work poses
-   (:func:`factory.nav.random_footprint_pose`), arm stowed, hand closed;
+1. spawns the base at a random free pose from which the route's lattice reaches a verified
+   pick pose (:meth:`factory.nav.route.TaskRoute.random_spawn`: a region of the stowed
+   base's SE(2) lattice), arm stowed, hand closed;
 2. ``navigate_to_pick``: base poses within reach of the object
    (:func:`~factory.demos.mobile_scene.task_work_poses`, all sides of the support and facing
-   the object from every direction), an SE(2) path for the base's footprint
+   the object from every direction), of them only those the route check verified
+   (``MobileSetup.route``, :class:`factory.nav.route.TaskRoute`: a place pose shares their
+   region of the carrying base's free poses) in the spawn's region of the stowed base's
+   free poses (:meth:`~factory.nav.route.TaskRoute.picks_from`), an SE(2) path for the
+   base's footprint
    (:func:`factory.nav.plan_se2_path`), timed with ruckig under
    :data:`~factory.demos.mobile_robot.BASE_LIMITS`, re-checked with the robot's real shape;
 3. ``pick``: the fixed-base machinery with the arm's base frame at the mobile arm mount:
@@ -17,8 +22,9 @@ once per process):
    mapped through the mount pose), OMPL RRTConnect arm motions checked in the scene
    (:mod:`factory.demos.planner`), ruckig timing (:mod:`factory.demos.timing`); then the arm
    folds into a carry pose;
-4. ``navigate_to_place``: as 2, to a pose within reach of the place support's top, with the
-   footprint lengthened by the object and the object in the hand in the re-check;
+4. ``navigate_to_place``: as 2, to a pose within reach of the place support's top that the
+   route verified in the region of the pick pose reached, with the footprint lengthened by
+   the object and the object in the hand in the re-check;
 5. ``place``: the object upright on the place support's top, released, the hand retreats.
 
 Every candidate loop is bounded and the whole episode by ``MobileMotionConfig.plan_budget``
@@ -37,7 +43,7 @@ import math
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import mujoco
 import numpy as np
@@ -88,9 +94,9 @@ from factory.nav import (
     NavError,
     NavPlannerConfig,
     plan_se2_path,
-    random_footprint_pose,
     time_base_path,
 )
+from factory.nav.route import TaskRoute, task_route
 
 if TYPE_CHECKING:
     from factory.demos.robot import RobotIndex
@@ -167,6 +173,10 @@ class MobileEpisodePlan:
         grasp_width: span of the chosen grasp (m).
         plan_seconds: planning time per planned motion (s).
         seconds: total planning time (s).
+        route: which of the route check's poses the drives ended at, JSON-ready
+            (:meth:`MobilePlanner.route_record`): ``pick_pose`` / ``place_pose`` (x, y, yaw),
+            their indices in the route's pose lists, and the route's summary (pose counts,
+            grid cell, footprint).
     """
 
     qpos0: np.ndarray
@@ -181,6 +191,7 @@ class MobileEpisodePlan:
     grasp_width: float
     plan_seconds: dict[str, float]
     seconds: float = 0.0
+    route: dict[str, Any] = field(default_factory=dict)
 
     @property
     def steps(self) -> int:
@@ -309,17 +320,10 @@ class MobilePlanner:
         self.place_box = body_box(m, data, self.place_support_body)
         self.place_area = SupportTop.of(m, data, self.place_support_body)
         self.place_top = support_top(m, data, self.place_support_body)
-        self.unusable = setup.reachable
-        # spawn in the free region of the best pick pose that also reaches the place support
-        self._region_xy: np.ndarray | None = None
-        if not self.unusable:
-            picks, places = task_work_poses(m, data, setup.grid, objs, fp)
-            inscribed = fp.inscribed_grid(setup.grid)
-            common = {int(inscribed.component(p.xy)) for p in places}
-            for p in picks:
-                if int(inscribed.component(p.xy)) in common:
-                    self._region_xy = p.xy
-                    break
+        # The route check's verdict and poses on this grid (a set-up made by hand gets them
+        # here); drives end only at poses it verified.
+        self.route: TaskRoute = setup.route or task_route(m, data, setup.grid, objs, fp)
+        self.unusable = setup.reachable or self.route.detail
 
     # ---- helpers
     def _miss(self, counts: Counter[str], reason: str, where: str) -> None:
@@ -667,22 +671,24 @@ class MobilePlanner:
         )
         return plan_
 
-    def _plan(self, seed: int, counts: Counter[str]) -> MobileEpisodePlan:
-        m, robot, mo, setup = self.model, self.robot, self.motion, self.setup
-        rng = self._rng
-        ompl_seed = int(rng.integers(2**31 - 1))
+    def _spawn(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """The episode's initial qpos (nq,) (arm stowed, hand closed, base at a random free
+        pose from which the route's lattice reaches a verified pick pose,
+        :meth:`~factory.nav.route.TaskRoute.random_spawn`) and the spawn pose (3,).
+
+        Raises:
+            _Fail: ``no_spawn``.
+        """
+        m, robot, mo = self.model, self.robot, self.motion
         qpos = np.array(m.qpos0)
         qpos[robot.qpos] = STOW_QPOS
         qpos[robot.finger_qpos] = robot.finger_pos(STOW_FINGERS)
-        fp = setup.footprint
-
-        # (a) spawn: a free pose in the region that holds the work poses
         spawn: np.ndarray | None = None
         self.drive_checker.attach(None)
         self.drive_checker.ignore_bodies([])
         for _ in range(mo.spawn_tries):
             try:
-                p = random_footprint_pose(setup.grid, fp, rng, near_xy=self._region_xy)
+                p = self.route.random_spawn(rng)
             except NavError as e:
                 raise _Fail(NO_SPAWN, str(e)) from None
             self.drive_checker.set_scene(self._scene_state(qpos, p.as_array()))
@@ -692,19 +698,50 @@ class MobilePlanner:
         if spawn is None:
             raise _Fail(NO_SPAWN, f"no collision-free spawn pose in {mo.spawn_tries} draws")
         qpos[robot.base_qpos] = spawn
+        return qpos, spawn
+
+    def initial_qpos(self, seed: int) -> np.ndarray:
+        """The initial qpos (nq,) that :meth:`plan_episode` starts episode ``seed`` from: the
+        same random streams, so the same spawn pose (what the closed-loop env resets to).
+
+        Raises:
+            MobileTaskError: no free spawn pose (reason ``no_spawn``), or the robot's base
+                cannot work in this scene.
+        """
+        if self.unusable:
+            raise MobileTaskError(f"the robot's base cannot work here: {self.unusable}", NAV_FAILED)
+        rng = np.random.default_rng(seed)
+        rng.integers(2**31 - 1)  # the OMPL seed, drawn first as plan_episode draws it
+        try:
+            qpos, _ = self._spawn(rng)
+        except _Fail as f:
+            raise MobileTaskError(f"seed {seed}: {f}", f.reason) from None
+        return qpos
+
+    def _plan(self, seed: int, counts: Counter[str]) -> MobileEpisodePlan:
+        m, mo, setup = self.model, self.motion, self.setup
+        rng = self._rng
+        ompl_seed = int(rng.integers(2**31 - 1))
+        fp = setup.footprint
+
+        # (a) spawn: a free pose in the region that holds the work poses
+        qpos, spawn = self._spawn(rng)
 
         # (b, c) drive to a pose within reach of the object, pick there
         data = mujoco.MjData(m)
         data.qpos[:] = qpos
         mujoco.mj_kinematics(m, data)
         picks, _ = task_work_poses(m, data, setup.grid, setup.objects, fp, spawn[:2])
+        allowed = {_key(p) for p in self.route.picks_from(spawn)}
+        picks = [p for p in picks if _key(p) in allowed]
         if not picks:
             raise _Fail(
                 NAV_FAILED,
-                f"no base pose within reach of {setup.objects.pick.id!r} is reachable from "
-                f"the spawn pose {spawn.round(2).tolist()}",
+                f"no base pose within reach of {setup.objects.pick.id!r} that the route check "
+                f"verified is reachable from the spawn pose {spawn.round(2).tolist()}",
             )
         nav1 = pick = None
+        pick_goal = picks[0]
         for pose in picks[: mo.max_base_poses]:
             self._check_time("driving to the object")
             try:
@@ -718,6 +755,7 @@ class MobilePlanner:
             self._timing["pick"] += time.perf_counter() - t0
             if pick is not None:
                 nav1 = traj
+                pick_goal = pose
                 break
         if nav1 is None or pick is None:
             raise _Fail(
@@ -728,16 +766,19 @@ class MobilePlanner:
 
         # (d, e) carry to a pose within reach of the place support's top, place there
         _, places = task_work_poses(m, data, setup.grid, setup.objects, fp, pick_base[:2])
+        allowed = {_key(p) for p in self.route.route_places(pick_goal)}
+        places = [p for p in places if _key(p) in allowed]
         if not places:
             raise _Fail(
                 NAV_FAILED,
-                f"no base pose within reach of {setup.objects.place_support.id!r} is "
-                "reachable from the pick",
+                f"no base pose within reach of {setup.objects.place_support.id!r} that the "
+                "route check verified is reachable from the pick",
             )
         # The drive is checked with the object in the hand (its pose taken in the carry pose).
         self.drive_checker.attach(Attachment(self.pick_body, self.pick_adr, pick.obj_in_tool))
         counts2: Counter[str] = Counter()
         nav2 = place = None
+        place_goal = places[0]
         try:
             for pose in places[: mo.max_base_poses]:
                 self._check_time("carrying to the place support")
@@ -755,6 +796,7 @@ class MobilePlanner:
                 self._timing["place"] += time.perf_counter() - t0
                 if place is not None:
                     nav2 = traj
+                    place_goal = pose
                     break
         finally:
             self.drive_checker.attach(None)
@@ -765,7 +807,21 @@ class MobilePlanner:
                 f"no place at {setup.objects.place_support.id!r} from "
                 f"{len(places[: mo.max_base_poses])} base poses: {dict(counts2)}",
             )
-        return self._timeline(qpos, spawn, nav1, pick, nav2, place)
+        out = self._timeline(qpos, spawn, nav1, pick, nav2, place)
+        out.route = self.route_record(pick_goal, place_goal)
+        return out
+
+    def route_record(self, pick_goal: BasePose, place_goal: BasePose) -> dict[str, Any]:
+        """JSON-ready: the route check's poses an episode drove to (x, y m, yaw rad, as the
+        route lists them), their indices in the route's pick and place pose lists (best
+        first) and the route's summary (:meth:`factory.nav.route.TaskRoute.summary`)."""
+        return {
+            "pick_pose": [round(float(v), 6) for v in pick_goal.as_array()],
+            "place_pose": [round(float(v), 6) for v in place_goal.as_array()],
+            "pick_index": self.route.pick_index(pick_goal),
+            "place_index": self.route.place_index(place_goal),
+            **self.route.summary(),
+        }
 
     # ---- timing
     def _timeline(
@@ -869,6 +925,12 @@ class MobilePlanner:
             grasp_width=pick.width,
             plan_seconds=dict(self._seconds),
         )
+
+
+def _key(pose: BasePose) -> tuple[float, float, float]:
+    """A base pose as a hashable key (x, y m, yaw rad modulo a turn, to 1 um and 1 urad):
+    work poses from the same candidates compare equal."""
+    return (round(pose.x, 6), round(pose.y, 6), round(pose.yaw % (2 * math.pi), 6))
 
 
 def _geom_id(model: mujoco.MjModel, name: str) -> int:

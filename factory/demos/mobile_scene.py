@@ -3,8 +3,11 @@
 :func:`mobile_task_objects` finds the object to move, what it stands on and where it goes;
 :func:`mobile_setup` compiles the scene with the Panda on the Omron base
 (:mod:`factory.demos.mobile_robot`, :func:`compose_mobile`) and rasterizes its occupancy grid
-(:mod:`factory.nav`). When the base cannot stand where its arm reaches the object or the
-place support, or cannot drive from one to the other, the light floor objects in the way
+(:mod:`factory.nav`) and judges the route between the supports as the scene checks do
+(:func:`factory.nav.route.task_route` on :func:`factory.nav.task_poses.task_grid`: the same
+grid, footprint and work poses), keeping the base poses it verified (``MobileSetup.route``):
+the planner drives to those only. When the base cannot stand where its arm reaches the object
+or the place support, or cannot drive from one to the other, the light floor objects in the way
 (chairs, stools, lamps, plants, bins) are taken out of the scene, as the fixed task does for
 chairs around its table (:func:`factory.nav.route.clear_for_base`); what was taken out is
 named in the set-up's ``cleared``. Where the base works (work poses, supports, reach) is
@@ -37,10 +40,18 @@ from factory.demos.mobile_robot import (
 from factory.demos.robot import pose_matrix, rot_z
 from factory.errors import TaskError
 from factory.nav import BASE_COLLISION, NAV_FAILED, Footprint, OccupancyGrid
-from factory.nav.route import MAX_CLEARED, clear_for_base, movable, reachability
+from factory.nav.route import (
+    MAX_CLEARED,
+    TaskRoute,
+    clear_for_base,
+    movable,
+    reachability,
+    task_route,
+)
 from factory.nav.task_poses import (
     ARM_X,
     CARRY_X,
+    GRID_RESOLUTION,
     NO_PLACE_SUPPORT,
     PICK_REACH,
     PLACE_REACH,
@@ -51,6 +62,7 @@ from factory.nav.task_poses import (
     carry_footprint,
     object_radius,
     resolve_supports,
+    task_grid,
     task_work_poses,
 )
 
@@ -170,9 +182,11 @@ class MobileSetup:
         footprint: the base's outline with the arm stowed (poses and drives are checked with
             it on ``grid``).
         cleared: ids of the scene's objects taken out to make room for the base.
-        reachable: ``""`` when a base pose within reach of the object and one within reach of
-            the place support's top lie in one free region of ``grid`` for ``footprint``, else
-            why not (the planner then fails every episode at once with ``nav_failed``).
+        reachable: ``""`` when the route holds (``route``), else why not (the planner then
+            fails every episode at once with ``nav_failed``).
+        route: the route check's verdict on ``grid`` with ``footprint``
+            (:func:`factory.nav.route.task_route`) and the base poses it verified: the
+            planner's goals (None only for a set-up made by hand).
     """
 
     scene: Scene
@@ -184,6 +198,7 @@ class MobileSetup:
     footprint: Footprint = BASE_FOOTPRINT
     cleared: tuple[str, ...] = ()
     reachable: str = ""
+    route: TaskRoute | None = None
 
 
 def compose_mobile(
@@ -240,18 +255,25 @@ def mobile_setup(
     scene: Scene,
     assets_root: str | Path | None = None,
     objects: MobileTaskObjects | None = None,
-    resolution: float = 0.05,
+    resolution: float = GRID_RESOLUTION,
     clear: bool = True,
 ) -> MobileSetup:
-    """Composes the scene with the robot, rasterizes its occupancy grid and, where the base
-    cannot work at both supports, takes light floor objects out of the way.
+    """Composes the scene with the robot, rasterizes its occupancy grid, judges the route
+    between the supports as the route check does and, where it does not hold, takes light
+    floor objects out of the way.
+
+    The grid is :func:`~factory.nav.task_poses.task_grid` (the robot left out) and the route
+    :func:`~factory.nav.route.task_route` with the robot's footprint: what
+    :func:`factory.nav.route.check_route` computes on the scene compiled without the robot,
+    cell for cell, so the set-up's ``route`` holds the poses the route check verified.
 
     Args:
         scene: the scene.
         assets_root: the run's assets folder (None: objects are boxes).
         objects: the task objects; default :func:`mobile_task_objects`.
-        resolution: grid cell side (m).
-        clear: take movable floor objects out when the task is not reachable
+        resolution: grid cell side (m); the route check's by default
+            (:data:`~factory.nav.task_poses.GRID_RESOLUTION`).
+        clear: take movable floor objects out when the route does not hold
             (:func:`clear_for_base`); the set-up's ``cleared`` names them.
 
     Raises:
@@ -261,26 +283,26 @@ def mobile_setup(
     model = compose_mobile(scene, assets_root)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    grid = OccupancyGrid.from_model(model, data, resolution=resolution)
-    why = reachability(model, data, grid, objects, BASE_FOOTPRINT)
+    grid = task_grid(model, data, resolution=resolution)
+    route = task_route(model, data, grid, objects, BASE_FOOTPRINT)
     cleared: set[str] = set()
-    if why and clear:
+    if route.reason and clear:
         cleared = clear_for_base(model, data, scene, objects, BASE_FOOTPRINT, resolution)
         if cleared:
             log.info(
                 "scene %s: took out %s to make room for the robot's base (%s)",
                 scene.id,
                 sorted(cleared),
-                why,
+                route.detail,
             )
             scene = replace(scene, objects=[o for o in scene.objects if o.id not in cleared])
             model = compose_mobile(scene, assets_root)
             data = mujoco.MjData(model)
             mujoco.mj_kinematics(model, data)
-            grid = OccupancyGrid.from_model(model, data, resolution=resolution)
-            why = reachability(model, data, grid, objects, BASE_FOOTPRINT)
-    if why:
-        log.warning("scene %s: the mobile task is not reachable: %s", scene.id, why)
+            grid = task_grid(model, data, resolution=resolution)
+            route = task_route(model, data, grid, objects, BASE_FOOTPRINT)
+    if route.reason:
+        log.warning("scene %s: the mobile task is not reachable: %s", scene.id, route.detail)
     robot = MobileRobotIndex.of(model)
     return MobileSetup(
         scene=scene,
@@ -291,7 +313,8 @@ def mobile_setup(
         arm_mount=_arm_mount(model, robot),
         footprint=BASE_FOOTPRINT,
         cleared=tuple(sorted(cleared)),
-        reachable=why,
+        reachable=route.detail,
+        route=route,
     )
 
 
@@ -352,6 +375,7 @@ __all__ = [
     "MobileTaskError",
     "MobileTaskObjects",
     "SupportTop",
+    "TaskRoute",
     "base_matrix",
     "body_box",
     "carry_footprint",
@@ -363,5 +387,6 @@ __all__ = [
     "object_radius",
     "reachability",
     "support_top",
+    "task_route",
     "task_work_poses",
 ]

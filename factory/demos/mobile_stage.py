@@ -6,8 +6,10 @@ mobile_setup`), plans each open slot with the slot's stable seed, executes and r
 episode at a time (:func:`~factory.demos.mobile_pick_place.execute_mobile`, one ``MjData``),
 and stores the successes in the same episode store as the fixed task.
 
-Stored episodes keep the fixed task's :class:`~factory.schema.episode.EpisodeInfo` fields
-(nothing new in the metadata): ``task`` is ``mobile_pick_place``, ``pick_id`` the object,
+Stored episodes keep the fixed task's :class:`~factory.schema.episode.EpisodeInfo` fields,
+and fill ``route`` (the route check's pick and place poses the drives ended at, their indices
+in the route's lists, its pose counts, grid cell and footprint; :meth:`~factory.demos.
+mobile_plan.MobilePlanner.route_record`): ``task`` is ``mobile_pick_place``, ``pick_id`` the object,
 ``support_id`` the pick support, ``target_id`` the place support, ``robot`` the spawn pose
 (z = 0), ``phases`` the first frame of each phase (sub-tasks included), ``cameras`` the pinhole
 cameras then ``fisheye_front``/``fisheye_back``. Arrays: as the fixed task (``time``,
@@ -27,6 +29,7 @@ import numpy as np
 if TYPE_CHECKING:
     from factory.demos.mobile_pick_place import (
         MobileEpisodePlan,
+        MobilePlanner,
         MobileRecordConfig,
         MobileRecording,
         MobileSetup,
@@ -88,6 +91,7 @@ def _write(
         outcome=rec.outcome.details,
         factory_version=__version__,
         cleared=list(setup.cleared),
+        route=dict(plan.route),
     )
     arrays: dict[str, np.ndarray] = {
         "time": rec.time,
@@ -107,6 +111,34 @@ def _write(
     store.write(meta, arrays)
 
 
+def mobile_scene_planner(run_dir: Any, scene_id: str, dc: Any) -> tuple[MobileSetup, MobilePlanner]:
+    """A scene of a run composed with the mobile robot, and its planner with the demos
+    settings ``dc`` (``demos.*``): what ``stage=demos`` plans in and what the closed-loop env
+    (:mod:`factory.policy.mobile_env`) simulates.
+
+    Raises:
+        FactoryError: the scene cannot be loaded or cannot host the task.
+    """
+    from factory.demos.mobile_pick_place import MobileMotionConfig, MobilePlanner, mobile_setup
+    from factory.demos.pick_place import MotionConfig
+    from factory.demos.planner import PlannerConfig
+    from factory.store import RunStore
+
+    run_store = RunStore(run_dir)
+    setup = mobile_setup(run_store.load_scene(scene_id), run_store.assets_dir)
+    motion = MobileMotionConfig(
+        arm=MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
+    )
+    planner = MobilePlanner(
+        setup,
+        motion,
+        planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
+        max_grasps=dc.max_grasps,
+        grasp_facing=dc.grasp_facing,
+    )
+    return setup, planner
+
+
 def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     """Fills the item's slots with mobile episodes; returns ``run_item``'s statistics.
 
@@ -122,18 +154,12 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     from factory.demos.mobile_pick_place import (
         FISHEYE_CAMERAS,
         MobileEpisodePlan,
-        MobileMotionConfig,
-        MobilePlanner,
         MobileRecordConfig,
         MobileRenderer,
         execute_mobile,
-        mobile_setup,
     )
-    from factory.demos.pick_place import MotionConfig
-    from factory.demos.planner import PlannerConfig
     from factory.demos.slots import episode_id, episode_seed, item_stats
     from factory.errors import FactoryError
-    from factory.store import RunStore
 
     dc = env.demos
     out: dict[str, Any] = item_stats(item.scene_id)
@@ -143,18 +169,7 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
         return out
     t0 = time.perf_counter()
     try:
-        run_store = RunStore(env.run_dir)
-        setup = mobile_setup(run_store.load_scene(item.scene_id), run_store.assets_dir)
-        motion = MobileMotionConfig(
-            arm=MotionConfig(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
-        )
-        planner = MobilePlanner(
-            setup,
-            motion,
-            planner_cfg=PlannerConfig(timeout=dc.plan_timeout),
-            max_grasps=dc.max_grasps,
-            grasp_facing=dc.grasp_facing,
-        )
+        setup, planner = mobile_scene_planner(env.run_dir, item.scene_id, dc)
     except FactoryError as e:
         out["error"] = str(e)
         out["failures"]["scene_unusable"] += len(open_slots)

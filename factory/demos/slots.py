@@ -74,6 +74,7 @@ def record_config(dc: DemosConfig) -> Any:
         cameras=tuple(dc.cameras),
         depth=dc.depth,
         render=dc.render,
+        shadows=dc.shadows,
     )
 
 
@@ -198,6 +199,7 @@ def episode_payload(
         factory_version=__version__,
         cleared=list(setup.cleared),
         frozen=list(getattr(setup, "frozen", ())),
+        appearance=getattr(rec, "appearance", None),
     )
     arrays: dict[str, np.ndarray] = {
         "time": rec.time,

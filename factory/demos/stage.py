@@ -113,6 +113,7 @@ def check_config(dc: DemosConfig, task: str) -> None:
 
 def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     """Fills the item's slots (in a worker process or inline); returns its statistics."""
+    from factory.demos.appearance import episode_looks, setup_index
     from factory.demos.episodes import EpisodeStore
     from factory.demos.execute import FrameRenderer, execute
     from factory.demos.pick_place import EpisodePlan
@@ -134,6 +135,7 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     rec_cfg = record_config(dc)
     store = EpisodeStore(env.store_path)
     renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
+    look_index = setup_index(setup, rec_cfg.cameras) if rec_cfg.render else None
     instruction = episode_instruction(setup)
     attempt = dict.fromkeys(item.slots, 0)
     open_slots = [k for k in item.slots if episode_id(item.scene_id, k) not in store]
@@ -150,7 +152,12 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
                 else:
                     out["failures"][res.reason] += 1
                     log.info("scene %s slot %d: plan failed: %s", item.scene_id, k, res.detail)
-            recs = execute(setup, [p for _, _, p in planned], rec_cfg, env.nthread, renderer)
+            looks = None
+            if look_index is not None:
+                seeds = [seed for _, seed, _ in planned]
+                looks = episode_looks(setup.model, look_index, dc.appearance, seeds)
+            plans = [p for _, _, p in planned]
+            recs = execute(setup, plans, rec_cfg, env.nthread, renderer, looks)
             done: set[int] = set()
             for (k, seed, plan), rec in zip(planned, recs, strict=True):
                 out["simulate"] += rec.sim_seconds
@@ -219,6 +226,12 @@ def run(ctx: StageContext) -> dict[str, Any]:
         executor = "cpu"  # the mobile task has no GPU executor yet
     if executor == "warp":
         workers = dc.workers or max(1, cores - 1)
+        if dc.appearance.enabled and dc.render:
+            log.warning(
+                "demos.appearance: the warp executor records without appearance randomisation "
+                "(episodes record appearance=null); use demos.executor=cpu for it, or set "
+                "demos.appearance.enabled=false to silence this"
+            )
     else:
         workers = min(dc.workers or cores, max(1, len(items)))
     nthread = dc.nthread or max(1, cores // workers)

@@ -28,17 +28,23 @@ failure a reason:
     (:func:`se2_labels`: a lattice of the grid's cells and 32 headings, so turning to pass a
     door lengthwise counts; deterministic, no sampling planner).
 
-Work poses and footprints are :mod:`factory.nav.task_poses`'s (the demos use the same);
+Work poses, footprints and the grid (:func:`factory.nav.task_poses.task_grid`) are
+:mod:`factory.nav.task_poses`'s. :func:`task_route` is the check's core and its result, a
+:class:`TaskRoute`, holds the base poses it verified: the pick and place poses that share a
+region of the carrying base's free poses. The demos (``factory.demos.mobile_scene``) compute
+the same :class:`TaskRoute` on the same grid and drive only to those poses, so a scene that
+passes here is not failed by the demos' navigation for another reason.
 :func:`clear_for_base` names the fewest light floor objects whose removal opens the way (the
 demos take them out; generation removes them as a last resort). Frames: world, metres.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from itertools import combinations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -47,9 +53,12 @@ import mujoco
 import numpy as np
 
 from factory.errors import TaskError
+from factory.nav.errors import NavError
 from factory.nav.footprint import Footprint
+from factory.nav.goals import BasePose
 from factory.nav.grid import OccupancyGrid
 from factory.nav.task_poses import (
+    GRID_RESOLUTION,
     MOBILE_FOOTPRINT,
     NO_PICK_OBJECT,
     NO_PLACE_SUPPORT,
@@ -59,11 +68,11 @@ from factory.nav.task_poses import (
     carry_footprint,
     object_radius,
     role_objects,
+    task_grid,
     task_work_poses,
 )
 
 if TYPE_CHECKING:
-    from factory.nav.goals import BasePose
     from factory.schema import Scene, SceneObject
 
 log = logging.getLogger(__name__)
@@ -110,6 +119,10 @@ class RouteCheck:
         pick_poses, place_poses: free base poses within reach of the object / of the top.
         clear: light floor objects whose removal cures a blocked route (asked for).
         seconds: time the check took (s).
+        route_pick_poses, route_place_poses: of those, the poses the route verified (they
+            share a region of the carrying base's free poses with a pose at the other support).
+        route: the :class:`TaskRoute` behind the verdict (the verified poses; None when the
+            check stopped before the work poses); not in :meth:`as_dict`.
     """
 
     reason: str = ""
@@ -122,6 +135,9 @@ class RouteCheck:
     place_poses: int = 0
     clear: tuple[str, ...] = ()
     seconds: float = 0.0
+    route_pick_poses: int = 0
+    route_place_poses: int = 0
+    route: TaskRoute | None = field(default=None, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -129,8 +145,9 @@ class RouteCheck:
         return not self.reason
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready fields, with ``passed`` (:attr:`ok`)."""
-        out = asdict(self)
+        """JSON-ready fields, with ``passed`` (:attr:`ok`); without :attr:`route`."""
+        names = [f for f in self.__dataclass_fields__ if f != "route"]
+        out: dict[str, Any] = {f: getattr(self, f) for f in names}
         out["clear"] = list(self.clear)
         out["passed"] = self.ok
         for key in ("separation", "spawn_area", "seconds"):
@@ -231,6 +248,203 @@ def pose_labels(labels: np.ndarray, grid: OccupancyGrid, poses: list[BasePose]) 
     return out
 
 
+@dataclass(frozen=True, eq=False)  # holds a grid: compared by identity
+class TaskRoute:
+    """The base poses of a mobile pick-and-place that the route check verified.
+
+    The demos drive to these poses only: navigation to the object ends at one of
+    :meth:`route_picks`, the carry at one of :meth:`route_places` of the same region, on the
+    same grid and footprint the check used; episodes spawn where the stowed base's lattice
+    reaches a verified pick pose (:meth:`random_spawn`, :meth:`picks_from`).
+
+    Attributes:
+        reason: ``""`` when some pick pose and some place pose connect, else ``no_pick_pose``,
+            ``no_place_pose`` or ``no_route``; detail: the failure in words, naming the fix.
+        grid: the raw occupancy grid (:func:`~factory.nav.task_poses.task_grid`).
+        footprint: the base's outline with the arm stowed; carry: while it carries the
+            object (:func:`~factory.nav.task_poses.carry_footprint`).
+        pick_poses, place_poses: every free base pose within reach of the object / of the
+            place support's top, best first (:func:`~factory.nav.task_poses.task_work_poses`).
+        pick_regions, place_regions: per pose, the regions of the carrying base's free poses
+            (:func:`se2_labels`) it lies in; empty when the check stopped before the lattice.
+        headings: headings of the lattice.
+    """
+
+    reason: str
+    detail: str
+    grid: OccupancyGrid = field(repr=False)
+    footprint: Footprint
+    carry: Footprint
+    pick_poses: tuple[BasePose, ...] = ()
+    place_poses: tuple[BasePose, ...] = ()
+    pick_regions: tuple[frozenset[int], ...] = ()
+    place_regions: tuple[frozenset[int], ...] = ()
+    headings: int = HEADINGS
+
+    @property
+    def ok(self) -> bool:
+        """Whether a pick pose and a place pose connect."""
+        return not self.reason
+
+    def route_picks(self) -> list[BasePose]:
+        """Pick poses sharing a region with some place pose, best first."""
+        if not self.pick_regions:
+            return []
+        places = frozenset().union(*self.place_regions) if self.place_regions else frozenset()
+        return [p for p, r in zip(self.pick_poses, self.pick_regions, strict=True) if r & places]
+
+    def route_places(self, pick: BasePose | np.ndarray | None = None) -> list[BasePose]:
+        """Place poses sharing a region with ``pick`` (a pose of :attr:`pick_poses`, or its
+        (x, y, yaw)), or with any pick pose, best first."""
+        if not self.place_regions:
+            return []
+        if pick is None:
+            want = frozenset().union(*self.pick_regions) if self.pick_regions else frozenset()
+        else:
+            i = self.pick_index(pick)
+            want = self.pick_regions[i] if i >= 0 and self.pick_regions else frozenset()
+        return [p for p, r in zip(self.place_poses, self.place_regions, strict=True) if r & want]
+
+    def pick_index(self, pose: BasePose | np.ndarray) -> int:
+        """Index of a pose in :attr:`pick_poses` (matched to 1 um and 1 urad, yaw modulo a
+        turn), -1 when it is not one."""
+        return _index(self.pick_poses, pose)
+
+    def place_index(self, pose: BasePose | np.ndarray) -> int:
+        """Index of a pose in :attr:`place_poses` (see :meth:`pick_index`), -1 when not one."""
+        return _index(self.place_poses, pose)
+
+    @functools.cached_property
+    def stow_labels(self) -> np.ndarray:
+        """Regions of the stowed base's free poses (:func:`se2_labels` of :attr:`footprint`),
+        int ``(headings, ny, nx)``: where the base drives before it holds the object."""
+        return se2_labels(free_poses(self.grid, self.footprint, self.headings))
+
+    @functools.cached_property
+    def _spawn_nodes(self) -> np.ndarray:
+        """Lattice nodes ``(n, 3)`` (heading, iy, ix) of the stowed base's regions that hold a
+        verified pick pose."""
+        regions = set().union(*(self.stow_regions(p) for p in self.route_picks()))
+        if not regions:
+            return np.zeros((0, 3), int)
+        return np.argwhere(np.isin(self.stow_labels, sorted(regions)))
+
+    def stow_regions(self, pose: BasePose | np.ndarray) -> set[int]:
+        """The stowed base's regions (:attr:`stow_labels`) a pose (x, y, yaw) lies in."""
+        if isinstance(pose, BasePose):
+            p = pose
+        else:
+            p = BasePose(float(pose[0]), float(pose[1]), float(pose[2]))
+        return pose_labels(self.stow_labels, self.grid, [p])
+
+    def picks_from(self, start: BasePose | np.ndarray) -> list[BasePose]:
+        """Verified pick poses (:meth:`route_picks`) in a stowed-base region of ``start``
+        (x, y, yaw), best first: where the base can drive from there, by the lattice."""
+        here = self.stow_regions(start)
+        return [p for p in self.route_picks() if self.stow_regions(p) & here]
+
+    def random_spawn(self, rng: np.random.Generator) -> BasePose:
+        """A random lattice pose (a cell's centre, one of :attr:`headings` headings) whose
+        footprint is free, in a region of the stowed base's free poses that holds a verified
+        pick pose: the base can drive from it to the object and on to the place support by
+        the route's lattice. Uniform over those poses.
+
+        Raises:
+            NavError: the route has no verified pick pose (no such region).
+        """
+        nodes = self._spawn_nodes
+        if not len(nodes):
+            raise NavError("no free spawn pose from which the route's pick poses are reachable")
+        k, iy, ix = (int(v) for v in nodes[int(rng.integers(len(nodes)))])
+        x, y = self.grid.cell_to_world(np.array([ix, iy]))
+        yaw = math.remainder(2 * math.pi * k / self.headings, 2 * math.pi)
+        return BasePose(float(x), float(y), yaw)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready: the reason, the pose counts, the grid's cell and the footprints."""
+        return {
+            "reason": self.reason,
+            "pick_poses": len(self.pick_poses),
+            "place_poses": len(self.place_poses),
+            "route_pick_poses": len(self.route_picks()),
+            "route_place_poses": len(self.route_places()),
+            "resolution": self.grid.resolution,
+            "headings": self.headings,
+            "footprint_radius": round(self.footprint.radius, 4),
+            "carry_front": round(self.carry.front, 4),
+        }
+
+
+def _index(poses: tuple[BasePose, ...], pose: BasePose | np.ndarray) -> int:
+    p = pose.as_array() if isinstance(pose, BasePose) else np.asarray(pose, float)[:3]
+    yaw = float(p[2]) % (2 * math.pi)
+    for i, q in enumerate(poses):
+        dyaw = abs((q.yaw % (2 * math.pi)) - yaw)
+        if (
+            abs(q.x - p[0]) < 1e-6
+            and abs(q.y - p[1]) < 1e-6
+            and min(dyaw, 2 * math.pi - dyaw) < 1e-6
+        ):
+            return i
+    return -1
+
+
+def task_route(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    grid: OccupancyGrid,
+    objects: MobileTaskObjects,
+    footprint: Footprint,
+    headings: int = HEADINGS,
+    labels: np.ndarray | None = None,
+) -> TaskRoute:
+    """The route between the supports, and the base poses it verified.
+
+    First :func:`route_reason` (a pick pose and a place pose in one free region of the grid
+    inflated by one footprint disc), then the SE(2) lattice of the carrying base
+    (:func:`se2_labels`): each pose gets the regions it lies in, and the route holds when a
+    pick pose and a place pose share one.
+
+    Args:
+        model, data: the compiled scene (bodies named by object id) and its kinematics.
+        grid: the raw occupancy grid (:func:`~factory.nav.task_poses.task_grid`).
+        objects: the task objects.
+        footprint: the base's outline with the arm stowed.
+        headings: headings of the lattice.
+        labels: the carrying base's lattice regions on ``grid``, if at hand
+            (:func:`se2_labels` of :func:`free_poses` of the carrying footprint): they depend
+            on the grid and the object's size only, so the configurations of one scene that
+            leave the grid as it is share them.
+    """
+    carry = carry_footprint(footprint, objects.pick)
+    reason, detail, picks, places = route_reason(model, data, grid, objects, footprint)
+    route = TaskRoute(reason, detail, grid, footprint, carry, tuple(picks), tuple(places))
+    if reason:
+        return route
+    if labels is None:
+        labels = se2_labels(free_poses(grid, carry, headings))
+    pick_regions = tuple(frozenset(pose_labels(labels, grid, [p])) for p in picks)
+    place_regions = tuple(frozenset(pose_labels(labels, grid, [p])) for p in places)
+    if not frozenset().union(*pick_regions) & frozenset().union(*place_regions):
+        reason = NO_ROUTE
+        detail = (
+            f"the base carrying {objects.pick.id!r} cannot turn and drive from "
+            f"{objects.pick_support.id!r} to {objects.place_support.id!r}: widen the way"
+        )
+    return TaskRoute(
+        reason,
+        detail,
+        grid,
+        footprint,
+        carry,
+        tuple(picks),
+        tuple(places),
+        pick_regions,
+        place_regions,
+        headings,
+    )
+
+
 def route_reason(
     model: mujoco.MjModel,
     data: mujoco.MjData,
@@ -316,13 +530,14 @@ def clear_for_base(
     scene: Scene,
     objects: MobileTaskObjects,
     footprint: Footprint,
-    resolution: float = 0.05,
+    resolution: float = GRID_RESOLUTION,
     max_objects: int = MAX_CLEARED,
     candidates: int = 8,
 ) -> set[str]:
-    """The fewest light floor objects (:func:`movable`) whose removal makes the task
-    reachable (:func:`reachability`), or an empty set when up to ``max_objects`` of the
-    ``candidates`` nearest to the two supports do not.
+    """The fewest light floor objects (:func:`movable`) whose removal makes the route hold
+    (:func:`task_route`: first the cheap test of :func:`reachability`, then the carrying
+    base's SE(2) lattice), or an empty set when up to ``max_objects`` of the ``candidates``
+    nearest to the two supports do not.
 
     Generated rooms are furnished without a robot in mind: an armchair beside the desk or a
     lamp in the only gap can close the way for a base 0.58 m wide. A person would move them;
@@ -347,10 +562,10 @@ def clear_for_base(
             if ids & keep:
                 continue
             bodies = [model.body(i).id for i in ids if has_body(model, i)]
-            grid = OccupancyGrid.from_model(
-                model, data, resolution=resolution, exclude_bodies=bodies
-            )
-            if not reachability(model, data, grid, objects, footprint):
+            grid = task_grid(model, data, exclude_bodies=bodies, resolution=resolution)
+            if reachability(model, data, grid, objects, footprint):
+                continue
+            if task_route(model, data, grid, objects, footprint).ok:
                 return set(ids)
     return set()
 
@@ -360,9 +575,10 @@ def check_route(
     assets_root: str | Path | None = None,
     model: mujoco.MjModel | None = None,
     footprint: Footprint = MOBILE_FOOTPRINT,
-    resolution: float = 0.05,
+    resolution: float = GRID_RESOLUTION,
     min_separation: float = MIN_SUPPORT_SEPARATION,
     suggest_clear: bool = False,
+    qpos: np.ndarray | None = None,
 ) -> RouteCheck:
     """The route check of a mobile-task scene (see the module's description).
 
@@ -376,6 +592,10 @@ def check_route(
         min_separation: least distance between the supports' centres (m).
         suggest_clear: on a blocked route, name the light floor objects whose removal opens
             it (``clear``).
+        qpos: positions (nq,) of ``model`` to judge instead of its ``qpos0`` (a
+            configuration of the scene as rows of the parent's model, as
+            :func:`factory.augment.check.pose_rows` makes them; ``scene`` is then that
+            configuration's scene).
 
     Returns:
         the verdict; it never raises for a scene that cannot host the task.
@@ -407,6 +627,8 @@ def check_route(
 
         model = compile_scene(scene, assets_root).model
     data = mujoco.MjData(model)
+    if qpos is not None:
+        data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     for obj in (objects.pick, objects.pick_support, objects.place_support):
         if not has_body(model, obj.id):
@@ -426,7 +648,7 @@ def check_route(
             separation=sep,
             **ids,
         )
-    grid = OccupancyGrid.from_model(model, data, resolution=resolution)
+    grid = task_grid(model, data, resolution=resolution)
     area = spawn_area(free_poses(grid, footprint), grid.resolution)
     if area <= 0.0:
         return verdict(
@@ -436,16 +658,14 @@ def check_route(
             spawn_area=area,
             **ids,
         )
-    reason, detail, picks, places = route_reason(model, data, grid, objects, footprint)
-    found = {"pick_poses": len(picks), "place_poses": len(places)}
-    if not reason:
-        labels = se2_labels(free_poses(grid, carry_footprint(footprint, objects.pick)))
-        if not pose_labels(labels, grid, picks) & pose_labels(labels, grid, places):
-            reason = NO_ROUTE
-            detail = (
-                f"the base carrying {objects.pick.id!r} cannot turn and drive from "
-                f"{objects.pick_support.id!r} to {objects.place_support.id!r}: widen the way"
-            )
+    route = task_route(model, data, grid, objects, footprint)
+    reason, detail = route.reason, route.detail
+    found = {
+        "pick_poses": len(route.pick_poses),
+        "place_poses": len(route.place_poses),
+        "route_pick_poses": len(route.route_picks()),
+        "route_place_poses": len(route.route_places()),
+    }
     clear: tuple[str, ...] = ()
     if reason in BLOCKED and suggest_clear:
         clear = tuple(sorted(clear_for_base(model, data, scene, objects, footprint, resolution)))
@@ -455,6 +675,7 @@ def check_route(
         separation=sep,
         spawn_area=area,
         clear=clear,
+        route=route,
         **found,
         **ids,
     )
@@ -481,6 +702,7 @@ __all__ = [
     "PLACE_SUPPORT_TOO_SMALL",
     "ROUTE_REASONS",
     "RouteCheck",
+    "TaskRoute",
     "check_route",
     "clear_for_base",
     "free_poses",
@@ -493,4 +715,5 @@ __all__ = [
     "se2_labels",
     "spawn_area",
     "support_separation",
+    "task_route",
 ]

@@ -8,6 +8,11 @@ the task's objects read from their ``task_role``, the supports' boxes in a compi
 the points of a top where the object may go, and the base poses within reach of both
 (:func:`task_work_poses`, over :func:`factory.nav.goals.work_poses`).
 
+The grid both plan on is :func:`task_grid` (cell :data:`GRID_RESOLUTION`, height band
+:data:`GRID_Z_BAND`): the route check, the demos' SE(2) base planner, their spawn and work
+poses and :func:`factory.nav.route.clear_for_base` all take it from here, with the footprint
+below, so a scene that passes the route check is judged by the demos on the same cells.
+
 The robot's geometry enters as numbers: :data:`MOBILE_FOOTPRINT` and :data:`ARM_X` are the
 mobile robot's (``factory.demos.mobile_robot.BASE_FOOTPRINT`` and ``ARM_MOUNT[0]``; this
 package does not import the robot, and a test keeps them equal).
@@ -18,6 +23,7 @@ Frames: world frame, metres, radians; a base pose is the footprint centre's (x, 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -49,6 +55,14 @@ CARRY_X = 0.35
 """How far ahead of the base origin (m, base frame) the hand holds the object while driving."""
 PLACE_MARGIN = 0.04
 """Clearance (m) between a placed object's footprint circle and the edge of the top."""
+
+GRID_RESOLUTION = 0.05
+"""Cell side (m) of the mobile task's occupancy grid (:func:`task_grid`): the route check's
+and the demos' alike. The base's footprint is checked against the grid's distance transform to
+within half a cell, and the SE(2) lattice of the route check steps one cell."""
+GRID_Z_BAND: tuple[float, float] = (0.02, 1.9)
+"""Heights (m, world z) of the mobile robot: collision geometry overlapping this band is an
+obstacle of :func:`task_grid` (the floor slab below it and a door's lintel above it are not)."""
 
 NO_PICK_OBJECT = "no_pick_object"
 NO_PLACE_SUPPORT = "no_place_support"
@@ -249,6 +263,28 @@ class SupportTop:
         return np.asarray(local @ self.rot.T + self.origin, float)
 
 
+def task_grid(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    exclude_bodies: Iterable[int] = (),
+    resolution: float = GRID_RESOLUTION,
+) -> OccupancyGrid:
+    """The mobile task's raw occupancy grid of a scene: its collision geometry in the robot's
+    band :data:`GRID_Z_BAND`, cells of ``resolution`` (m), the robots and ``exclude_bodies``
+    (body ids, with their descendants) left out (:meth:`OccupancyGrid.from_model`).
+
+    The route check builds it from the compiled scene, the demos from the scene composed with
+    the robot (whose bodies are left out): the same cells. Obstacles are not inflated here;
+    the footprint's discs are checked against the grid's clearance
+    (:meth:`~factory.nav.footprint.Footprint.free`), and connectivity is judged on the grid
+    inflated by one disc (:meth:`~factory.nav.footprint.Footprint.inscribed_grid`), by the
+    route check and the base planner alike. ``data`` needs current kinematics.
+    """
+    return OccupancyGrid.from_model(
+        model, data, resolution=resolution, z_band=GRID_Z_BAND, exclude_bodies=exclude_bodies
+    )
+
+
 def carry_footprint(footprint: Footprint, obj: SceneObject, carry_x: float = CARRY_X) -> Footprint:
     """The base's footprint while it carries ``obj`` in the hand ``carry_x`` (m) ahead of its
     origin: the front lengthened to cover the object (and 2 cm)."""
@@ -291,6 +327,8 @@ def task_work_poses(
 __all__ = [
     "ARM_X",
     "CARRY_X",
+    "GRID_RESOLUTION",
+    "GRID_Z_BAND",
     "MOBILE_FOOTPRINT",
     "NO_PICK_OBJECT",
     "NO_PLACE_SUPPORT",
@@ -305,6 +343,7 @@ __all__ = [
     "object_radius",
     "resolve_supports",
     "role_objects",
+    "task_grid",
     "task_work_poses",
     "xy_box",
 ]

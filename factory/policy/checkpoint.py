@@ -337,7 +337,8 @@ class LoadedPolicy:
                 images, uint16 (n, H, W) millimetres of depth, float32 vectors).
 
         Returns:
-            (n, 8) float32: desired arm joints (rad) + gripper command (m).
+            (n, 8) float32: desired arm joints (rad) + gripper command (m); a mobile policy's
+            (n, 11) add the base target x, y (m, world) and yaw (rad).
 
         Raises:
             PolicyError: the observations lack a feature the policy reads or have other shapes.
@@ -361,7 +362,10 @@ class LoadedPolicy:
         out = out.reshape(-1, self.spec.action_dim)
         if self._tracker is not None:
             origin = self._origin if self.spec.action == "tool_rel" else None
-            return self._tracker.joints(out, np.asarray(obs["observation.state"]), origin)
+            arm = self._tracker.joints(out[:, :10], np.asarray(obs["observation.state"]), origin)
+            if self.spec.mobile:  # the base target follows the arm's columns as predicted
+                return np.concatenate([arm, out[:, 10:]], axis=1).astype(np.float32)
+            return arm
         return out
 
 

@@ -39,7 +39,7 @@ Z95 = 1.959963984540054
 
 Actor = Callable[[dict[str, np.ndarray], np.ndarray], np.ndarray]
 """``actor(obs, steps) -> actions``: observations (n, ...) and each env's frame index (n,) to
-actions (n, 8)."""
+actions (n, A): A = 8 (fixed base) or 11 (mobile: + base target)."""
 
 
 @dataclass
@@ -107,8 +107,10 @@ def plan_actions(targets: np.ndarray, per_frame: int) -> np.ndarray:
 def scripted_actor(jobs: list[Job]) -> Actor:
     """Plays each job's ``actions``; past their end the last action is held."""
 
+    width = next((j.actions.shape[1] for j in jobs if j.actions is not None), 8)
+
     def act(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
-        out = np.zeros((len(steps), 8), np.float32)
+        out = np.zeros((len(steps), width), np.float32)
         for i, job in enumerate(jobs):
             if job.actions is not None and len(job.actions):
                 out[i] = job.actions[min(int(steps[i]), len(job.actions) - 1)]
@@ -162,7 +164,7 @@ def run_batch(
             obs = env.observations()
             actions = np.asarray(actor(obs, env.steps), np.float32)
             if len(actions) < env.num_envs:
-                pad = np.zeros((env.num_envs - len(actions), 8), np.float32)
+                pad = np.zeros((env.num_envs - len(actions), actions.shape[1]), np.float32)
                 actions = np.concatenate([actions, pad])
             running = ~env.done
             env.step(actions)
@@ -171,11 +173,15 @@ def run_batch(
                     frames[i].append(env.render(i))
         for i in runnable:
             r = env.result(i)
-            records[i] = _record(jobs[i], r["success"], r["reason"], r["steps"])
+            records[i] = _record(jobs[i], r["success"], r["reason"], r["steps"], r.get("record"))
     return [r for r in records if r is not None], frames
 
 
-def _record(job: Job, success: bool, reason: str, steps: int) -> dict[str, Any]:
+def _record(
+    job: Job, success: bool, reason: str, steps: int, extra: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """An episode's line of ``episodes.jsonl``; ``extra``: the env's own fields (the mobile
+    env's ``subtask`` reached and ``subtasks_done``)."""
     return {
         "scene": job.scene,
         "seed": job.seed,
@@ -184,6 +190,7 @@ def _record(job: Job, success: bool, reason: str, steps: int) -> dict[str, Any]:
         "success": bool(success),
         "reason": "" if success else (reason or "timeout"),
         "steps": int(steps),
+        **(extra or {}),
     }
 
 
@@ -250,6 +257,9 @@ def summarize(
         s["success_rate"] = s["successes"] / s["episodes"]
         s["ci95"] = list(wilson(s["successes"], s["episodes"]))
     failures = Counter(r["reason"] for r in records if not r["success"])
+    extra = dict(extra or {})
+    if any("subtasks_done" in r for r in records):
+        extra["per_subtask"] = per_subtask(records)
     seeds: dict[str, list[int]] = {}
     for r in records:
         seeds.setdefault(r["scene"], []).append(int(r["seed"]))
@@ -266,8 +276,32 @@ def summarize(
         "seeds": {s: sorted(v) for s, v in sorted(seeds.items())},
         "training_data": training_data,
         "seconds": seconds,
-        **(extra or {}),
+        **extra,
     }
+
+
+def per_subtask(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per sub-task of the mobile task (in order): episodes that began it (``started``), that
+    completed it (``completed``), its success rate among those that began it with the Wilson
+    95 % interval, and the share of all episodes that completed it (``of_all``). A record's
+    ``subtasks_done`` counts the sub-tasks it completed (4 on success; failed planner
+    episodes count 0)."""
+    from factory.dataset.mobile_features import MOBILE_SUBTASKS
+
+    n = len(records)
+    done = [int(r.get("subtasks_done", 0)) for r in records]
+    out: dict[str, dict[str, Any]] = {}
+    for k, name in enumerate(MOBILE_SUBTASKS):
+        started = sum(1 for d in done if d >= k)
+        completed = sum(1 for d in done if d >= k + 1)
+        out[name] = {
+            "started": started,
+            "completed": completed,
+            "success_rate": completed / started if started else 0.0,
+            "ci95": list(wilson(completed, started)),
+            "of_all": completed / n if n else 0.0,
+        }
+    return out
 
 
 def write_video(path: Path, frames: list[np.ndarray], fps: float) -> None:

@@ -7,6 +7,11 @@ drawn by the demos' sampler from evaluation seeds (:func:`factory.policy.env.eva
 disjoint from the demos' seeds). ``replay`` instead runs every recorded episode of the dataset
 from its recorded initial MuJoCo state with its recorded actions.
 
+The mobile task (``task=mobile_pick_place``, a mobile dataset or a policy trained on one) runs
+in :class:`~factory.policy.mobile_env.MobileVecEnv` instead: the demos' planner's spawn per
+seed, 11-D actions (arm, gripper, base target), sub-tasks advanced by the env's own checks,
+and ``per_subtask`` results besides the rest.
+
 Writes ``eval/<policy>/``: ``episodes.jsonl`` (one line per finished episode; a re-run skips
 them, so a killed evaluation resumes), ``results.json`` and ``videos/*.mp4``. Bad input (an
 unknown policy, a run without held-out scenes, a checkpoint whose features the env cannot
@@ -20,6 +25,7 @@ import logging
 import os
 import shutil
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -56,26 +62,40 @@ def check_config(ec: Any) -> None:
 
 
 MOBILE_TASK = "mobile_pick_place"
-NO_MOBILE_ENV = (
-    "stage=eval has no mobile env yet: the closed-loop env (factory.policy.env) simulates the "
-    "fixed-base Panda only, and a mobile one (base target + arm joint targets + gripper as the "
-    "action, the five cameras, the sub-task as an observation, check_mobile_success as the "
-    "success check) is not written. Mobile policies can be trained (stage=train) but not "
-    "rolled out; evaluate fixed-base runs (task=pick_place) only"
+SUBTASK_RULE = (
+    "the env's own check (factory.policy.mobile_env.SubtaskRule): a drive ends when the base "
+    "has rested 0.2 s within reach of the object / of the place support's top, the pick when "
+    "the object is held, lifted >= 3 cm and the tool is in the carry posture"
 )
 
 
-def refuse_mobile(task: str, meta: dict[str, Any] | None, features: Any = None) -> None:
-    """Raises :class:`PolicyError` (:data:`NO_MOBILE_ENV`) for a mobile task, a mobile dataset
-    (``meta/factory.json`` layout) or a policy trained on one (it reads ``subtask_index``)."""
+def mobile_evaluation(task: str, meta: dict[str, Any] | None, features: Any = None) -> bool:
+    """Whether an evaluation is of the mobile task: ``task=mobile_pick_place``, a mobile
+    dataset (``meta/factory.json`` layout) or a policy trained on one (it reads
+    ``subtask_index``).
+
+    Raises:
+        PolicyError: a fixed-base policy or dataset with a mobile one (the envs differ).
+    """
     from factory.dataset.mobile_features import MOBILE, SUBTASK_KEY, meta_layout
 
-    if task == MOBILE_TASK:
-        raise PolicyError(f"task={task}: {NO_MOBILE_ENV}")
-    if meta is not None and meta_layout(meta) == MOBILE:
-        raise PolicyError(f"the dataset holds mobile episodes: {NO_MOBILE_ENV}")
-    if features is not None and SUBTASK_KEY in features:
-        raise PolicyError(f"the policy was trained on a mobile dataset: {NO_MOBILE_ENV}")
+    data = None if meta is None else meta_layout(meta) == MOBILE
+    policy = None if features is None else SUBTASK_KEY in features
+    if data is not None and policy is not None and data != policy:
+        which = "a mobile" if policy else "a fixed-base"
+        raise PolicyError(
+            f"the policy was trained on {which} dataset, but the evaluation's dataset is "
+            f"{'mobile' if data else 'fixed-base'}: pass eval.dataset=<the dataset it was "
+            "trained on>, or evaluate a policy trained on this run's dataset"
+        )
+    mobile = task == MOBILE_TASK or bool(data) or bool(policy)
+    if mobile and (data is False or policy is False):
+        raise PolicyError(
+            f"task={task} is the mobile task, but the "
+            f"{'dataset' if data is False else 'policy'} is of the fixed-base robot: evaluate "
+            "it with task=pick_place, or train a policy on a mobile dataset"
+        )
+    return mobile
 
 
 # ---- the dataset
@@ -313,7 +333,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
         summarize,
     )
     from factory.policy.eval_units import UnitSettings, make_units, run_units
-    from factory.policy.vector_env import ObsSpec
 
     t0 = time.perf_counter()
     cfg = ctx.cfg
@@ -321,7 +340,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
     check_config(ec)
     if ctx.shard.count > 1:
         raise ConfigError("stage=eval runs in one process: drop shard.index/shard.count")
-    refuse_mobile(str(cfg.task), None)
     store = ctx.require_store()
     run_dir = store.root
     ref = _policy_ref(cfg)
@@ -330,7 +348,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
     policy = None
     if kind == "trained":
         policy = _load_trained(ref, run_dir, ec.device)
-        refuse_mobile(str(cfg.task), None, policy.info.features)
         name = slug(policy.info.name)
         dataset = Path(ec.dataset or policy.info.dataset)
         train_scenes = list(policy.info.scenes)
@@ -354,7 +371,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
     if ec.name:
         name = slug(str(ec.name))
     meta = _dataset_meta(dataset)
-    refuse_mobile(str(cfg.task), meta)
+    mobile = mobile_evaluation(
+        str(cfg.task), meta, policy.info.features if policy is not None else None
+    )
     run_scenes = store.scene_ids()
     listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]
     if listed is not None:
@@ -394,17 +413,27 @@ def run(ctx: StageContext) -> dict[str, Any]:
     longest = max((e["n_frames"] for e in meta["episodes"]), default=0) if meta else 0
     max_steps = ec.max_steps or (int(1.5 * longest) if longest else DEFAULT_MAX_STEPS)
     # what the env observes
-    if meta is not None:
+    run_spec: Any
+    if mobile:
+        from factory.policy.mobile_env import obs_spec_of_mobile_dataset, obs_spec_of_mobile_demos
+
+        if meta is not None:
+            run_spec = obs_spec_of_mobile_dataset(dataset)
+        else:
+            run_spec = obs_spec_of_mobile_demos(cfg.demos)
+    elif meta is not None:
         run_spec = obs_spec_of_dataset(dataset, env_state=True)
     else:
         run_spec = obs_spec_of_demos(cfg.demos, env_state=True)
     if policy is not None:
         spec = _spec_for_policy(policy.info, run_spec, ec.env_state)
     else:
-        spec = ObsSpec(run_spec.fps, (), run_spec.width, run_spec.height, False, ec.env_state)
+        spec = replace(run_spec, cameras=(), depth=False, env_state=ec.env_state)
     # resume
     out = run_dir / "eval" / name
     identity = _identity(kind, name, ref, ec, dataset, policy)
+    if mobile:
+        identity["task"] = MOBILE_TASK
     _prepare_out(out, identity, cfg.force)
     episodes_path = out / "episodes.jsonl"
     drop_torn_records(episodes_path)
@@ -441,6 +470,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         demos=cfg.demos,
         videos_dir=videos_dir,
         reseed_stride=RESEED_STRIDE,
+        mobile=mobile,
     )
     with tqdm(
         total=len(jobs),
@@ -473,6 +503,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
             "max_steps": max_steps,
             "controller": "interpolate" if ec.interpolate else "hold",
             "seed_root": ec.seed,
+            **({"task": MOBILE_TASK, "subtask_rule": SUBTASK_RULE} if mobile else {}),
             "seed_rule": "replay: the recorded episodes' seeds"
             if kind == "replay"
             else "factory.policy.env.eval_seed(root, scene, k) = 2**32 + sha256 "

@@ -43,6 +43,8 @@ class UnitSettings:
         demos: the run's demos settings (``cfg.demos``).
         videos_dir: where rollout videos go.
         reseed_stride: stride of :func:`usable_seed`'s retries.
+        mobile: the mobile task (:class:`~factory.policy.mobile_env.MobileVecEnv`), else the
+            fixed-base pick-and-place env.
     """
 
     run_dir: Path
@@ -56,6 +58,7 @@ class UnitSettings:
     demos: Any
     videos_dir: Path
     reseed_stride: int
+    mobile: bool = False
 
 
 @dataclass
@@ -159,9 +162,16 @@ class UnitRunner:
         if self._key != (scene, size):
             self.close()
             s = self.s
-            self._env, self._planner = make_vec_env(
-                s.run_dir, scene, size, s.spec, s.max_steps, s.nthread, s.interpolate, s.demos
-            )
+            if s.mobile:
+                from factory.policy.mobile_env import make_mobile_vec_env
+
+                self._env, self._planner = make_mobile_vec_env(
+                    s.run_dir, scene, size, s.spec, s.max_steps, s.interpolate, s.demos
+                )
+            else:
+                self._env, self._planner = make_vec_env(
+                    s.run_dir, scene, size, s.spec, s.max_steps, s.nthread, s.interpolate, s.demos
+                )
             self._key = (scene, size)
         return self._env, self._planner
 
@@ -173,7 +183,8 @@ class UnitRunner:
         try:
             env, planner = self._env_for(unit.scene, unit.size)
             if s.kind == "replay":
-                check_base(unit.scene, unit.base, env.setup.placement)
+                if not s.mobile:  # a mobile episode's recorded state holds the base pose
+                    check_base(unit.scene, unit.base, env.setup.placement)
             else:
                 for j in unit.jobs:
                     j.seed = usable_seed(env, j.seed, s.reseed_stride)

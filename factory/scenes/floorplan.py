@@ -1,15 +1,28 @@
-"""Floor plans: the rooms of a request (single or multi-room with doors) and their materials."""
+"""Floor plans: the rooms of a request (one room, or a home laid out in two dimensions by
+:mod:`factory.scenes.plan_layout`), their walls, doors, windows and materials."""
 
 from __future__ import annotations
 
 import hashlib
-import itertools
 import logging
 import re
 from typing import Any
 
 import numpy as np
 
+from factory.scenes.plan_layout import (
+    DOOR_MARGIN,
+    DOOR_WIDTH,
+    SIDES,
+    TOL,
+    Box,
+    FloorPlanError,
+    PlanLayout,
+    Segment,
+    outer_segments,
+    plan_layout,
+    with_circulation,
+)
 from factory.scenes.request import parse_request
 from factory.scenes.rooms import ROOM_TYPES
 from factory.schema import Door, Room, Scene, Size3, Vec3, Wall, Window, check_id
@@ -23,22 +36,21 @@ _NO_SURFACE_WORDS = frozenset({"clean", "spotless", "pristine", "brand-new", "br
 def _room(
     rid: str,
     rt_name: str,
-    x0: float,
-    width: float,
-    length: float,
+    box: Box,
     height: float,
     rng: np.random.Generator,
     condition: str = "",
 ) -> Room:
-    """One rectangular room; ``condition`` (the request's condition words, "dusty old") goes
-    before its floor and wall materials, which the compiler's textures read."""
+    """One rectangular room on ``box`` (its four walls counter-clockwise from the south one);
+    ``condition`` (the request's condition words, "dusty old") goes before its floor and wall
+    materials, which the compiler's textures read. Doors and windows come later."""
     rt = ROOM_TYPES[rt_name]
 
     def worn(material: str) -> str:
         return f"{condition} {material}" if condition else material
 
-    pts = [(x0, 0.0), (x0 + width, 0.0), (x0 + width, length), (x0, length)]
-    names = ["south", "east", "north", "west"]
+    x0, y0 = box.x0, box.y0
+    pts = [(x0, y0), (box.x1, y0), (box.x1, box.y1), (x0, box.y1)]
     walls = [
         Wall(
             id=f"{rid}_{n}",
@@ -47,36 +59,123 @@ def _room(
             height=height,
             material=worn(str(rng.choice(rt.walls))),
         )
-        for i, n in enumerate(names)
+        for i, n in enumerate(SIDES)
     ]
-    north = walls[2]
     return Room(
         id=rid,
         room_type=rt_name,
-        position=Vec3(x0, 0, 0),
-        dimensions=Size3(width, length, height),
+        position=Vec3(x0, y0, 0),
+        dimensions=Size3(box.width, box.length, height),
         walls=walls,
-        windows=[
-            Window(
-                id=f"{rid}_window",
-                wall_id=north.id,
-                position_on_wall=0.5,
-                width=min(1.4, 0.4 * north.length),
-                height=1.2,
-                sill_height=0.9,
-            )
-        ],
         floor_material=worn(str(rng.choice(rt.floors))),
         ceiling_height=height,
     )
 
 
+def _at(room: Room, seg: Segment, t: float) -> tuple[str, float]:
+    """The wall of ``room`` that holds ``seg``, and the ``position_on_wall`` (0..1 from the
+    wall's start) of the point at fraction ``t`` of ``seg`` (from its low end).
+
+    Raises:
+        FloorPlanError: no wall of the room holds the segment.
+    """
+    for wall in room.walls:
+        sx, sy, ex, ey = wall.start.x, wall.start.y, wall.end.x, wall.end.y
+        along_x = abs(sy - ey) < TOL
+        if (seg.axis == "x") != along_x or abs((sy if along_x else sx) - seg.at) > TOL:
+            continue
+        a, b = (sx, ex) if along_x else (sy, ey)
+        if seg.lo < min(a, b) - TOL or seg.hi > max(a, b) + TOL:
+            continue
+        fa, fb = (seg.lo - a) / (b - a), (seg.hi - a) / (b - a)
+        if abs(fa) < TOL:
+            fa = 0.0
+        if abs(fb - 1.0) < TOL:
+            fb = 1.0
+        if abs(fa - 1.0) < TOL:  # the wall runs against the segment
+            fa = 1.0
+        if abs(fb) < TOL:
+            fb = 0.0
+        if (fa, fb) == (0.0, 1.0):  # exact for a whole wall, either way round
+            pos = t
+        elif (fa, fb) == (1.0, 0.0):
+            pos = 1.0 - t
+        else:
+            pos = fa + t * (fb - fa)
+        return wall.id, min(1.0, max(0.0, pos))
+    raise FloorPlanError(f"no wall of room {room.id!r} holds the wall segment {seg}")
+
+
+def _doors(rooms: list[Room], plan: PlanLayout, rng: np.random.Generator) -> None:
+    """The entrance (on an outer wall of the plan's entrance room) and a door in both rooms
+    of each link, at a random place of the wall they share (a wide opening in the middle)."""
+    first = rooms[plan.entrance_room]
+    wall_id, pos = _at(first, plan.entrance, float(rng.uniform(0.3, 0.7)))
+    first.doors.append(
+        Door(
+            id=f"{first.id}_entrance", wall_id=wall_id, position_on_wall=pos, width=0.9, height=2.1
+        )
+    )
+    for link in plan.links:
+        p = float(rng.uniform(0.3, 0.7))
+        seg = link.segment
+        if link.wide:
+            p = 0.5
+        else:  # keep the door off the ends of the shared wall
+            half = (DOOR_WIDTH / 2 + DOOR_MARGIN) / seg.length
+            p = min(max(p, half), 1.0 - half)
+        for k, j in ((link.a, link.b), (link.b, link.a)):
+            wall_id, pos = _at(rooms[k], seg, p)
+            rooms[k].doors.append(
+                Door(
+                    id=f"{rooms[k].id}_to_{rooms[j].id}",
+                    wall_id=wall_id,
+                    position_on_wall=pos,
+                    width=link.width,
+                    height=2.1,
+                    door_type="opening" if link.wide else "standard",
+                    opening=True,
+                )
+            )
+
+
+def _windows(rooms: list[Room], plan: PlanLayout) -> None:
+    """A window per room, in the middle of its longest outer wall piece (north first, then
+    south, east, west), never on the entrance's wall piece; a room with no outer wall piece
+    of 1 m or more gets none."""
+    for k, room in enumerate(rooms):
+        for side in ("north", "south", "east", "west"):
+            pieces = [
+                s
+                for s in outer_segments(k, plan.boxes, side)
+                if s.length >= 1.0 and not (k == plan.entrance_room and s == plan.entrance)
+            ]
+            if not pieces:
+                continue
+            seg = max(pieces, key=lambda s: s.length)
+            wall_id, pos = _at(room, seg, 0.5)
+            room.windows.append(
+                Window(
+                    id=f"{room.id}_window",
+                    wall_id=wall_id,
+                    position_on_wall=pos,
+                    width=min(1.4, 0.4 * seg.length),
+                    height=1.2,
+                    sill_height=0.9,
+                )
+            )
+            break
+
+
 def init_scene(
     request: str, seed: int = 0, scene_id: str | None = None, room_type: str | None = None
 ) -> tuple[Scene, dict[str, Any]]:
-    """Builds the empty floor plan for the request: one room, or several in a row joined by
-    doors for a home (:func:`~.request.parse_request` reads which); sizes, materials, walls,
-    doors, windows. ``info["request"]`` is the parsed request's summary (language, rooms,
+    """Builds the empty floor plan for the request: one room, or a home
+    (:func:`~.request.parse_request` reads which; two rooms side by side, three or more around
+    a hallway or the living room, :func:`~.plan_layout.plan_layout`); sizes, materials,
+    walls, doors (an entrance on an outer wall, one where rooms meet), windows on outer
+    walls. ``info["rooms"]`` lists the rooms with their zone, ``info["plan"]`` the plan's
+    kind. ``info["request"]`` is the parsed request's summary (language, rooms,
     style, condition words, materials, translations, warnings).
 
     Raises:
@@ -94,53 +193,22 @@ def init_scene(
     height = 2.7
     # condition words weather the rooms too ("clean" is no weathering)
     condition = " ".join(w for w in parsed.condition_words if w not in _NO_SURFACE_WORDS)
+    types = with_circulation(types)
     sizes = []
     for t in types:
         (w0, w1), (l0, l1) = ROOM_TYPES[t].size
         sizes.append((forced_width or float(rng.uniform(w0, w1)), float(rng.uniform(l0, l1))))
-    length = max(ln for _, ln in sizes) if len(types) > 1 else sizes[0][1]
+    plan = plan_layout(types, sizes)
     rooms: list[Room] = []
-    x = 0.0
     used: dict[str, int] = {}
-    for t, (width, _) in zip(types, sizes, strict=True):
+    for t, box in zip(types, plan.boxes, strict=True):
         base = re.sub(r"[^a-z0-9]+", "_", t).strip("_") or "room"
         used[base] = used.get(base, 0) + 1
         rid = check_id(base if used[base] == 1 else f"{base}_{used[base]}", "room id")
-        rooms.append(_room(rid, t, x, width, length, height, rng, condition))
-        x += width
-    # doors: an entrance on the first room's south wall, and one in each shared wall
+        rooms.append(_room(rid, t, box, height, rng, condition))
+    _windows(rooms, plan)
+    _doors(rooms, plan, rng)
     first = rooms[0]
-    first.doors.append(
-        Door(
-            id=f"{first.id}_entrance",
-            wall_id=first.walls[0].id,
-            position_on_wall=float(rng.uniform(0.3, 0.7)),
-            width=0.9,
-            height=2.1,
-        )
-    )
-    for a, b in itertools.pairwise(rooms):
-        p = float(rng.uniform(0.3, 0.7))
-        a.doors.append(
-            Door(
-                id=f"{a.id}_to_{b.id}",
-                wall_id=a.walls[1].id,
-                position_on_wall=p,
-                width=0.9,
-                height=2.1,
-                opening=True,
-            )
-        )
-        b.doors.append(
-            Door(
-                id=f"{b.id}_to_{a.id}",
-                wall_id=b.walls[3].id,
-                position_on_wall=1.0 - p,
-                width=0.9,
-                height=2.1,
-                opening=True,
-            )
-        )
     digest = hashlib.sha1(f"{request}|{seed}".encode()).hexdigest()[:8]
     sid = scene_id or f"{first.id}_{digest}"
     scene = Scene(
@@ -159,10 +227,13 @@ def init_scene(
                 "id": r.id,
                 "room_type": r.room_type,
                 "size_m": [round(r.dimensions.width, 2), round(r.dimensions.length, 2)],
+                "zone": zone,
             }
-            for r in rooms
+            for r, zone in zip(rooms, plan.zones, strict=True)
         ],
         "size_m": [round(first.dimensions.width, 2), round(first.dimensions.length, 2)],
+        "plan": plan.kind,
+        "entrance_room": rooms[plan.entrance_room].id,
         "floor": first.floor_material,
         "request": parsed.summary(),
     }

@@ -1,10 +1,22 @@
-"""Scene renders for people: a top-down view and four corner views (PNG).
+"""Scene renders for people: a top-down view, a plan view, corner views and a view per room
+(PNG).
 
-Cameras are free cameras computed from the scene (no camera is added to the model): the top
-view looks straight down on the whole floor plan; corner view ``k`` stands in corner ``k`` of
-the scene's footprint (0: min x/min y, then counter-clockwise), near the ceiling, looking at the
-centre of the floor. MuJoCo's offscreen renderer draws them with the model's lights and
-materials, on EGL (GPU or Mesa) or OSMesa (see :mod:`factory.sim.gl`).
+Cameras are free cameras computed from the scene (no camera is added to the model):
+
+* ``top`` looks straight down on the whole floor plan (perspective);
+* ``plan`` is an orthographic view straight down on the whole plan (x to the right, y up; the
+  ceilings are hidden while it is drawn), the home's floor plan;
+* ``corner_k`` stands inside a room, in its corner ``k`` (0: min x/min y, then
+  counter-clockwise), near the ceiling, looking at the centre of that room's floor; the room
+  is the one whose corner ``k`` is nearest to corner ``k`` of the whole plan, so in a one-room
+  scene these are the room's four corners and in a home they look into the rooms at the
+  home's corners, never across a wall;
+* ``room_<room id>`` (homes of two rooms or more; ``rooms`` selects them all) stands in the
+  corner of that room nearest to its first door where no tall object (a wardrobe) stands
+  within 1 m, looking at the centre of its floor.
+
+MuJoCo's offscreen renderer draws them with the model's lights and materials, on EGL (GPU or
+Mesa) or OSMesa (see :mod:`factory.sim.gl`).
 """
 
 from __future__ import annotations
@@ -14,7 +26,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from factory.errors import RenderError
-from factory.schema import Scene
+from factory.schema import Room, Scene
 from factory.sim.gl import configure_gl
 from factory.sim.images import contact_sheet, png_bytes
 
@@ -24,17 +36,29 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 VIEWS: tuple[str, ...] = ("top", "corner_0", "corner_1", "corner_2", "corner_3")
+"""The five standard views of every scene (the tools' ``render_views`` and the VLM critic)."""
+PLAN = "plan"
+"""The orthographic plan view."""
+ROOMS = "rooms"
+"""Selects every ``room_<id>`` view of a scene."""
+ROOM_PREFIX = "room_"
+HIDDEN_GROUP = 5
+"""The geom group the plan view leaves out (MuJoCo's last; the ceilings while it draws)."""
+EYE_INSET = 0.25
+"""How far a corner camera stands from the walls' centre lines (m): inside the room."""
 
 
 @dataclass(frozen=True)
 class ViewCamera:
-    """A free camera: look-at point (m, world), distance (m), azimuth/elevation (deg), fovy."""
+    """A free camera: look-at point (m, world), distance (m), azimuth/elevation (deg), fovy
+    (deg; for an ``orthographic`` camera the height of the view, m)."""
 
     lookat: tuple[float, float, float]
     distance: float
     azimuth: float
     elevation: float
     fovy: float
+    orthographic: bool = False
 
     def mjv(self) -> mujoco.MjvCamera:
         cam = mujoco.MjvCamera()
@@ -43,6 +67,7 @@ class ViewCamera:
         cam.distance = self.distance
         cam.azimuth = self.azimuth
         cam.elevation = self.elevation
+        cam.orthographic = int(self.orthographic)
         return cam
 
 
@@ -54,8 +79,43 @@ def _looking(eye: Sequence[float], target: Sequence[float], fovy: float) -> View
     return ViewCamera(tuple(float(v) for v in target), dist, az, el, fovy)  # type: ignore[arg-type]
 
 
+def room_view(room_id: str) -> str:
+    """The name of a room's view."""
+    return f"{ROOM_PREFIX}{room_id}"
+
+
+def scene_views(scene: Scene) -> tuple[str, ...]:
+    """Every view a scene has: the standard five, ``plan``, and one per room in a home."""
+    rooms = tuple(room_view(r.id) for r in scene.rooms) if len(scene.rooms) > 1 else ()
+    return (*VIEWS, PLAN, *rooms)
+
+
+def _corners(room: Room) -> list[tuple[float, float]]:
+    """A room's corners, counter-clockwise from min x/min y, ``EYE_INSET`` inside (m)."""
+    x0, y0 = room.position.x, room.position.y
+    x1, y1 = x0 + room.dimensions.width, y0 + room.dimensions.length
+    i = min(EYE_INSET, room.dimensions.width / 4, room.dimensions.length / 4)
+    return [(x0 + i, y0 + i), (x1 - i, y0 + i), (x1 - i, y1 - i), (x0 + i, y1 - i)]
+
+
+def _inside(room: Room, eye: tuple[float, float], eye_z: float) -> ViewCamera:
+    cx = room.position.x + room.dimensions.width / 2
+    cy = room.position.y + room.dimensions.length / 2
+    return _looking((eye[0], eye[1], eye_z), (cx, cy, 0.45), 70.0)
+
+
+def _door_point(room: Room) -> tuple[float, float] | None:
+    walls = {w.id: w for w in room.walls}
+    for door in room.doors:
+        w = walls.get(door.wall_id)
+        if w is not None:
+            t = door.position_on_wall
+            return (w.start.x + (w.end.x - w.start.x) * t, w.start.y + (w.end.y - w.start.y) * t)
+    return None
+
+
 def view_cameras(scene: Scene, aspect: float = 4 / 3) -> dict[str, ViewCamera]:
-    """The five standard cameras of a scene.
+    """The cameras of a scene: every view of :func:`scene_views`.
 
     Args:
         scene: the scene (its rooms' footprints and ceiling heights frame the views).
@@ -68,17 +128,57 @@ def view_cameras(scene: Scene, aspect: float = 4 / 3) -> dict[str, ViewCamera]:
     half_h = max((ymax - ymin) / 2, (xmax - xmin) / 2 / aspect) * 1.08 + 0.2
     dist_top = half_h / math.tan(math.radians(fovy_top / 2)) + height
     cams = {"top": ViewCamera((cx, cy, 0.0), dist_top, 90.0, -89.99, fovy_top)}
-    inset = 0.25
     eye_z = max(1.2, min(height - 0.25, 2.4))
-    corners = [
-        (xmin + inset, ymin + inset),
-        (xmax - inset, ymin + inset),
-        (xmax - inset, ymax - inset),
-        (xmin + inset, ymax - inset),
-    ]
-    for k, (ex, ey) in enumerate(corners):
-        cams[f"corner_{k}"] = _looking((ex, ey, eye_z), (cx, cy, 0.45), 70.0)
+    box = [(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)]
+    for k, (bx, by) in enumerate(box):
+        room = min(
+            scene.rooms,
+            key=lambda r: math.hypot(_corners(r)[k][0] - bx, _corners(r)[k][1] - by),
+        )
+        cams[f"corner_{k}"] = _inside(room, _corners(room)[k], eye_z)
+    cams[PLAN] = ViewCamera((cx, cy, 0.0), height + 10.0, 90.0, -90.0, 2 * half_h, True)
+    if len(scene.rooms) > 1:
+        for room in scene.rooms:
+            corners = _corners(room)
+            room_eye_z = max(1.2, min(room.ceiling_height - 0.25, 2.4))
+            door = _door_point(room)
+            order = sorted(range(4), key=lambda j: math.dist(corners[j], door) if door else j)
+            free = [j for j in order if not _blocked(scene, room, corners[j], room_eye_z)]
+            cams[room_view(room.id)] = _inside(room, corners[(free or order)[0]], room_eye_z)
     return cams
+
+
+def _blocked(scene: Scene, room: Room, eye: tuple[float, float], eye_z: float) -> bool:
+    """Whether a tall object (its top within 0.6 m of the eye's height) stands within 1 m of
+    the eye: a wardrobe in the corner would fill the view."""
+    return any(
+        o.room_id == room.id
+        and o.position.z + o.dimensions.height > eye_z - 0.6
+        and math.dist((o.position.x, o.position.y), eye) < 1.0
+        for o in scene.objects
+    )
+
+
+def expand_views(scene: Scene, views: Sequence[str]) -> list[str]:
+    """The views named, with ``rooms`` replaced by the scene's room views (none in a
+    one-room scene); duplicates dropped.
+
+    Raises:
+        RenderError: a view the scene does not have.
+    """
+    known = scene_views(scene)
+    out: list[str] = []
+    for v in views:
+        names = [n for n in known if n.startswith(ROOM_PREFIX)] if v == ROOMS else [v]
+        for n in names:
+            if n not in known:
+                raise RenderError(
+                    f"unknown view {n!r} for scene {scene.id!r}: choose from "
+                    f"{[*VIEWS, PLAN, ROOMS]} or room_<room id> of a home's rooms"
+                )
+            if n not in out:
+                out.append(n)
+    return out
 
 
 def render_views(
@@ -90,15 +190,19 @@ def render_views(
 ) -> dict[str, np.ndarray]:
     """Renders the named views of a compiled scene at its initial state.
 
+    Args:
+        model: the compiled scene.
+        scene: the scene (the cameras are computed from its rooms).
+        views: view names (:func:`scene_views`), ``rooms`` for every room view.
+        width, height: image size (px).
+
     Returns:
         ``view -> (height, width, 3) uint8`` RGB image.
 
     Raises:
         RenderError: unknown view, or no OpenGL context could be made.
     """
-    unknown = [v for v in views if v not in VIEWS]
-    if unknown:
-        raise RenderError(f"unknown view(s) {unknown}: choose from {list(VIEWS)}")
+    views = expand_views(scene, views)
     size = max(width, height)
     if model.vis.global_.offwidth < width or model.vis.global_.offheight < height:
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, size)
@@ -116,14 +220,28 @@ def render_views(
         ) from None
     images = {}
     fovy0 = float(model.vis.global_.fovy)
+    ortho0 = int(model.vis.global_.orthographic)
+    ceilings = [
+        g
+        for g in range(model.ngeom)
+        if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "").endswith("/ceiling")
+    ]
+    group0 = model.geom_group[ceilings].copy()
+    hide = mujoco.MjvOption()
+    hide.geomgroup[HIDDEN_GROUP] = 0
     try:
         for view in views:
             cam = cams[view]
             model.vis.global_.fovy = cam.fovy
-            renderer.update_scene(data, cam.mjv())
+            model.vis.global_.orthographic = int(cam.orthographic)
+            # a plan shows the rooms from above: its ceilings go to a group it does not draw
+            model.geom_group[ceilings] = HIDDEN_GROUP if cam.orthographic else group0
+            renderer.update_scene(data, cam.mjv(), hide if cam.orthographic else None)
             images[view] = renderer.render().copy()
     finally:
         model.vis.global_.fovy = fovy0
+        model.vis.global_.orthographic = ortho0
+        model.geom_group[ceilings] = group0
         renderer.close()
     return images
 
@@ -134,4 +252,16 @@ def mujoco_gl() -> str:
     return os.environ.get("MUJOCO_GL", "")
 
 
-__all__ = ["VIEWS", "ViewCamera", "contact_sheet", "png_bytes", "render_views", "view_cameras"]
+__all__ = [
+    "PLAN",
+    "ROOMS",
+    "VIEWS",
+    "ViewCamera",
+    "contact_sheet",
+    "expand_views",
+    "png_bytes",
+    "render_views",
+    "room_view",
+    "scene_views",
+    "view_cameras",
+]

@@ -13,7 +13,11 @@ from typing import Any
 from factory.schema.errors import SchemaError
 from factory.schema.scene import _check_version, _from_dict, check_id, to_dict
 
-EPISODE_SCHEMA_VERSION = 1
+EPISODE_SCHEMA_VERSION = 2
+"""Version of the episode metadata written now (2 added ``appearance``)."""
+
+READABLE_EPISODE_VERSIONS = (1, 2)
+"""Metadata versions this factory reads (a version-1 episode reads with ``appearance=None``)."""
 
 EPISODE_ARRAYS: dict[str, str] = {
     "time": "(F,) float64, s since the episode start",
@@ -41,6 +45,81 @@ class RobotBase:
 
 
 @dataclass
+class ObjectLook:
+    """How an episode changed a background object's look (or a room's floor or walls).
+
+    Attributes:
+        id: scene object id, or ``<room_id>/floor`` / ``<room_id>/walls``.
+        tint: factor on its colours (red, green, blue; 1 = unchanged), on top of its
+            materials' colours and textures.
+        material_from: id of the scene object whose materials (textures and colours) its
+            visual parts wear, part k taking that object's part k modulo its part count;
+            empty: its own.
+    """
+
+    id: str
+    tint: list[float]
+    material_from: str = ""
+
+
+@dataclass
+class LightLook:
+    """How an episode changed one light of the model.
+
+    Attributes:
+        name: the light's name in the model (``<room>/ceiling_<k>``, ``<object>/lamp``,
+            ``sun``).
+        offset: added to its position (m, its body's frame: the world for ceiling lights).
+        intensity: factor on its diffuse and specular intensity.
+        color: factor on its colour per channel (red, green, blue).
+    """
+
+    name: str
+    offset: list[float]
+    intensity: float
+    color: list[float]
+
+
+@dataclass
+class CameraLook:
+    """How an episode moved one recording camera from its rig pose.
+
+    Attributes:
+        name: recording camera (``left``, ``right``, ``wrist``).
+        offset: added to its position (m, the frame of the body it is mounted on: the world
+            for ``left``/``right``, the hand for ``wrist``).
+        rotation: rotation vector (deg, the camera's own frame) applied after its rig
+            orientation; its norm is the angle.
+    """
+
+    name: str
+    offset: list[float]
+    rotation: list[float]
+
+
+@dataclass
+class EpisodeAppearance:
+    """The appearance randomisation of one episode (``demos.appearance``): applying it to
+    the recording model (:func:`factory.demos.appearance.model_patch`) reproduces the images.
+
+    Attributes:
+        seed: seed it was drawn from (derived from the episode seed).
+        objects: changed background objects and room surfaces (the task objects and the
+            robot never change).
+        lights: changed lights.
+        cameras: moved recording cameras.
+        lights_off: lights switched off for the recording (those of the rooms the robot is
+            not in: OpenGL draws eight lights at most).
+    """
+
+    seed: int
+    objects: list[ObjectLook] = field(default_factory=list)
+    lights: list[LightLook] = field(default_factory=list)
+    cameras: list[CameraLook] = field(default_factory=list)
+    lights_off: list[str] = field(default_factory=list)
+
+
+@dataclass
 class EpisodeInfo:
     """Metadata of one recorded episode.
 
@@ -64,6 +143,12 @@ class EpisodeInfo:
         cleared: objects of the scene taken out to free the robot's base spot.
         frozen: objects out of the robot's reach that were simulated static (no free joint):
             ``state`` holds no coordinates for them.
+        appearance: the episode's appearance randomisation (``None``: recorded with the
+            scene's own look, by an executor without it, or before schema version 2).
+        route: the mobile task only: the route check's base poses the episode drove to
+            (``pick_pose``, ``place_pose``: x, y m, yaw rad, world frame), their indices in the
+            route's pose lists and the route's pose counts, grid cell (m) and footprint
+            (``factory.demos.mobile_plan.MobilePlanner.route_record``); empty otherwise.
     """
 
     episode_id: str
@@ -91,6 +176,8 @@ class EpisodeInfo:
     factory_version: str = ""
     cleared: list[str] = field(default_factory=list)
     frozen: list[str] = field(default_factory=list)
+    route: dict[str, Any] = field(default_factory=dict)
+    appearance: EpisodeAppearance | None = None
     schema_version: int = EPISODE_SCHEMA_VERSION
 
 
@@ -102,10 +189,14 @@ def episode_info_to_dict(info: EpisodeInfo) -> dict[str, Any]:
 def episode_info_from_dict(data: Any) -> EpisodeInfo:
     """Reads episode metadata, checking its version and fields.
 
+    Version-1 metadata (before ``appearance``) reads as version 2 without it.
+
     Raises:
         SchemaVersionError: missing or unsupported ``schema_version``.
         SchemaError: malformed content.
     """
+    if isinstance(data, dict) and data.get("schema_version") == 1 and "appearance" not in data:
+        data = {**data, "schema_version": EPISODE_SCHEMA_VERSION}
     _check_version(
         data,
         "episode metadata",

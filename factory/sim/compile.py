@@ -7,6 +7,9 @@ What a compiled scene holds:
   in windows, and optionally a ceiling; floors, walls and ceilings are textured by their
   material text (:mod:`factory.textures`: "oak" is a plank floor, "dusty oak" a dusty one),
   the images cached in ``<assets>/textures/``;
+* lights (:mod:`factory.sim.lights`): spot lights under the ceiling of every room (one or
+  more by its size, with shadows), a warm light in every lamp, a weak directional fill and a
+  soft headlight;
 * one body per object, named by the object's id, at its bottom centre
   (``pos_obj_in_world``) with its rotation: a free joint unless the object is static
   (wall-mounted or ``physics.static``); geoms from the asset's convex collision parts (or, with
@@ -42,6 +45,7 @@ from factory.schema import (
     Window,
     load_asset_meta,
 )
+from factory.sim.lights import LightSpec, ceiling_lights, lamp_light
 from factory.sim.materials import (
     DEFAULT_FLOOR,
     DEFAULT_WALL,
@@ -102,6 +106,32 @@ class CompiledScene:
     assets_root: Path | None = None
 
 
+HEADLIGHT_AMBIENT = [0.2, 0.2, 0.2]
+"""Ambient light of the viewer's headlight (per channel): the fill of shadowed sides."""
+
+HEADLIGHT_DIFFUSE = [0.15, 0.15, 0.15]
+"""Diffuse light of the viewer's headlight (per channel)."""
+
+SUN_DIFFUSE = [0.2, 0.2, 0.19]
+"""The directional "sun": a weak fill from above at a slant, without shadows."""
+
+
+def _add_light(parent: mujoco.MjsBody, light: LightSpec) -> None:
+    """Adds a spot light (:mod:`factory.sim.lights`) to a body of the spec."""
+    parent.add_light(
+        name=light.name,
+        type=mujoco.mjtLightType.mjLIGHT_SPOT,
+        pos=list(light.pos),
+        dir=list(light.dir),
+        diffuse=list(light.diffuse),
+        specular=list(light.specular),
+        cutoff=light.cutoff,
+        exponent=light.exponent,
+        attenuation=list(light.attenuation),
+        castshadow=light.castshadow,
+    )
+
+
 def _yaw_quat(yaw: float) -> list[float]:
     return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
 
@@ -133,9 +163,11 @@ class _Builder:
         vis.global_.offwidth = self.options.offscreen_size
         vis.global_.offheight = self.options.offscreen_size
         vis.quality.shadowsize = 4096
-        vis.headlight.ambient = [0.35, 0.35, 0.35]
-        vis.headlight.diffuse = [0.45, 0.45, 0.45]
-        vis.headlight.specular = [0.1, 0.1, 0.1]
+        # The room's ceiling and lamp lights (factory.sim.lights) do most of the lighting; the
+        # headlight is a soft fill from the viewer so that shadowed sides are not black.
+        vis.headlight.ambient = HEADLIGHT_AMBIENT
+        vis.headlight.diffuse = HEADLIGHT_DIFFUSE
+        vis.headlight.specular = [0.05, 0.05, 0.05]
         vis.map.znear = 0.01
         tex = spec.add_texture(
             name="ground_tex",
@@ -162,9 +194,9 @@ class _Builder:
             type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
             pos=[cx, cy, 10.0],
             dir=[0.3, 0.2, -1.0],
-            diffuse=[0.55, 0.55, 0.52],
-            specular=[0.1, 0.1, 0.1],
-            castshadow=True,
+            diffuse=SUN_DIFFUSE,
+            specular=[0.05, 0.05, 0.05],
+            castshadow=False,
         )
 
     def material(self, key: str, name: str, default_rgba: tuple[float, ...] | None = None) -> str:
@@ -329,14 +361,8 @@ class _Builder:
                 material=self.material("wall/ceiling", "plaster"),
                 group=GROUP_ARCH,
             )
-        spec.worldbody.add_light(
-            name=f"{room.id}/light",
-            type=mujoco.mjtLightType.mjLIGHT_POINT,
-            pos=[x0 + w / 2, y0 + ln / 2, z0 + room.ceiling_height - 0.2],
-            diffuse=[0.35, 0.35, 0.33],
-            specular=[0.05, 0.05, 0.05],
-            castshadow=False,
-        )
+        for light in ceiling_lights(room):
+            _add_light(spec.worldbody, light)
         for wall in room.walls:
             openings: list[Door | Window] = [d for d in room.doors if d.wall_id == wall.id]
             openings += [w for w in room.windows if w.wall_id == wall.id]
@@ -393,6 +419,9 @@ class _Builder:
         )
         if not obj.is_static:
             body.add_freejoint(name=f"{obj.id}/free")
+        lamp = lamp_light(obj)
+        if lamp is not None:
+            _add_light(body, lamp)
         friction = [obj.physics.friction, TORSIONAL_FRICTION, ROLLING_FRICTION]
         rgba = tuple(obj.appearance.rgba) if obj.appearance.rgba else object_rgba(obj.category)
         meta = self._asset(obj)

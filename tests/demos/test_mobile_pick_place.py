@@ -185,6 +185,45 @@ def test_full_episode_succeeds_and_replays() -> None:
         assert np.array_equal(again.depth[c], rec.depth[c]), c
 
 
+def test_demo_drives_to_the_poses_the_route_check_verified() -> None:
+    """The route check (generation, validation) and the demos judge a scene on the same grid
+    with the same footprint and work poses: the demo's drives end at poses the check
+    verified, and the episode records which."""
+    from factory.nav.route import check_route
+
+    scene = _living_room()
+    verdict = check_route(scene)
+    assert verdict.ok and verdict.route is not None, verdict
+    route = verdict.route
+    setup = mobile_setup(scene)
+    assert setup.route is not None and setup.route.ok and setup.cleared == ()
+    # one grid: the scene compiled alone (the check) and with the robot (the demos)
+    assert setup.grid.resolution == route.grid.resolution
+    assert np.allclose(setup.grid.origin, route.grid.origin)
+    assert np.array_equal(setup.grid.occupied, route.grid.occupied)
+    assert setup.route.footprint == route.footprint and setup.route.carry == route.carry
+    planner = MobilePlanner(setup)
+    assert planner.carry_footprint == route.carry
+    assert verdict.route_pick_poses == len(route.route_picks()) > 0
+    for seed in (0, 1):
+        plan = planner.plan_episode(seed)
+        assert isinstance(plan, MobileEpisodePlan), plan
+        picks = route.route_picks()
+        i = route.pick_index(plan.pick_base)
+        assert i >= 0 and route.pick_poses[i] in picks  # a verified pick pose, to 1 um
+        goal = route.pick_poses[i]
+        assert np.allclose(plan.pick_base[:2], goal.xy, atol=1e-6)
+        assert goal in route.picks_from(plan.spawn)  # the lattice connects the spawn to it
+        j = route.place_index(plan.place_base)
+        assert j >= 0 and route.place_poses[j] in route.route_places(goal)
+        assert np.allclose(plan.place_base[:2], route.place_poses[j].xy, atol=1e-6)
+        # the plan names them (the episode's metadata ``route``)
+        assert (plan.route["pick_index"], plan.route["place_index"]) == (i, j)
+        assert np.allclose(plan.route["pick_pose"], goal.as_array(), atol=1e-6)
+        assert plan.route["resolution"] == route.grid.resolution
+        assert plan.route["route_pick_poses"] == len(picks)
+
+
 def test_enclosed_place_support_fails_with_nav_failed() -> None:
     setup = mobile_setup(_living_room(enclose_desk=True))
     result = MobilePlanner(setup).plan_episode(0)
@@ -219,6 +258,8 @@ def test_mobile_stage_cli(cli, tmp_path) -> None:
     info = store.info(eid)
     assert info.task == "mobile_pick_place" and info.success
     assert (info.pick_id, info.support_id, info.target_id) == ("can", "coffee_table", "desk")
+    assert info.route["pick_index"] >= 0 and info.route["place_index"] >= 0
+    assert len(info.route["pick_pose"]) == 3 and info.route["resolution"] == 0.05
     g = store.arrays(eid)
     n = info.n_frames
     assert g["action"].shape == (n, 11) and g["base_pose"].shape == (n, 3)

@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from factory.nav.errors import NavError
 from factory.nav.goals import BasePose
 from factory.nav.grid import OccupancyGrid
 from factory.nav.route import (
@@ -138,6 +139,31 @@ def test_route_through_the_door_passes() -> None:
     assert verdict.pick_poses > 0 and verdict.place_poses > 0
     assert verdict.spawn_area is not None and verdict.spawn_area > 5.0
     assert verdict.as_dict()["passed"] is True
+
+
+def test_the_route_keeps_the_poses_it_verified() -> None:
+    """The verdict carries its poses: every verified pick pose shares an SE(2) region with a
+    verified place pose; spawns are free poses from which the lattice reaches a pick pose; a
+    closed route verifies none and has nowhere to spawn."""
+    verdict = check_route(home())
+    route = verdict.route
+    assert route is not None and route.ok
+    picks, places = route.route_picks(), route.route_places()
+    assert (verdict.route_pick_poses, verdict.route_place_poses) == (len(picks), len(places))
+    assert picks and places and len(picks) <= verdict.pick_poses
+    for p in picks:
+        assert route.pick_index(p) >= 0 and route.route_places(p)
+        assert route.carry.free(route.grid, p.as_array())
+    assert "route" not in verdict.as_dict()  # the report keeps counts, not poses
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        spawn = route.random_spawn(rng)
+        assert route.footprint.free(route.grid, spawn.as_array())
+        assert route.picks_from(spawn)
+    closed = check_route(home(door=False)).route
+    assert closed is not None and closed.reason == NO_ROUTE and not closed.route_picks()
+    with pytest.raises(NavError):
+        closed.random_spawn(rng)
 
 
 def test_closed_wall_fails_with_no_route() -> None:

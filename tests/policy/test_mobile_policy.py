@@ -1,6 +1,7 @@
 """``stage=train`` on mobile pick-and-place datasets: the features map to the policy inputs
 (base pose in the state, the sub-task one-hot, the base target in the action), a training
-step runs and its samples equal lerobot's own; ``stage=eval`` refuses mobile data in one line."""
+step runs and its samples equal lerobot's own; ``stage=eval`` rolls a mobile policy out in the
+closed-loop mobile env (``factory.policy.mobile_env``)."""
 
 from __future__ import annotations
 
@@ -221,16 +222,84 @@ def test_mobile_policy_trains_and_its_samples_equal_lerobots_own(
     assert loaded.spec.mobile and SUBTASK_KEY in loaded.info.features
 
 
-def test_eval_refuses_mobile_in_one_line(mobile_dataset: Path) -> None:
-    """No mobile env exists: the task, a mobile dataset or a mobile policy is refused with
-    what is missing."""
-    from factory.policy.eval_stage import refuse_mobile
+def _ctx(run: Path, stage: str, **kw: Any) -> StageContext:
+    return StageContext(
+        FactoryConfig(stage=stage, run_dir=str(run), task="mobile_pick_place", **kw),
+        RunStore(run),
+        Shard(0, 1),
+    )
 
-    meta = json.loads((mobile_dataset / "meta" / "factory.json").read_text())
-    with pytest.raises(PolicyError, match="no mobile env"):
-        refuse_mobile("mobile_pick_place", None)
-    with pytest.raises(PolicyError, match="dataset holds mobile episodes"):
-        refuse_mobile("pick_place", meta)
+
+def test_mobile_eval_stage_end_to_end(tmp_path: Path) -> None:
+    """stage=demos -> dataset -> eval (replay) -> train (3 steps) -> eval (the policy) on the
+    hand-built living room, in this process: the replay succeeds in the closed-loop mobile
+    env, the tiny policy is rolled out and reported like a fixed-base one, with per-sub-task
+    results and a video of the five cameras."""
+    for mod in ("ruckig", "ompl", "mink"):
+        pytest.importorskip(mod)
+    import importlib.util
+
+    from factory.config import DemosConfig, EvalConfig
+    from factory.runner import run_stage
+    from factory.schema import scene_to_json
+
+    path = Path(__file__).resolve().parents[1] / "demos" / "test_mobile_pick_place.py"
+    spec = importlib.util.spec_from_file_location("_mobile_helpers", path)
+    assert spec is not None and spec.loader is not None
+    helpers = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(helpers)
+    scene = helpers._living_room()
+    run = tmp_path / "run"
+    (run / "scenes" / scene.id).mkdir(parents=True)
+    (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    dc = DemosConfig(episodes_per_scene=1, fps=5.0, width=16, height=16, render=False, workers=1)
+    assert run_stage("demos", _ctx(run, "demos", demos=dc))["episodes_stored"] == 1
+    run_stage("dataset", _ctx(run, "dataset", demos=dc))
+
+    ec = EvalConfig(policy="replay", videos=0)
+    replay = run_stage("eval", _ctx(run, "eval", demos=dc, eval=ec))
+    assert replay["success_rate"] == 1.0 and replay["episodes"] == 1, replay
+    results = json.loads((run / "eval" / "replay" / "results.json").read_text())
+    assert results["task"] == "mobile_pick_place"
+    assert [v["completed"] for v in results["per_subtask"].values()] == [1, 1, 1, 1]
+
+    tc = TrainConfig(
+        name="tiny", steps=3, batch_size=4, save_every=3, threads=1, device="cpu", options=TINY
+    )
+    run_stage("train", _ctx(run, "train", demos=dc, train=tc))
+    ec = EvalConfig(
+        policy="tiny", scenes="train", episodes_per_scene=1, max_steps=6, videos=1, device="cpu"
+    )
+    out = run_stage("eval", _ctx(run, "eval", demos=dc, eval=ec))
+    assert out["episodes"] == 1 and out["success_rate"] == 0.0
+    results = json.loads((run / "eval" / "tiny" / "results.json").read_text())
+    assert results["max_steps"] == 6 and set(results["per_subtask"]) == {
+        "navigate_to_pick",
+        "pick",
+        "navigate_to_place",
+        "place",
+    }
+    (reason,) = results["failures"]
+    assert reason in ("nav_timeout", "base_collision", "collision"), results["failures"]
+    (line,) = (run / "eval" / "tiny" / "episodes.jsonl").read_text().splitlines()
+    record = json.loads(line)
+    assert record["subtask"] == "navigate_to_pick" and record["subtasks_done"] == 0
+    (video,) = (run / "eval" / "tiny" / "videos").glob("*.mp4")
+    assert video.stat().st_size > 0
+
+
+def test_mobile_and_fixed_do_not_mix() -> None:
+    """An evaluation is mobile by its task, dataset or policy; a fixed-base policy on a mobile
+    dataset (or the reverse) is refused in one line."""
+    from factory.policy.eval_stage import mobile_evaluation
+
+    mobile = {"layout": "mobile"}
+    assert mobile_evaluation("mobile_pick_place", None)
+    assert mobile_evaluation("pick_place", mobile, {SUBTASK_KEY: [1]})
+    assert not mobile_evaluation("pick_place", {"schema_version": 3}, {"observation.state": [8]})
+    with pytest.raises(PolicyError, match="trained on a fixed-base dataset"):
+        mobile_evaluation("pick_place", mobile, {"observation.state": [8]})
     with pytest.raises(PolicyError, match="trained on a mobile dataset"):
-        refuse_mobile("pick_place", None, {SUBTASK_KEY: [1]})
-    refuse_mobile("pick_place", {"schema_version": 3}, {"observation.state": [8]})
+        mobile_evaluation("pick_place", {"schema_version": 3}, {SUBTASK_KEY: [1]})
+    with pytest.raises(PolicyError, match="mobile task, but the policy"):
+        mobile_evaluation("mobile_pick_place", None, {"observation.state": [8]})
