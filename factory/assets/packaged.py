@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 
 PACKAGED_SCHEMA_VERSION = 1
 """``schema_version`` of an imported library's ``metadata.json``."""
-IMPORTER_VERSION = 1
+IMPORTER_VERSION = 2
 """Bumped when the import changes its output (part of the library folder's key)."""
 PACKAGED_DIR = "packaged"
 """Imported libraries inside a run's assets folder (``assets/packaged/<package>-<key>/``)."""
@@ -277,6 +277,8 @@ def _texture(src: Path, tile_u: int, folder: Path, stem: str) -> str:
 def _hulls(mesh: Any) -> list[Any]:
     """Convex collision hulls (<= 64 vertices each): the mesh's own hull when it is nearly
     convex (hull volume within 8 % of the mesh's), else CoACD's decomposition."""
+    import trimesh
+
     from factory.assets.geometry import MAX_HULL_VERTICES
     from factory.assets.meshproc import decompose, reduce_hull
 
@@ -285,7 +287,13 @@ def _hulls(mesh: Any) -> list[Any]:
         if len(hull.vertices) > MAX_HULL_VERTICES:
             hull = reduce_hull(hull)
         return [hull]
-    return decompose(mesh, seed=0)
+    # CoACD's pieces may stick out of the mesh by a little (a bottle's went 0.8 mm under its
+    # bottom, so it was placed pressing into its support): keep them inside its box.
+    lo, hi = mesh.bounds
+    return [
+        trimesh.Trimesh(np.clip(np.asarray(h.vertices), lo, hi)).convex_hull
+        for h in decompose(mesh, seed=0)
+    ]
 
 
 def import_robosuite(dest: Path, src: PackageSource | None = None) -> PackagedLibrary:

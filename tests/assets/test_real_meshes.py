@@ -126,6 +126,10 @@ def test_every_object_has_licence_provenance_and_hulls(assets: Path, metas: dict
         for c in meta.collision:
             hull = trimesh.load(folder / c, force="mesh")
             assert hull.is_convex and len(hull.vertices) <= MAX_HULL_VERTICES, (name, c)
+            # inside the object's box: nothing below its bottom presses into its support
+            vis = trimesh.load(folder / "visual.obj", force="mesh")
+            assert (hull.vertices >= vis.bounds[0] - 1e-6).all(), (name, c)
+            assert (hull.vertices <= vis.bounds[1] + 1e-6).all(), (name, c)
         lo, hi = CATEGORIES[meta.category].mass
         assert lo <= meta.mass <= hi, (name, meta.mass)
         # the visual part carries its texture and UVs (as shipped; they span the image)
