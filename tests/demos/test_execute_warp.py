@@ -229,10 +229,10 @@ def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> N
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
     assert len(plans) >= 3
-    # Short episodes of different lengths: the first 1.2-2 s of each.
+    # Short episodes of different lengths: the first 0.5-1 s of each.
     plans = [
         dataclasses.replace(p, ctrl=p.ctrl[:k], targets=p.targets[:k])
-        for p, k in zip(plans[:3], (1000, 600, 700), strict=True)
+        for p, k in zip(plans[:3], (500, 250, 300), strict=True)
     ]
     cfg = RecordConfig(width=16, height=16)
     ex = WarpExecutor(setup, cfg, device=device)
