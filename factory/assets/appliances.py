@@ -175,20 +175,24 @@ def refrigerator(
             hd - door_t,
             mats[1] if mats[1] != "plastic" else "steel",
         )
-    s.add(
-        _flat(
-            rounded_box(
-                (w - 0.04, 0.01, kick - 0.01),
-                (0.0, y_case - 0.004, kick / 2),
-                "plastic",
-                _DARK,
-                0.003,
-                "kick_plate",
-                segments=1,
-            )
+    s.add(_kick_plate(w, y_case, kick))
+    return s
+
+
+def _kick_plate(w: float, y_case: float, kick: float) -> Part:
+    """The dark plate closing the toe kick under a door of width ``w`` (m): ``kick`` high,
+    just behind the case front at ``y_case``."""
+    return _flat(
+        rounded_box(
+            (w - 0.04, 0.01, kick - 0.01),
+            (0.0, y_case - 0.004, kick / 2),
+            "plastic",
+            _DARK,
+            0.003,
+            "kick_plate",
+            segments=1,
         )
     )
-    return s
 
 
 def oven(
@@ -373,19 +377,7 @@ def dishwasher(
         y_case - door_t,
         hd - door_t,
     )
-    s.add(
-        _flat(
-            rounded_box(
-                (w - 0.04, 0.01, kick - 0.01),
-                (0.0, y_case - 0.004, kick / 2),
-                "plastic",
-                _DARK,
-                0.003,
-                "kick_plate",
-                segments=1,
-            )
-        )
-    )
+    s.add(_kick_plate(w, y_case, kick))
     return s
 
 

@@ -24,7 +24,6 @@ states the tolerances).
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -326,7 +325,6 @@ class WarpExecutor:
             arena = self.arenas.take(_Frames.nbytes(sched.n_rows, nstate, cfg))
             self._arenas.append(arena)
         frames = _Frames.allocate(sched.n_rows, nstate, cfg, arena, images=not store)
-        early = self._early_arena(sched.n_rows) if store else None
         npix = cfg.width * cfg.height
         pick = model.body(setup.objects.pick.id).id
         target = model.body(setup.objects.target.id).id
@@ -488,7 +486,7 @@ class WarpExecutor:
             if store:  # the call's images, one block per camera, into an arena
                 t4 = time.perf_counter()
                 frames.rgb, frames.depth = self._images_to_host(
-                    rgb_store, mm_store, m_store, sched.n_rows, early
+                    rgb_store, mm_store, m_store, sched.n_rows
                 )
                 del rgb_store, mm_store, m_store
                 copy_s += time.perf_counter() - t4
@@ -524,62 +522,29 @@ class WarpExecutor:
         )
         return recs
 
-    def _image_specs(self, n_rows: int) -> tuple[dict[str, Any], int]:
-        """The image buffers of a call of ``n_rows`` frames (``name -> (shape, dtype)``) and
-        the bytes an arena needs for them."""
-        from factory.demos.shared_frames import Arena
-
-        specs = {
-            k: v
-            for k, v in _Frames.specs(n_rows, 0, self.cfg).items()
-            if k.startswith(("rgb/", "depth/"))
-        }
-        return specs, Arena.bytes_for(list(specs.values()))
-
-    def _early_arena(self, n_rows: int) -> tuple[Any, threading.Thread | None] | None:
-        """The arena for a call's images taken as the call starts, where the pool has one free
-        or room for one without waiting for writers (the first call of a stage), and
-        page-locked in a thread while the GPU runs: locking fresh pages costs about as much
-        as a slow copy. None: the arena is taken when the call ends."""
-        if self.arenas is None:
-            return None
-        _, nbytes = self._image_specs(n_rows)
-        arena = self.arenas.reserve(nbytes)
-        if arena is None:
-            return None
-        self._arenas.append(arena)
-        dev = self.wp.get_device(self.device)
-        if not dev.is_cuda:
-            return arena, None
-        thread = threading.Thread(target=arena.pin, args=(nbytes, int(dev.context)), daemon=True)
-        thread.start()
-        return arena, thread
-
     def _images_to_host(
-        self,
-        rgb: Any,
-        mm: Any,
-        m: Any,
-        n_rows: int,
-        early: tuple[Any, threading.Thread | None] | None = None,
+        self, rgb: Any, mm: Any, m: Any, n_rows: int
     ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """Copies the device image stores of a call (``rgb``: (ncam, R, 3 H W) uint8;
-        ``mm``/``m``: (ncam, R, H W) depth) into an arena (``early``'s, else one taken now
-        from :attr:`arenas`), page-locked for the copy where CUDA allows (:meth:`Arena.pin`).
+        ``mm``/``m``: (ncam, R, H W) depth) into an arena taken now from :attr:`arenas`,
+        page-locked for the copy where CUDA allows (:meth:`Arena.pin`; an arena given back
+        keeps its registration).
 
         Returns:
             ``rgb[cam]`` (R, H, W, 3) and ``depth[cam]`` (R, H, W), views of the arena.
         """
         wp, cfg = self.wp, self.cfg
         depth = mm if cfg.depth == "uint16_mm" else m
-        specs, nbytes = self._image_specs(n_rows)
-        if early is not None:
-            arena, thread = early
-            if thread is not None:
-                thread.join()
-        else:
-            arena = self.arenas.take(nbytes)
-            self._arenas.append(arena)
+        specs = {
+            k: v
+            for k, v in _Frames.specs(n_rows, 0, cfg).items()
+            if k.startswith(("rgb/", "depth/"))
+        }
+        from factory.demos.shared_frames import Arena
+
+        nbytes = Arena.bytes_for(list(specs.values()))
+        arena = self.arenas.take(nbytes)
+        self._arenas.append(arena)
         dev = wp.get_device(self.device)
         if dev.is_cuda:
             arena.pin(nbytes, int(dev.context))
