@@ -317,6 +317,11 @@ class DemosConfig:
         gpu_batch: most worlds per GPU call of the ``warp`` executor; a call packs a scene's
             episodes onto its worlds back to back (a world starts its next episode as soon as
             its last one ends), so it may run more episodes than worlds.
+        gpu_retries: where the ``warp`` executor runs a scene's episodes that failed in
+            execution, with their next seeds: ``cpu`` (the planner processes execute and
+            record them with the CPU executor while the GPU goes on to the next scene; their
+            metadata says ``recorder: cpu``) or ``gpu`` (one more small GPU call per scene,
+            which costs the GPU 6-14 s for 2-19 episodes).
         gpu_images_on_device: the ``warp`` executor keeps a call's images on the device and
             copies them to host memory at the end of the call (one call's recordings in host
             memory at a time, so calls of ~1,000 worlds fit); false copies every frame to the
@@ -357,6 +362,7 @@ class DemosConfig:
     render: bool = True
     executor: str = "auto"
     gpu_batch: int = 512
+    gpu_retries: str = "cpu"
     gpu_images_on_device: bool = True
     plan_timeout: float = 5.0
     speed: float = 0.5

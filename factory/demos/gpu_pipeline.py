@@ -10,7 +10,10 @@ place from the call's shared memory (:mod:`factory.demos.shared_frames`). While 
 scene, the pool already plans the next scene's episodes, so neither waits for the other as long
 as planning keeps up. Failed slots are planned again with their next seed
 (``demos.attempts``), exactly as on the CPU path: the same seeds give the same plans, so the CPU
-and GPU executors record the same episodes up to float32 physics.
+and GPU executors record the same episodes up to float32 physics. The few episodes that plan
+but fail in execution (0.3-1 % of a kitchen's) are retried by the planner processes with the
+CPU executor (``demos.gpu_retries=cpu``) while the GPU goes on to the next scene: a GPU call
+of a dozen worlds would take as long per frame as one of a thousand.
 """
 
 from __future__ import annotations
@@ -217,6 +220,8 @@ def run_gpu(
             return [k for k in by_scene[scene_id] if episode_id(scene_id, k) not in store]
 
         attempts = {s: dict.fromkeys(by_scene[s], 0) for s in scenes}
+        # The CPU executor's runs of each scene's execution failures (gpu_retries=cpu).
+        cpu_retries: list[tuple[dict[str, Any], int, Future[Any]]] = []
         pending: dict[str, list[Future[Any]]] = {}
         setups: dict[str, Future[Any]] = {}
         # Each GPU call's writes and the shared memory they read, oldest first.
@@ -325,7 +330,7 @@ def run_gpu(
                             out["failures"][rec.outcome.reason] += 1
                             continue
                         meta, arrays = episode_payload(
-                            env, setup, k, seed, plan, rec, rec_cfg, instruction
+                            env, setup, k, seed, plan, rec, rec_cfg, instruction, "warp"
                         )
                         # Images stay in the shared arena: the writer maps them.
                         arrays = share(arrays, arenas)
@@ -344,6 +349,16 @@ def run_gpu(
                         retry.append(k)
                 if bar is not None:
                     bar.update(len(futures) - len(retry))
+                if retry and dc.gpu_retries == "cpu":
+                    from factory.demos.stage import _run_item_logged
+
+                    item = WorkItem(sid, tuple(retry))
+                    first = {k: attempt[k] for k in retry}
+                    cpu_retries.append(
+                        (out, len(retry), pool.submit(_run_item_logged, env, item, first))
+                    )
+                    out["cpu_retries"] = len(retry)
+                    retry = []
                 futures = submit(sid, retry, attempt) if retry else []
             waited["writes"] += reclaimed[0] - reclaimed_before  # inside GPU calls
             out["warp_seconds"] = vars(executor.times)
@@ -357,6 +372,27 @@ def run_gpu(
                 out["simulate"],
                 waited["plans"],
                 waited["writes"],
+            )
+        t_wait = time.perf_counter()
+        retried_new = 0
+        for out, n, fut in cpu_retries:
+            got = fut.result()
+            retried_new += got["new"]
+            for key in ("new", "frames"):
+                out[key] += got[key]
+            out["failures"].update(got["failures"])
+            out["plan"].extend(got["plan"])
+            out["segments"].extend(got["segments"])
+            out["cpu_retry_seconds"] = {"simulate": got["simulate"], "render": got["render"]}
+            if bar is not None:
+                bar.update(n)
+        if cpu_retries:
+            log.info(
+                "CPU retries: %d episodes of %d scenes, %d new; waited %.1f s for them at the end",
+                sum(n for _, n, _ in cpu_retries),
+                len(cpu_retries),
+                retried_new,
+                time.perf_counter() - t_wait,
             )
         for writes, arenas in in_flight:
             settle(writes, arenas)

@@ -161,8 +161,10 @@ def episode_payload(
     rec: Any,
     rec_cfg: Any,
     instruction: str,
+    recorder: str = "cpu",
 ) -> tuple[Any, dict[str, np.ndarray]]:
-    """The metadata and arrays a successful recording is stored as (episode ``k``)."""
+    """The metadata and arrays a successful recording is stored as (episode ``k``), recorded
+    by the ``recorder`` executor (``cpu`` or ``warp``)."""
     from factory import __version__
     from factory.demos.execute import STATE_SPEC
     from factory.schema.episode import EpisodeInfo, RobotBase
@@ -200,6 +202,7 @@ def episode_payload(
         cleared=list(setup.cleared),
         frozen=list(getattr(setup, "frozen", ())),
         appearance=getattr(rec, "appearance", None),
+        recorder=recorder,
     )
     arrays: dict[str, np.ndarray] = {
         "time": rec.time,

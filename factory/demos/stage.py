@@ -92,6 +92,8 @@ def check_config(dc: DemosConfig, task: str) -> None:
         )
     if dc.gpu_batch < 1:
         raise ConfigError("demos.gpu_batch must be >= 1")
+    if dc.gpu_retries not in ("cpu", "gpu"):
+        raise ConfigError(f"demos.gpu_retries={dc.gpu_retries!r} is unknown: choose cpu or gpu")
     if not dc.freeze_beyond >= 0:
         raise ConfigError(
             f"demos.freeze_beyond must be >= 0 m (0 keeps every object free), "
@@ -111,8 +113,17 @@ def check_config(dc: DemosConfig, task: str) -> None:
         raise ConfigError("demos.fps must be > 0 and demos.width/height >= 8 px")
 
 
-def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
-    """Fills the item's slots (in a worker process or inline); returns its statistics."""
+def run_item(
+    env: StageEnv, item: WorkItem, first_attempts: dict[int, int] | None = None
+) -> dict[str, Any]:
+    """Fills the item's slots (in a worker process or inline); returns its statistics.
+
+    Args:
+        env: the stage's settings.
+        item: the scene and its slots.
+        first_attempts: slot -> the attempt (seed) to start from (default 0): the GPU
+            executor's retries continue where its own attempts stopped.
+    """
     from factory.demos.appearance import episode_looks, setup_index
     from factory.demos.episodes import EpisodeStore
     from factory.demos.execute import FrameRenderer, execute
@@ -137,8 +148,12 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
     look_index = setup_index(setup, rec_cfg.cameras) if rec_cfg.render else None
     instruction = episode_instruction(setup)
-    attempt = dict.fromkeys(item.slots, 0)
-    open_slots = [k for k in item.slots if episode_id(item.scene_id, k) not in store]
+    attempt = {k: (first_attempts or {}).get(k, 0) for k in item.slots}
+    open_slots = [
+        k
+        for k in item.slots
+        if episode_id(item.scene_id, k) not in store and attempt[k] < dc.attempts
+    ]
     try:
         while open_slots:
             planned: list[tuple[int, int, EpisodePlan]] = []
@@ -180,9 +195,11 @@ def run_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
     return out
 
 
-def _run_item_logged(env: StageEnv, item: WorkItem) -> dict[str, Any]:
+def _run_item_logged(
+    env: StageEnv, item: WorkItem, first_attempts: dict[int, int] | None = None
+) -> dict[str, Any]:
     logging.basicConfig(level=logging.WARNING)
-    return run_item(env, item)
+    return run_item(env, item, first_attempts)
 
 
 def _stats(values: list[float]) -> dict[str, float]:

@@ -13,11 +13,12 @@ from typing import Any
 from factory.schema.errors import SchemaError
 from factory.schema.scene import _check_version, _from_dict, check_id, to_dict
 
-EPISODE_SCHEMA_VERSION = 2
-"""Version of the episode metadata written now (2 added ``appearance``)."""
+EPISODE_SCHEMA_VERSION = 3
+"""Version of the episode metadata written now (2 added ``appearance``, 3 ``recorder``)."""
 
-READABLE_EPISODE_VERSIONS = (1, 2)
-"""Metadata versions this factory reads (a version-1 episode reads with ``appearance=None``)."""
+READABLE_EPISODE_VERSIONS = (1, 2, 3)
+"""Metadata versions this factory reads (a version-1 episode reads with ``appearance=None``,
+versions 1-2 with ``recorder=""``)."""
 
 EPISODE_ARRAYS: dict[str, str] = {
     "time": "(F,) float64, s since the episode start",
@@ -149,6 +150,9 @@ class EpisodeInfo:
             (``pick_pose``, ``place_pose``: x, y m, yaw rad, world frame), their indices in the
             route's pose lists and the route's pose counts, grid cell (m) and footprint
             (``factory.demos.mobile_plan.MobilePlanner.route_record``); empty otherwise.
+        recorder: the executor that simulated and rendered it: ``cpu`` (MuJoCo and its
+            OpenGL renderer) or ``warp`` (MuJoCo Warp and its ray-traced batch renderer);
+            empty before schema version 3.
     """
 
     episode_id: str
@@ -178,6 +182,7 @@ class EpisodeInfo:
     frozen: list[str] = field(default_factory=list)
     route: dict[str, Any] = field(default_factory=dict)
     appearance: EpisodeAppearance | None = None
+    recorder: str = ""
     schema_version: int = EPISODE_SCHEMA_VERSION
 
 
@@ -189,13 +194,14 @@ def episode_info_to_dict(info: EpisodeInfo) -> dict[str, Any]:
 def episode_info_from_dict(data: Any) -> EpisodeInfo:
     """Reads episode metadata, checking its version and fields.
 
-    Version-1 metadata (before ``appearance``) reads as version 2 without it.
+    Version-1 metadata (before ``appearance``) and version-2 metadata (before ``recorder``)
+    read as version 3 without them.
 
     Raises:
         SchemaVersionError: missing or unsupported ``schema_version``.
         SchemaError: malformed content.
     """
-    if isinstance(data, dict) and data.get("schema_version") == 1 and "appearance" not in data:
+    if isinstance(data, dict) and data.get("schema_version") in (1, 2) and "recorder" not in data:
         data = {**data, "schema_version": EPISODE_SCHEMA_VERSION}
     _check_version(
         data,

@@ -182,7 +182,7 @@ def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) 
     store = EpisodeStore(tmp_path / "s.zarr")
     store.write(meta, arrays)
     info = store.info(meta.episode_id)
-    assert info.appearance == looks[1][0] and info.schema_version == 2
+    assert info.appearance == looks[1][0] and info.schema_version == 3
 
 
 def test_version_1_metadata_still_reads() -> None:

@@ -63,6 +63,35 @@ def test_executor_config() -> None:
         check_config(DemosConfig(executor="gpu"), "pick_place")
     with pytest.raises(ConfigError, match="gpu_batch"):
         check_config(DemosConfig(gpu_batch=0), "pick_place")
+    with pytest.raises(ConfigError, match="gpu_retries='later' is unknown"):
+        check_config(DemosConfig(gpu_retries="later"), "pick_place")
+
+
+def test_cpu_retries_continue_from_the_gpu_attempts(make_kitchen, tmp_path: Path) -> None:
+    """The GPU path hands its execution failures to the CPU executor (``run_item`` with
+    ``first_attempts``): a slot starts at its next seed, a slot out of attempts is not tried,
+    and the episode says which executor recorded it."""
+    from factory.demos.episodes import EpisodeStore
+    from factory.demos.slots import StageEnv, WorkItem, episode_id, episode_seed
+    from factory.demos.stage import run_item
+    from factory.schema import scene_to_json
+
+    run = tmp_path / "run"
+    scene = make_kitchen(run / "assets")
+    (run / "scenes" / scene.id).mkdir(parents=True)
+    (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    dc = DemosConfig(width=16, height=16, attempts=3, cameras=["wrist"])
+    store_path = run / "episodes" / "shard-0.zarr"
+    env = StageEnv(str(run), str(store_path), dc, "pick_place", 0, 1)
+    out = run_item(env, WorkItem(scene.id, (0, 1)), first_attempts={0: 1, 1: 3})
+    store = EpisodeStore(store_path)
+    tried = out["new"] + sum(v for k, v in out["failures"].items() if k != "scene_unusable")
+    assert 1 <= tried <= 2, dict(out["failures"])  # slot 0 only: attempts 1 and 2
+    assert out["new"] == 1, dict(out["failures"])
+    (eid,) = store.episode_ids()
+    info = store.info(eid)
+    assert eid == episode_id(scene.id, 0) and info.recorder == "cpu"
+    assert info.seed in (episode_seed(0, scene.id, 0, 1), episode_seed(0, scene.id, 0, 2))
 
 
 RGB_TOLERANCE = 40.0
@@ -125,7 +154,7 @@ def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     store = EpisodeStore(store_path)
     assert len(store.episode_ids()) == out["new"]
     info = store.info(store.episode_ids()[0])
-    assert info.success and info.n_frames > 50
+    assert info.success and info.n_frames > 50 and info.recorder == "warp"
     assert store.arrays(info.episode_id)["rgb/wrist"].shape == (info.n_frames, 32, 32, 3)
 
 
