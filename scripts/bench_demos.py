@@ -29,6 +29,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -189,6 +190,7 @@ def main() -> None:
             "render_images_per_s": frames * cams * 2 / sec["render"] if sec["render"] else None,
             "sim_seconds_simulated": frames / infos[0]["fps"] if infos else 0,
             "executor": summary.get("executor", "cpu"),
+            "recorded_by": dict(Counter(i.get("recorder", "") for i in infos)),
             "gpu_seconds": sec.get("gpu"),
             "per_scene": _per_scene(run),
         }
