@@ -144,6 +144,8 @@ class CompileConfig:
         textures: procedural textures on floors, walls, ceilings and asset parts (false:
             flat colours).
         texture_size: size (px) of floor, wall and ceiling textures (64, 128, 256 or 512).
+        lights: room lighting: ceiling lights per room and a light in every lamp (false: the
+            lighting before issue 17, a headlight and a sun).
     """
 
     ceiling: bool = False
@@ -151,6 +153,7 @@ class CompileConfig:
     offscreen_size: int = 1280
     textures: bool = True
     texture_size: int = 256
+    lights: bool = True
 
 
 @dataclass
@@ -300,8 +303,9 @@ class DemosConfig:
         nthread: simulation threads per worker (0: the cores divided among the workers).
         randomize: new task-object poses per episode (configuration-level randomization).
         appearance: appearance randomisation per episode (colours, textures, lights, camera
-            poses; :class:`AppearanceConfig`, on by default; the ``cpu`` executor applies it,
-            the ``warp`` executor not yet).
+            poses; :class:`AppearanceConfig`, on by default; both executors apply it: the
+            ``warp`` executor sets each world's copy of the changed model fields when an
+            episode starts in it, so images and metadata match the ``cpu`` executor's).
         shadows: the recording's images have the ceiling lights' shadows (MuJoCo's shadow
             maps cost about 2.5x the rendering time per image on a CPU, so they are off by
             default; scene renders have them).

@@ -40,6 +40,7 @@ class TaskError(FactoryError):
 
 
 __all__ = [
+    "AppearanceError",
     "CompileError",
     "ConfigError",
     "FactoryError",
@@ -53,3 +54,7 @@ __all__ = [
     "TaskError",
     "UnsafePathError",
 ]
+
+
+class AppearanceError(FactoryError):
+    """Episode appearances do not fit the episodes they were given with (one per episode)."""

@@ -14,14 +14,16 @@ Per episode, from a seed derived from the episode's seed, :func:`choose` draws w
 ``light_diffuse``, ``light_specular``, ``light_active``, ``cam_pos``, ``cam_quat``) and
 :func:`apply_patch` writes them into an ``MjModel`` (the CPU executor does so before it draws
 each episode's frame and restores the model after). Only rendering reads these fields, so
-physics is untouched. Every field is per-world batchable in MuJoCo Warp (``put_model(...,
-batch_sizes={field: nworld})``, then the stacked patches, :func:`stack_patches`).
+physics is untouched. Every field is per-world in MuJoCo Warp's kinematics and batch
+renderer (a model array of leading size ``nworld`` is indexed by world); the GPU executor
+keeps the episodes' patches as :class:`PatchTables` (only the elements some patch changes) and
+copies an episode's row into its world's fields when the episode starts.
 """
 
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
@@ -282,11 +284,58 @@ def apply_patch(model: mujoco.MjModel, patch: ModelPatch) -> None:
         np.copyto(getattr(model, f), getattr(patch, f))
 
 
-def stack_patches(patches: list[ModelPatch]) -> dict[str, np.ndarray]:
-    """Per-world arrays ``field -> (nworld, ...)`` of the patches of a MuJoCo Warp call
-    (``mjw.put_model(model, batch_sizes={f: nworld for f in PATCH_FIELDS})``, then
-    ``getattr(m, f).assign(arrays[f])``)."""
-    return {f.name: np.stack([getattr(p, f.name) for p in patches]) for f in fields(ModelPatch)}
+PATCH_GROUPS: dict[str, tuple[str, ...]] = {
+    "geoms": ("geom_rgba", "geom_matid"),
+    "lights": ("light_pos", "light_diffuse", "light_specular", "light_active"),
+    "cameras": ("cam_pos", "cam_quat"),
+}
+"""The :data:`PATCH_FIELDS` by the model element they belong to (geoms, lights, cameras)."""
+
+
+@dataclass(frozen=True)
+class PatchTables:
+    """The episodes' patches as small tables: only the elements some patch changes.
+
+    For the GPU executor (:mod:`factory.demos.execute_warp`): a world that starts episode
+    ``e`` copies row ``e`` of each table into its own copy of the model fields.
+
+    Attributes:
+        ids: group (``geoms``, ``lights``, ``cameras``) -> (K,) int32 ids of the elements of
+            that group whose fields differ from the model's in at least one episode.
+        rows: field name -> (episodes, K, ...) its values for those elements (float32; int32
+            for ``geom_matid``, bool for ``light_active``; quaternions w, x, y, z; positions
+            in m, in the frame of the element's body).
+    """
+
+    ids: dict[str, np.ndarray]
+    rows: dict[str, np.ndarray]
+
+    @property
+    def width(self) -> int:
+        """The largest number of changed elements of a group (a kernel's second dimension)."""
+        return max((len(v) for v in self.ids.values()), default=0)
+
+
+_TABLE_TYPES = {"geom_matid": np.int32, "light_active": np.bool_}
+
+
+def patch_tables(model: mujoco.MjModel, patches: list[ModelPatch]) -> PatchTables:
+    """The :class:`PatchTables` of the episodes' patches (one per episode, in order)."""
+    ids: dict[str, np.ndarray] = {}
+    rows: dict[str, np.ndarray] = {}
+    for group, names in PATCH_GROUPS.items():
+        changed = np.zeros(len(getattr(model, names[0])), bool)
+        for p in patches:
+            for f in names:
+                diff = np.asarray(getattr(p, f)) != np.asarray(getattr(model, f))
+                changed |= diff.reshape(len(changed), -1).any(axis=1)
+        ids[group] = np.flatnonzero(changed).astype(np.int32)
+        for f in names:
+            dtype = _TABLE_TYPES.get(f, np.float32)
+            rows[f] = np.stack(
+                [np.asarray(getattr(p, f))[ids[group]].astype(dtype) for p in patches]
+            )
+    return PatchTables(ids=ids, rows=rows)
 
 
 def setup_index(setup: Any, cameras: tuple[str, ...]) -> AppearanceIndex:

@@ -11,6 +11,12 @@ of every world and camera, and a conversion kernel to ``uint8`` RGB and depth (`
 ``float32`` m). On CUDA that sequence is captured once into a CUDA graph and replayed per
 frame. The host copies each frame's images, states and contacts in a few large blocks.
 
+Appearance randomisation (``looks``, as the CPU executor takes them): the call's model copy has
+one row per world of the fields an appearance sets, and
+:func:`~factory.demos.warp_kernels.set_looks` writes an episode's row of the patch tables into
+its world's fields when the episode starts (before the first ``forward``, and in the captured
+period after a packed world's reset), so each world renders its episode's look.
+
 The recorded MuJoCo integration state has the layout of ``mj_getState(..., mjSTATE_INTEGRATION)``
 (:func:`state_layout`), so recordings replay on the CPU like the CPU executor's; the success
 check is the same function (:func:`factory.demos.execute.finish_recordings`).
@@ -40,6 +46,7 @@ from factory.demos.execute import (
 from factory.demos.pick_place import EpisodePlan, SceneSetup
 from factory.demos.robot import CAMERAS
 from factory.demos.world_schedule import WorldSchedule
+from factory.errors import AppearanceError
 
 log = logging.getLogger(__name__)
 
@@ -232,6 +239,7 @@ class WarpExecutor:
         self.arenas = arenas
         self.images_on_device = images_on_device and arenas is not None
         self._arenas: list[Any] = []
+        self._look_base: dict[str, np.ndarray] = {}  # the model's appearance fields (1, ...)
 
     def take_arenas(self) -> list[Any]:
         """The shared memory arenas holding the recordings of the calls since the last
@@ -255,7 +263,12 @@ class WarpExecutor:
             cam_active=names,
         )
 
-    def execute(self, plans: list[EpisodePlan], worlds: int | None = None) -> list[Recording]:
+    def execute(
+        self,
+        plans: list[EpisodePlan],
+        worlds: int | None = None,
+        looks: list[tuple[Any, Any]] | None = None,
+    ) -> list[Recording]:
         """Runs ``plans`` together and records them (one recording per plan, success checked).
 
         Args:
@@ -264,6 +277,14 @@ class WarpExecutor:
                 back to back (:func:`~factory.demos.world_schedule.packed_schedule`: no world
                 waits for the longest episode); None: one world per episode, all starting
                 together (:func:`~factory.demos.world_schedule.padded_schedule`).
+            looks: per plan, its appearance (an
+                :class:`~factory.schema.episode.EpisodeAppearance`) and the model fields it
+                sets (a :class:`~factory.demos.appearance.ModelPatch`), as
+                :func:`~factory.demos.appearance.episode_looks` gives them and the CPU
+                executor takes them: each world's copy of those fields is set to its episode's
+                when the episode starts (:func:`~factory.demos.warp_kernels.set_looks`), and
+                each recording's ``appearance`` is the episode's. ``None``: the model as it
+                is (``appearance`` None).
 
         Worlds whose contact or constraint buffers overflowed are run again with doubled
         buffers (twice at most); if they still overflow their outcome is ``sim_overflow``.
@@ -271,22 +292,69 @@ class WarpExecutor:
         n = len(plans)
         if n == 0:
             return []
-        recs = self._execute(plans, headroom=3.0, worlds=worlds)
+        if looks is not None and len(looks) != n:
+            raise AppearanceError(
+                f"{len(looks)} appearance(s) for {n} episode(s): pass one look per plan "
+                "(episode_looks of the plans' seeds) or looks=None"
+            )
+        recs = self._execute(plans, headroom=3.0, worlds=worlds, looks=looks)
         for grow in (6.0, 12.0):
             again = [i for i, r in enumerate(recs) if r.outcome and r.outcome.reason == OVERFLOW]
             if not again:
                 break
             log.info("warp demos: %d world(s) overflowed; re-running with more room", len(again))
-            redo = self._execute([plans[i] for i in again], headroom=grow, worlds=worlds)
+            redo = self._execute(
+                [plans[i] for i in again],
+                headroom=grow,
+                worlds=worlds,
+                looks=[looks[i] for i in again] if looks is not None else None,
+            )
             for i, r in zip(again, redo, strict=True):
                 recs[i] = r
         return recs
 
+    def _world_looks(self, tables: Any, n: int) -> tuple[Any, list[Any]]:
+        """A copy of the device model whose appearance fields have one row per world (the
+        model's values), and the inputs of :func:`~factory.demos.warp_kernels.set_looks`
+        (the patch tables on the device, then the per-world fields it writes). The other
+        fields are the executor's model's arrays, shared."""
+        import copy
+
+        from factory.demos.appearance import PATCH_FIELDS, PATCH_GROUPS
+
+        wp = self.wp
+        m = copy.copy(self.m)
+        for f in PATCH_FIELDS:
+            base = getattr(self.m, f)
+            rows = self._look_base.get(f)
+            if rows is None:
+                rows = self._look_base[f] = base.numpy()[:1]
+            arr = wp.array(np.repeat(rows, n, axis=0), dtype=base.dtype)
+            arr._is_batched = True  # as put_model(..., batch_sizes={f: n}) marks it
+            setattr(m, f, arr)
+        inputs: list[Any] = []
+        for group, names in PATCH_GROUPS.items():
+            inputs.append(wp.array(tables.ids[group], dtype=int))
+            for f in names:
+                inputs.append(wp.array(tables.rows[f], dtype=getattr(m, f).dtype))
+        return m, inputs + [getattr(m, f) for f in PATCH_FIELDS]
+
     def _execute(
-        self, plans: list[EpisodePlan], headroom: float, worlds: int | None
+        self,
+        plans: list[EpisodePlan],
+        headroom: float,
+        worlds: int | None,
+        looks: list[tuple[Any, Any]] | None = None,
     ) -> list[Recording]:
         wp, mjw = self.wp, self.mjw
-        from factory.demos.warp_kernels import begin, set_ctrl, starts, tick, to_images
+        from factory.demos.warp_kernels import (
+            begin,
+            set_ctrl,
+            set_looks,
+            starts,
+            tick,
+            to_images,
+        )
         from factory.demos.world_schedule import packed_schedule, padded_schedule
 
         cfg, setup = self.cfg, self.setup
@@ -335,6 +403,13 @@ class WarpExecutor:
         worst = np.zeros(n_ep)
         first = sched.episode[0]
         with wp.ScopedDevice(self.device):
+            m, look_in = self.m, list[Any]()
+            if looks is not None:
+                from factory.demos.appearance import patch_tables
+
+                tables = patch_tables(model, [patch for _, patch in looks])
+                m, look_in = self._world_looks(tables, n)
+                look_dim = (n, max(1, tables.width))
             d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
             d.qpos.assign(wp.array(q0[first].astype(np.float32), dtype=float))
             plan_d = wp.array(ctrl, dtype=float)
@@ -345,14 +420,18 @@ class WarpExecutor:
             step_d = wp.zeros(1, dtype=int)
             ctrl_in = [plan_d, offset_d, length_d, episode_d, frame_d, step_d, per_frame]
             wp.launch(set_ctrl, dim=(n, model.nu), inputs=ctrl_in, outputs=[d.ctrl])
-            mjw.forward(self.m, d)
+            if looks is not None:  # every world's first episode's appearance
+                everyone = wp.array(np.ones(n, bool), dtype=bool)
+                look_at = [episode_d, step_d, per_frame]
+                wp.launch(set_looks, dim=look_dim, inputs=[everyone, *look_at, *look_in])
+            mjw.forward(m, d)
             if sched.resets:
                 start_d = wp.array(sched.start, dtype=bool)
                 reset_d = wp.zeros(n, dtype=bool)
                 qpos0_d = wp.array(q0.astype(np.float32), dtype=float)
                 overflow_of = wp.zeros(n_ep, dtype=int)
                 # reset_data's kernels are made per call: load them outside the capture.
-                mjw.reset_data(self.m, d, reset=reset_d)
+                mjw.reset_data(m, d, reset=reset_d)
             rc = self._render_context(n) if ncam else None
             if rc is not None:
                 # The image store: a row per filed frame of the call (kept on the device), or a
@@ -370,8 +449,8 @@ class WarpExecutor:
             def draw() -> None:
                 if rc is None:
                     return
-                mjw.refit_bvh(self.m, d, rc)
-                mjw.render(self.m, d, rc)
+                mjw.refit_bvh(m, d, rc)
+                mjw.render(m, d, rc)
                 wp.launch(
                     to_images,
                     dim=(n, ncam, npix),
@@ -392,7 +471,7 @@ class WarpExecutor:
             def period() -> None:
                 for _ in range(per_frame):
                     wp.launch(set_ctrl, dim=(n, model.nu), inputs=ctrl_in, outputs=[d.ctrl])
-                    mjw.step(self.m, d)
+                    mjw.step(m, d)
                     wp.launch(tick, dim=1, inputs=[step_d])
                 if sched.resets:  # worlds whose next episode starts now
                     wp.launch(
@@ -401,14 +480,16 @@ class WarpExecutor:
                         inputs=[start_d, episode_d, step_d, per_frame, d.overflow],
                         outputs=[reset_d, overflow_of],
                     )
-                    mjw.reset_data(self.m, d, reset=reset_d)
+                    mjw.reset_data(m, d, reset=reset_d)
                     wp.launch(
                         begin,
                         dim=n,
                         inputs=[reset_d, episode_d, step_d, per_frame, qpos0_d, plan_d, offset_d],
                         outputs=[d.qpos, d.ctrl],
                     )
-                mjw.forward(self.m, d)
+                    if looks is not None:  # the appearance of the episodes starting now
+                        wp.launch(set_looks, dim=look_dim, inputs=[reset_d, *look_at, *look_in])
+                mjw.forward(m, d)
                 draw()
 
             draw()
@@ -503,7 +584,8 @@ class WarpExecutor:
                 OVERFLOW,
                 {"nconmax": nconmax, "njmax": njmax, "overflow_bits": float(overflow[i])},
             )
-        for r in recs:
+        for i, r in enumerate(recs):
+            r.appearance = looks[i][0] if looks is not None else None
             r.sim_seconds = frames_s / n_ep
             r.render_seconds = copy_s / n_ep
         finish_s = time.perf_counter() - t3

@@ -75,12 +75,37 @@ def plan_slot(
 
 
 def writer_count() -> int:
-    """Processes writing (compressing) recorded episodes while the GPU goes on: half the cores
-    (2-8). Threads do not help: zarr runs every write of a process on one event loop, about 3
-    times the cost of the compression itself (0.25 s per 65 MB episode on one core)."""
+    """Processes writing (compressing) recorded episodes while the GPU goes on: all cores but
+    two (2-14). They share the cores with the planners, which need about a third of a 16-core
+    node in steady state; more writers shorten the stage's last writes, which nothing else
+    overlaps (8 writers took 38 s for a scene's 1,536 episodes). Threads do not help: zarr runs
+    every write of a process on one event loop, about 3 times the cost of the compression
+    itself (0.25 s per 65 MB episode on one core)."""
     import os
 
-    return max(2, min(8, (os.cpu_count() or 2) // 2))
+    return max(2, min(14, (os.cpu_count() or 2) - 2))
+
+
+def lock_first_arena(pool: ArenaPool, nbytes: int, device: str) -> None:
+    """Takes an arena of ``nbytes`` from ``pool``, page-locks it for ``device`` and gives it
+    back: run in a thread while the stage's first plans are made (nothing else uses the GPU
+    then), so the first call's image copy finds locked pages. Locking fresh memory faults every
+    page in first (about 40 s for 68 GB on an H200 node); the driver holds other CUDA calls
+    meanwhile, which is why it must not overlap a GPU call."""
+    import warp as wp
+
+    t0 = time.perf_counter()
+    arena = pool.take(nbytes)
+    try:
+        locked = arena.pin(nbytes, int(wp.get_device(device).context))
+    finally:
+        pool.give(arena)
+    log.info(
+        "page-locked %.1f GB of host memory for the first call's images: %s in %.1f s",
+        nbytes / 1e9,
+        "done" if locked else "refused",
+        time.perf_counter() - t0,
+    )
 
 
 HOST_MEMORY_SHARE = 0.35
@@ -194,6 +219,7 @@ def run_gpu(
 ) -> list[dict[str, Any]]:
     """Fills the slots of ``items`` with the GPU executor; one statistics dict per scene (the
     keys of :func:`factory.demos.stage.run_item`'s)."""
+    from factory.demos.appearance import episode_looks, setup_index
     from factory.demos.episodes import EpisodeStore
     from factory.demos.execute_warp import WarpExecutor
     from factory.demos.pick_place import EpisodePlan
@@ -211,6 +237,7 @@ def run_gpu(
         ProcessPoolExecutor(max(1, workers), mp_context=ctx, initializer=_init_worker) as pool,
         ProcessPoolExecutor(writer_count(), mp_context=ctx, initializer=_init_worker) as writers,
         ThreadPoolExecutor(1) as prep,
+        ThreadPoolExecutor(1) as prep_pin,
     ):
 
         def submit(scene_id: str, slots: list[int], attempt: dict[int, int]) -> list[Future[Any]]:
@@ -257,6 +284,10 @@ def run_gpu(
         reclaimed = [0.0]  # seconds the arena pool waited for writers
 
         arena_pool = ArenaPool(capacity or budget or 0, reclaim) if shared else None
+        # The first call's arena is locked while the first plans are made (the GPU is idle).
+        early: Future[Any] | None = None
+        if arena_pool is not None and keep and budget and dev.startswith("cuda") and scenes:
+            early = prep_pin.submit(lock_first_arena, arena_pool, budget, dev)
 
         if scenes:
             pending[scenes[0]] = submit(scenes[0], open_slots(scenes[0]), attempts[scenes[0]])
@@ -285,6 +316,7 @@ def run_gpu(
             executor = WarpExecutor(
                 setup, rec_cfg, device=device, arenas=arena_pool, images_on_device=keep
             )
+            look_index = setup_index(setup, rec_cfg.cameras) if rec_cfg.render else None
             attempt = attempts[sid]
             t_scene = time.perf_counter()
             waited = {"plans": 0.0, "writes": 0.0}
@@ -307,6 +339,11 @@ def run_gpu(
                     elif isinstance(res, str):
                         out["failures"]["scene_unusable"] += 1
                 done: set[int] = set()
+                if early is not None:  # the arena pool is this thread's again
+                    t_wait = time.perf_counter()
+                    early.result()
+                    early = None
+                    log.info("waited %.1f s for the first arena", time.perf_counter() - t_wait)
                 for chunk, worlds in gpu_calls(
                     planned, dc.gpu_batch, rec_cfg, setup.model.opt.timestep, sid, budget
                 ):
@@ -320,7 +357,11 @@ def run_gpu(
                         settle(*in_flight.pop(0))
                     waited["writes"] += time.perf_counter() - t_wait
                     t0 = time.perf_counter()
-                    recs = executor.execute([p for _, _, p in chunk], worlds=worlds)
+                    looks = None
+                    if look_index is not None:  # the episodes' appearances (seeded)
+                        seeds = [seed for _, seed, _ in chunk]
+                        looks = episode_looks(setup.model, look_index, dc.appearance, seeds)
+                    recs = executor.execute([p for _, _, p in chunk], worlds=worlds, looks=looks)
                     arenas = executor.take_arenas()
                     out["simulate"] += time.perf_counter() - t0
                     writes: list[Future[Any]] = []

@@ -92,6 +92,59 @@ def begin(
 
 
 @wp.kernel
+def set_looks(
+    reset: wp.array(dtype=bool),
+    episode: wp.array2d(dtype=int),
+    step: wp.array(dtype=int),
+    per_frame: int,
+    geoms: wp.array(dtype=int),
+    rgba_rows: wp.array2d(dtype=wp.vec4),
+    matid_rows: wp.array2d(dtype=int),
+    lights: wp.array(dtype=int),
+    light_pos_rows: wp.array2d(dtype=wp.vec3),
+    diffuse_rows: wp.array2d(dtype=wp.vec3),
+    specular_rows: wp.array2d(dtype=wp.vec3),
+    active_rows: wp.array2d(dtype=bool),
+    cams: wp.array(dtype=int),
+    cam_pos_rows: wp.array2d(dtype=wp.vec3),
+    cam_quat_rows: wp.array2d(dtype=wp.quat),
+    geom_rgba: wp.array2d(dtype=wp.vec4),
+    geom_matid: wp.array2d(dtype=int),
+    light_pos: wp.array2d(dtype=wp.vec3),
+    light_diffuse: wp.array2d(dtype=wp.vec3),
+    light_specular: wp.array2d(dtype=wp.vec3),
+    light_active: wp.array2d(dtype=bool),
+    cam_pos: wp.array2d(dtype=wp.vec3),
+    cam_quat: wp.array2d(dtype=wp.quat),
+):
+    """The appearance of the episode each world marked in ``reset`` starts at this boundary:
+    row ``e`` of the episodes' patch tables (:class:`~factory.demos.appearance.PatchTables`;
+    column ``k`` is element ``geoms[k]``, ``lights[k]`` or ``cams[k]``) into the world's row of
+    the model's per-world fields (``(nworld, ...)``). Thread ``(w, k)``: world ``w``, the
+    ``k``-th changed geom, light and camera."""
+    w, k = wp.tid()
+    if not reset[w]:
+        return
+    e = episode[step[0] // per_frame, w]
+    if e < 0:
+        return
+    if k < geoms.shape[0]:
+        g = geoms[k]
+        geom_rgba[w, g] = rgba_rows[e, k]
+        geom_matid[w, g] = matid_rows[e, k]
+    if k < lights.shape[0]:
+        i = lights[k]
+        light_pos[w, i] = light_pos_rows[e, k]
+        light_diffuse[w, i] = diffuse_rows[e, k]
+        light_specular[w, i] = specular_rows[e, k]
+        light_active[w, i] = active_rows[e, k]
+    if k < cams.shape[0]:
+        c = cams[k]
+        cam_pos[w, c] = cam_pos_rows[e, k]
+        cam_quat[w, c] = cam_quat_rows[e, k]
+
+
+@wp.kernel
 def to_images(
     packed: wp.array2d(dtype=wp.uint32),
     depth: wp.array2d(dtype=float),

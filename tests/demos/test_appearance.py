@@ -210,6 +210,10 @@ def test_version_1_metadata_still_reads() -> None:
         state_spec=1,
     )
     old = to_dict(info)
-    del old["appearance"]
+    del old["appearance"], old["recorder"]
     old["schema_version"] = 1
     assert episode_info_from_dict(old).appearance is None
+    v2 = to_dict(info)
+    del v2["recorder"]
+    v2["schema_version"] = 2
+    assert episode_info_from_dict(v2).recorder == ""
