@@ -106,7 +106,11 @@ def main() -> None:
         "--task",
         default="pick_place",
         choices=sorted(PROMPTS),
-        help="mobile_pick_place: living rooms, CPU executor (one episode at a time per worker)",
+        help=(
+            "mobile_pick_place: living rooms; CPU executor: one episode at a time per worker; "
+            "--executor warp: --workers processes plan and simulate, the GPU renders "
+            "(factory.demos.mobile_gpu_pipeline)"
+        ),
     )
     p.add_argument(
         "--runs",

@@ -92,14 +92,33 @@ class FrameRenderer:
     at this size), and shadows unless ``cfg.shadows`` (shadow maps of :data:`SHADOW_SIZE`);
     collision geoms (group 3) and sites are hidden. Depth is the depth buffer of the RGB pass,
     so it matches the image: transparent geoms (window glass) do not occlude.
+
+    With ``cull`` (default), as the mobile task's renderer does, the vertex stage (most of a
+    frame's time on a CPU renderer, each light adding per-vertex lighting) draws only what a
+    view can see: infinite ground planes are drawn as a few large quads instead of MuJoCo's
+    200 x 200 grid (the GL context is made from :func:`factory.sim.render_model.render_model`'s
+    copy and the scene's plane resized to match; the scene is made from ``model`` itself, so
+    appearance patches written into it still show) and each view
+    skips the geoms outside its frustum (:class:`factory.sim.frustum.FrustumCuller`, the same
+    pixels; nothing is culled while shadows are on). 1.7x (flat look) to 2x (textures and
+    room lights) the frames per second on one core (``scripts/bench_recording.py``).
     """
 
-    def __init__(self, model: mujoco.MjModel, cfg: RecordConfig) -> None:
+    def __init__(self, model: mujoco.MjModel, cfg: RecordConfig, cull: bool = True) -> None:
+        from factory.sim.frustum import FrustumCuller
         from factory.sim.gl import configure_gl
+        from factory.sim.render_model import infinite_planes, render_model
 
         configure_gl("auto")
         self.model = model
         self.cfg = cfg
+        self.culler = FrustumCuller(model) if cull else None
+        self._planes = frozenset(infinite_planes(model)) if cull else frozenset()
+        half = 1.05 * float(model.vis.map.zfar * model.stat.extent)
+        # render_model's finite plane: spacing = half, 4 x 4 quads
+        self._plane_size = np.array([half, half, half / 2.0])
+        self._geom_obj = int(mujoco.mjtObj.mjOBJ_GEOM)
+        self._catmask = int(mujoco.mjtCatBit.mjCAT_ALL)
         n = len(cfg.cameras)
         model.vis.quality.offsamples = 0  # no multisampling: 1.7x faster on Mesa at 128 px
         if cfg.shadows:
@@ -107,7 +126,11 @@ class FrameRenderer:
         if n * cfg.width > model.vis.global_.offwidth or cfg.height > model.vis.global_.offheight:
             model.vis.global_.offwidth = max(model.vis.global_.offwidth, n * cfg.width)
             model.vis.global_.offheight = max(model.vis.global_.offheight, cfg.height)
-        self.renderer = mujoco.Renderer(model, cfg.height, n * cfg.width)
+        # the GL context bakes each plane's grid from the model it is made with
+        drawn = render_model(model) if cull else model
+        self.renderer = mujoco.Renderer(drawn, cfg.height, n * cfg.width)
+        self._camera = mujoco.MjvCamera()
+        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         flags = self.renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = cfg.shadows
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
@@ -142,9 +165,22 @@ class FrameRenderer:
         r._gl_context.make_current()
         ctx = r._mjr_context
         w, h = self.cfg.width, self.cfg.height
+        culler = self.culler
         for k, cam in enumerate(self.cams):
-            r.update_scene(data, camera=cam, scene_option=self.option)
+            # the scene from this model (appearance patches are written into it), drawn with
+            # the context of its render copy
+            self._camera.fixedcamid = cam
+            mujoco.mjv_updateScene(
+                self.model, data, self.option, None, self._camera, self._catmask, r.scene
+            )
+            if self._planes:
+                self._finite_planes(r.scene)
+            if culler is not None:
+                culler.bind(r.scene, data)
+                culler.hide(w, h)
             mujoco.mjr_render(mujoco.MjrRect(k * w, 0, w, h), r.scene, ctx)
+            if culler is not None:
+                culler.restore()
         mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
         rgb = np.flipud(self._rgb)
         depth = self._metric(np.flipud(self._z))
@@ -153,6 +189,15 @@ class FrameRenderer:
         rgbs = [rgb[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
         depths = [depth[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
         return rgbs, depths
+
+    def _finite_planes(self, scene: mujoco.MjvScene) -> None:
+        """Resizes the scene's infinite planes to :func:`~factory.sim.render_model.render_model`'s
+        finite ones. ``mjv_updateScene`` adds geoms in model order, so model geom ``g`` is at
+        most at slot ``g``."""
+        for k in range(min(int(scene.ngeom), max(self._planes) + 1)):
+            g = scene.geoms[k]
+            if g.objtype == self._geom_obj and g.objid in self._planes:
+                g.size[:] = self._plane_size
 
     def close(self) -> None:
         self.renderer.close()

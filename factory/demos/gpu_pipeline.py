@@ -218,7 +218,7 @@ def run_gpu(
     env: StageEnv, items: list[WorkItem], workers: int, bar: Any = None, device: str | None = None
 ) -> list[dict[str, Any]]:
     """Fills the slots of ``items`` with the GPU executor; one statistics dict per scene (the
-    keys of :func:`factory.demos.stage.run_item`'s)."""
+    keys of :func:`factory.demos.cpu_items.run_item`'s)."""
     from factory.demos.appearance import episode_looks, setup_index
     from factory.demos.episodes import EpisodeStore
     from factory.demos.execute_warp import WarpExecutor
@@ -391,12 +391,12 @@ def run_gpu(
                 if bar is not None:
                     bar.update(len(futures) - len(retry))
                 if retry and dc.gpu_retries == "cpu":
-                    from factory.demos.stage import _run_item_logged
+                    from factory.demos.cpu_items import run_item_logged
 
                     item = WorkItem(sid, tuple(retry))
                     first = {k: attempt[k] for k in retry}
                     cpu_retries.append(
-                        (out, len(retry), pool.submit(_run_item_logged, env, item, first))
+                        (out, len(retry), pool.submit(run_item_logged, env, item, first))
                     )
                     out["cpu_retries"] = len(retry)
                     retry = []

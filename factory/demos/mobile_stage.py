@@ -52,6 +52,21 @@ def _write(
     cfg: MobileRecordConfig,
 ) -> None:
     """Stores a successful mobile recording as episode ``k`` of its scene."""
+    store.write(*mobile_payload(setup, k, seed, plan, rec, cfg))
+
+
+def mobile_payload(
+    setup: MobileSetup,
+    k: int,
+    seed: int,
+    plan: MobileEpisodePlan,
+    rec: MobileRecording,
+    cfg: MobileRecordConfig,
+    recorder: str = "cpu",
+) -> tuple[Any, dict[str, np.ndarray]]:
+    """The metadata and arrays a successful mobile recording is stored as (episode ``k`` of
+    its scene), its images drawn by the ``recorder`` (``cpu``: OpenGL, ``warp``: MuJoCo Warp's
+    batch renderer, :mod:`factory.demos.mobile_gpu_pipeline`)."""
     from factory import __version__
     from factory.demos.mobile_pick_place import STATE_SPEC
     from factory.demos.slots import episode_id
@@ -92,6 +107,7 @@ def _write(
         factory_version=__version__,
         cleared=list(setup.cleared),
         route=dict(plan.route),
+        recorder=recorder,
     )
     arrays: dict[str, np.ndarray] = {
         "time": rec.time,
@@ -108,7 +124,7 @@ def _write(
         arrays[f"rgb/{cam}"] = im
     for cam, dp in rec.depth.items():
         arrays[f"depth/{cam}"] = dp
-    store.write(meta, arrays)
+    return meta, arrays
 
 
 def mobile_scene_planner(run_dir: Any, scene_id: str, dc: Any) -> tuple[MobileSetup, MobilePlanner]:

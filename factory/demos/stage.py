@@ -25,19 +25,15 @@ import numpy as np
 
 from factory.config import DemosConfig
 from factory.context import StageContext
+from factory.demos.cpu_items import run_item, run_item_logged
 from factory.demos.slots import (
     StageEnv,
     WorkItem,
-    cached_setup,
     episode_id,
-    episode_instruction,
-    episode_payload,
     episode_seed,
-    item_stats,
-    record_config,
     scene_planner,
 )
-from factory.errors import ConfigError, FactoryError, StoreError
+from factory.errors import ConfigError, StoreError
 from factory.store import atomic_write_json
 
 __all__ = [
@@ -61,7 +57,8 @@ TASKS: dict[str, str] = {
 EXECUTORS: dict[str, str] = {
     "auto": "warp when CUDA is present, else cpu",
     "cpu": "mujoco.batch threads + EGL/OSMesa rendering (factory.demos.execute)",
-    "warp": "MuJoCo Warp worlds + its batch renderer (factory.demos.execute_warp)",
+    "warp": "MuJoCo Warp worlds + its batch renderer (factory.demos.execute_warp; the mobile "
+    "task: CPU simulation, Warp rendering, factory.demos.mobile_gpu_pipeline)",
 }
 """``demos.executor`` values."""
 
@@ -113,95 +110,6 @@ def check_config(dc: DemosConfig, task: str) -> None:
         raise ConfigError("demos.fps must be > 0 and demos.width/height >= 8 px")
 
 
-def run_item(
-    env: StageEnv, item: WorkItem, first_attempts: dict[int, int] | None = None
-) -> dict[str, Any]:
-    """Fills the item's slots (in a worker process or inline); returns its statistics.
-
-    Args:
-        env: the stage's settings.
-        item: the scene and its slots.
-        first_attempts: slot -> the attempt (seed) to start from (default 0): the GPU
-            executor's retries continue where its own attempts stopped.
-    """
-    from factory.demos.appearance import episode_looks, setup_index
-    from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import FrameRenderer, execute
-    from factory.demos.pick_place import EpisodePlan
-
-    if env.task == "mobile_pick_place":  # CPU path, one episode at a time
-        from factory.demos.mobile_stage import run_mobile_item
-
-        return run_mobile_item(env, item)
-    dc = env.demos
-    out: dict[str, Any] = item_stats(item.scene_id)
-    try:
-        setup, planner = cached_setup(env, item.scene_id)
-    except FactoryError as e:
-        out["error"] = str(e)
-        out["failures"]["scene_unusable"] += len(item.slots)
-        return out
-    out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
-    out["cleared"] = list(setup.cleared)
-    rec_cfg = record_config(dc)
-    store = EpisodeStore(env.store_path)
-    renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
-    look_index = setup_index(setup, rec_cfg.cameras) if rec_cfg.render else None
-    instruction = episode_instruction(setup)
-    attempt = {k: (first_attempts or {}).get(k, 0) for k in item.slots}
-    open_slots = [
-        k
-        for k in item.slots
-        if episode_id(item.scene_id, k) not in store and attempt[k] < dc.attempts
-    ]
-    try:
-        while open_slots:
-            planned: list[tuple[int, int, EpisodePlan]] = []
-            for k in open_slots:
-                seed = episode_seed(env.seed, item.scene_id, k, attempt[k])
-                res = planner.plan_episode(seed, dc.randomize)
-                if isinstance(res, EpisodePlan):
-                    planned.append((k, seed, res))
-                    out["plan"].append(res.seconds)
-                    out["segments"].extend(res.plan_seconds.values())
-                else:
-                    out["failures"][res.reason] += 1
-                    log.info("scene %s slot %d: plan failed: %s", item.scene_id, k, res.detail)
-            looks = None
-            if look_index is not None:
-                seeds = [seed for _, seed, _ in planned]
-                looks = episode_looks(setup.model, look_index, dc.appearance, seeds)
-            plans = [p for _, _, p in planned]
-            recs = execute(setup, plans, rec_cfg, env.nthread, renderer, looks)
-            done: set[int] = set()
-            for (k, seed, plan), rec in zip(planned, recs, strict=True):
-                out["simulate"] += rec.sim_seconds
-                out["render"] += rec.render_seconds
-                assert rec.outcome is not None
-                if not rec.outcome.success:
-                    out["failures"][rec.outcome.reason] += 1
-                    continue
-                store.write(*episode_payload(env, setup, k, seed, plan, rec, rec_cfg, instruction))
-                out["frames"] += len(rec.time)
-                done.add(k)
-                out["new"] += 1
-            for k in open_slots:
-                if k not in done:
-                    attempt[k] += 1
-            open_slots = [k for k in open_slots if k not in done and attempt[k] < dc.attempts]
-    finally:
-        if renderer is not None:
-            renderer.close()
-    return out
-
-
-def _run_item_logged(
-    env: StageEnv, item: WorkItem, first_attempts: dict[int, int] | None = None
-) -> dict[str, Any]:
-    logging.basicConfig(level=logging.WARNING)
-    return run_item(env, item, first_attempts)
-
-
 def _stats(values: list[float]) -> dict[str, float]:
     if not values:
         return {"n": 0}
@@ -239,16 +147,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
             items.append(WorkItem(sid, tuple(todo[start : start + dc.batch])))
     cores = os.cpu_count() or 1
     executor = resolve_executor(dc.executor)
-    if cfg.task == "mobile_pick_place":
-        executor = "cpu"  # the mobile task has no GPU executor yet
+    mobile = cfg.task == "mobile_pick_place"
     if executor == "warp":
         workers = dc.workers or max(1, cores - 1)
-        if dc.appearance.enabled and dc.render:
-            log.warning(
-                "demos.appearance: the warp executor records without appearance randomisation "
-                "(episodes record appearance=null); use demos.executor=cpu for it, or set "
-                "demos.appearance.enabled=false to silence this"
-            )
     else:
         workers = min(dc.workers or cores, max(1, len(items)))
     nthread = dc.nthread or max(1, cores // workers)
@@ -259,13 +160,17 @@ def run(ctx: StageContext) -> dict[str, Any]:
     desc = "demos (gpu)" if executor == "warp" else "demos"
     with tqdm(total=total, desc=desc, unit="episode", disable=None, file=terminal()) as bar:
         try:
-            if executor == "warp" and items:
+            if executor == "warp" and items and mobile:
+                from factory.demos.mobile_gpu_pipeline import run_mobile_gpu
+
+                results = run_mobile_gpu(env, items, workers, bar)
+            elif executor == "warp" and items:
                 from factory.demos.gpu_pipeline import run_gpu
 
                 results = run_gpu(env, items, workers, bar)
             elif workers > 1:
                 with ProcessPoolExecutor(workers) as pool:
-                    futures = {pool.submit(_run_item_logged, env, it): it for it in items}
+                    futures = {pool.submit(run_item_logged, env, it): it for it in items}
                     for fut in as_completed(futures):
                         results.append(fut.result())
                         bar.update(len(futures[fut].slots))

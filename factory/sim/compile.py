@@ -54,7 +54,7 @@ from factory.sim.materials import (
     object_rgba,
     surface,
 )
-from factory.sim.walls import opening_rect, solid_rects
+from factory.sim.walls import PlanRect, opening_rect, solid_rects, subtract, wall_keepout
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +80,9 @@ class CompileOptions:
         textures: procedural textures on floors, walls, ceilings and asset parts (off: flat
             colours, as before issue 17).
         texture_size: size (px) of the floor, wall and ceiling textures.
+        lights: room lighting (:mod:`factory.sim.lights`: ceiling lights per room, a light
+            in every lamp, a weak sun and a soft headlight); off: the lighting before issue
+            17 (a brighter headlight and sun, no ceiling or lamp lights).
     """
 
     ceiling: bool = False
@@ -87,6 +90,7 @@ class CompileOptions:
     offscreen_size: int = 1280
     textures: bool = True
     texture_size: int = 256
+    lights: bool = True
 
 
 @dataclass
@@ -115,6 +119,15 @@ HEADLIGHT_DIFFUSE = [0.15, 0.15, 0.15]
 SUN_DIFFUSE = [0.2, 0.2, 0.19]
 """The directional "sun": a weak fill from above at a slant, without shadows."""
 
+FLAT_HEADLIGHT_AMBIENT = [0.35, 0.35, 0.35]
+"""Headlight ambient without room lights (``CompileOptions.lights=False``: before issue 17)."""
+
+FLAT_HEADLIGHT_DIFFUSE = [0.45, 0.45, 0.45]
+"""Headlight diffuse without room lights."""
+
+FLAT_SUN_DIFFUSE = [0.55, 0.55, 0.52]
+"""The sun without room lights: the main light, casting shadows."""
+
 
 def _add_light(parent: mujoco.MjsBody, light: LightSpec) -> None:
     """Adds a spot light (:mod:`factory.sim.lights`) to a body of the spec."""
@@ -134,6 +147,36 @@ def _add_light(parent: mujoco.MjsBody, light: LightSpec) -> None:
 
 def _yaw_quat(yaw: float) -> list[float]:
     return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+
+MIN_WALL_PIECE = 1e-6
+"""Pieces of a wall thinner than this after the keep-out (m) are dropped (rounding slivers)."""
+
+
+def _kept_pieces(
+    cx: float,
+    cy: float,
+    half_u: float,
+    half_t: float,
+    along_x: bool,
+    keepout: list[PlanRect],
+) -> list[tuple[float, float, float, float]]:
+    """A wall piece of a plan-aligned wall (centre ``cx, cy``, half sizes along the wall and
+    across it, m) minus the room's keep-out rectangles: ``(centre x, centre y, half size along
+    the wall, half size across)`` per remaining box (the piece itself if nothing is left out)."""
+    hx, hy = (half_u, half_t) if along_x else (half_t, half_u)
+    rect = PlanRect(cx - hx, cy - hy, cx + hx, cy + hy)
+    parts = subtract(rect, keepout)
+    if parts == [rect]:
+        return [(cx, cy, half_u, half_t)]
+    out = []
+    for p in parts:
+        sx, sy = (p.x1 - p.x0) / 2, (p.y1 - p.y0) / 2
+        if min(sx, sy) < MIN_WALL_PIECE / 2:
+            continue
+        hu, ht = (sx, sy) if along_x else (sy, sx)
+        out.append(((p.x0 + p.x1) / 2, (p.y0 + p.y1) / 2, hu, ht))
+    return out
 
 
 class _Builder:
@@ -165,9 +208,10 @@ class _Builder:
         vis.quality.shadowsize = 4096
         # The room's ceiling and lamp lights (factory.sim.lights) do most of the lighting; the
         # headlight is a soft fill from the viewer so that shadowed sides are not black.
-        vis.headlight.ambient = HEADLIGHT_AMBIENT
-        vis.headlight.diffuse = HEADLIGHT_DIFFUSE
-        vis.headlight.specular = [0.05, 0.05, 0.05]
+        lit = self.options.lights
+        vis.headlight.ambient = HEADLIGHT_AMBIENT if lit else FLAT_HEADLIGHT_AMBIENT
+        vis.headlight.diffuse = HEADLIGHT_DIFFUSE if lit else FLAT_HEADLIGHT_DIFFUSE
+        vis.headlight.specular = [0.05, 0.05, 0.05] if lit else [0.1, 0.1, 0.1]
         vis.map.znear = 0.01
         tex = spec.add_texture(
             name="ground_tex",
@@ -194,9 +238,9 @@ class _Builder:
             type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
             pos=[cx, cy, 10.0],
             dir=[0.3, 0.2, -1.0],
-            diffuse=SUN_DIFFUSE,
-            specular=[0.05, 0.05, 0.05],
-            castshadow=False,
+            diffuse=SUN_DIFFUSE if lit else FLAT_SUN_DIFFUSE,
+            specular=[0.05, 0.05, 0.05] if lit else [0.1, 0.1, 0.1],
+            castshadow=not lit,
         )
 
     def material(self, key: str, name: str, default_rgba: tuple[float, ...] | None = None) -> str:
@@ -338,7 +382,10 @@ class _Builder:
         return mat_name
 
     # ---- architecture
-    def room(self, room: Room) -> None:
+    def room(self, room: Room, keepout: list[PlanRect] | None = None) -> None:
+        """A room's floor, optional ceiling, lights, walls (boxes around the openings; pieces
+        inside ``keepout``, :func:`~factory.sim.walls.wall_keepout`, left out) and window
+        panes."""
         spec = self.spec
         w, ln = room.dimensions.width, room.dimensions.length
         x0, y0, z0 = room.position.as_tuple()
@@ -361,7 +408,7 @@ class _Builder:
                 material=self.material("wall/ceiling", "plaster"),
                 group=GROUP_ARCH,
             )
-        for light in ceiling_lights(room):
+        for light in ceiling_lights(room) if self.options.lights else []:
             _add_light(spec.worldbody, light)
         for wall in room.walls:
             openings: list[Door | Window] = [d for d in room.doors if d.wall_id == wall.id]
@@ -372,19 +419,30 @@ class _Builder:
             quat = _yaw_quat(math.atan2(dy, dx))
             mat = self.material(f"wall/{wall.material}", wall.material)
             half_t = wall.thickness / 2
-            for k, r in enumerate(solid_rects(wall, openings)):
+            along_x = abs(uy) <= 1e-9
+            plan_aligned = along_x or abs(ux) <= 1e-9
+            k = 0
+            for r in solid_rects(wall, openings):
                 u0 = r.u0 - (half_t if r.u0 <= 1e-9 else 0.0)
                 u1 = r.u1 + (half_t if r.u1 >= length - 1e-9 else 0.0)
                 uc, zc = (u0 + u1) / 2, (r.z0 + r.z1) / 2
-                spec.worldbody.add_geom(
-                    name=f"{room.id}/{wall.id}/{k}",
-                    type=mujoco.mjtGeom.mjGEOM_BOX,
-                    pos=[wall.start.x + ux * uc, wall.start.y + uy * uc, wall.start.z + zc],
-                    quat=quat,
-                    size=[(u1 - u0) / 2, half_t, (r.z1 - r.z0) / 2],
-                    material=self._upright(mat, half_t, (r.z1 - r.z0) / 2),
-                    group=GROUP_ARCH,
-                )
+                hz = (r.z1 - r.z0) / 2
+                cx, cy = wall.start.x + ux * uc, wall.start.y + uy * uc
+                # (centre x, centre y, half size along the wall, half thickness)
+                pieces = [(cx, cy, (u1 - u0) / 2, half_t)]
+                if keepout and plan_aligned:
+                    pieces = _kept_pieces(cx, cy, (u1 - u0) / 2, half_t, along_x, keepout)
+                for px, py, hu, ht in pieces:
+                    spec.worldbody.add_geom(
+                        name=f"{room.id}/{wall.id}/{k}",
+                        type=mujoco.mjtGeom.mjGEOM_BOX,
+                        pos=[px, py, wall.start.z + zc],
+                        quat=quat,
+                        size=[hu, ht, hz],
+                        material=self._upright(mat, ht, hz),
+                        group=GROUP_ARCH,
+                    )
+                    k += 1
             for win in (op for op in room.windows if op.wall_id == wall.id):
                 r = opening_rect(wall, win)
                 uc, zc = (r.u0 + r.u1) / 2, (r.z0 + r.z1) / 2
@@ -419,7 +477,7 @@ class _Builder:
         )
         if not obj.is_static:
             body.add_freejoint(name=f"{obj.id}/free")
-        lamp = lamp_light(obj)
+        lamp = lamp_light(obj) if self.options.lights else None
         if lamp is not None:
             _add_light(body, lamp)
         friction = [obj.physics.friction, TORSIONAL_FRICTION, ROLLING_FRICTION]
@@ -539,8 +597,9 @@ def _build(
     root = Path(assets_root).resolve() if assets_root else None
     b = _Builder(scene, root, options or CompileOptions())
     b.setup()
-    for room in scene.rooms:
-        b.room(room)
+    keepouts = wall_keepout(scene.rooms) if len(scene.rooms) > 1 else [[] for _ in scene.rooms]
+    for room, keepout in zip(scene.rooms, keepouts, strict=True):
+        b.room(room, keepout)
     for obj in scene.objects:
         b.obj(obj)
     return b

@@ -73,7 +73,7 @@ def test_cpu_retries_continue_from_the_gpu_attempts(make_kitchen, tmp_path: Path
     and the episode says which executor recorded it."""
     from factory.demos.episodes import EpisodeStore
     from factory.demos.slots import StageEnv, WorkItem, episode_id, episode_seed
-    from factory.demos.stage import run_item
+    from factory.demos.cpu_items import run_item
     from factory.schema import scene_to_json
 
     run = tmp_path / "run"
