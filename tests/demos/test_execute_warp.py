@@ -71,9 +71,9 @@ def test_cpu_retries_continue_from_the_gpu_attempts(make_kitchen, tmp_path: Path
     """The GPU path hands its execution failures to the CPU executor (``run_item`` with
     ``first_attempts``): a slot starts at its next seed, a slot out of attempts is not tried,
     and the episode says which executor recorded it."""
+    from factory.demos.cpu_items import run_item
     from factory.demos.episodes import EpisodeStore
     from factory.demos.slots import StageEnv, WorkItem, episode_id, episode_seed
-    from factory.demos.cpu_items import run_item
     from factory.schema import scene_to_json
 
     run = tmp_path / "run"
