@@ -11,10 +11,12 @@ from factory.dataset.lerobot_export import (
     pack_depth_mm,
     unpack_depth_mm,
 )
+from factory.dataset.mobile_features import episode_routes
 from factory.dataset.video import VideoCodec, lossless_codec, rgb_codec
 
 __all__ = [
     "VideoCodec",
+    "episode_routes",
     "export_store",
     "features_for",
     "lossless_codec",

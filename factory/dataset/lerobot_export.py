@@ -26,7 +26,9 @@ and the factory version.
 
 Mobile episodes (``task=mobile_pick_place``) get the features of
 :mod:`factory.dataset.mobile_features` instead (base pose in the state, 11 action columns,
-sub-task labels); one dataset holds one layout.
+sub-task labels), and their entries in ``meta/factory.json`` the episode's navigation
+``route`` (:func:`~factory.dataset.mobile_features.episode_routes` reads them by dataset
+episode index); one dataset holds one layout.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from factory.dataset.mobile_features import (
     MOBILE,
     MOBILE_ROBOT_TYPE,
     MOBILE_SUBTASKS,
+    ROUTE_KEY,
     check_mobile_shapes,
     layout_of,
     mobile_columns,
@@ -53,6 +56,7 @@ from factory.dataset.mobile_features import (
     mobile_meta_of,
     one_layout,
     one_meta_layout,
+    route_entry,
     scalar_buffer,
 )
 from factory.dataset.video import VideoCodec, frame_encoder, lossless_codec, rgb_codec
@@ -61,8 +65,9 @@ from factory.errors import StoreError
 log = logging.getLogger(__name__)
 
 FACTORY_META = "meta/factory.json"
-EXPORT_SCHEMA_VERSION = 3
-"""Format of ``meta/factory.json`` and the features (3: ``observation.environment_state``)."""
+EXPORT_SCHEMA_VERSION = 4
+"""Format of ``meta/factory.json`` and the features (3: ``observation.environment_state``;
+4: a mobile episode's entry in ``meta/factory.json`` holds its ``route``)."""
 VIDEO_FILE_MB = 4
 DEPTH_ENCODING = "mm = 256 * R + G (uint8 channels of a lossless RGB video)"
 ENV_STATE_NAMES = [
@@ -364,14 +369,19 @@ class _ExtrasWriter:
 
 
 def _episode_entry(index: int, info: Any) -> dict[str, Any]:
-    """An episode's entry in ``meta/factory.json``."""
-    return {
+    """An episode's entry in ``meta/factory.json``: its dataset index, id, scene, seed and
+    length; a mobile episode adds its ``route`` (``EpisodeInfo.route``:
+    :func:`~factory.dataset.mobile_features.route_entry`)."""
+    entry: dict[str, Any] = {
         "episode_index": index,
         "episode_id": info.episode_id,
         "scene_id": info.scene_id,
         "seed": info.seed,
         "n_frames": info.n_frames,
     }
+    if getattr(info, "route", None):
+        entry[ROUTE_KEY] = route_entry(info)
+    return entry
 
 
 def export_store(
@@ -503,15 +513,7 @@ def export_store(
                 ds.add_frame(frame)
             ds.save_episode()
             extras.write(info, group)
-            episodes.append(
-                {
-                    "episode_index": index,
-                    "episode_id": info.episode_id,
-                    "scene_id": info.scene_id,
-                    "seed": info.seed,
-                    "n_frames": info.n_frames,
-                }
-            )
+            episodes.append(_episode_entry(index, info))
         ds.finalize()
         meta = _factory_meta(
             version,

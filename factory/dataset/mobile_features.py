@@ -16,15 +16,24 @@ A mobile episode (:mod:`factory.demos.mobile_stage`) has the fixed task's arrays
 * ``observation.images.<camera>``/``observation.depth.<camera>`` for all five cameras, encoded
   as the fixed task's (RGB video; depth as packed millimetres in a lossless RGB video).
 
-There is no ``observation.environment_state``. :func:`layout_of` tells the two layouts apart
-and :func:`one_layout` refuses mixing them in one dataset.
+There is no ``observation.environment_state``. Per episode, ``meta/factory.json`` holds the
+navigation ``route`` the episode drove (``EpisodeInfo.route``, :func:`route_entry`): the
+route check's base poses it drove to (``pick_pose``, ``place_pose``: x, y m, yaw rad, world
+frame), their indices in the check's pose lists (best first) and the check's summary (pose
+counts, grid cell, lattice headings, footprint radius, carry front); :func:`episode_routes`
+reads them back by dataset episode index.
+
+:func:`layout_of` tells the two layouts apart and :func:`one_layout` refuses mixing them in
+one dataset.
 """
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -49,6 +58,10 @@ MOBILE_ROBOT_TYPE = "franka_panda_omron"
 """lerobot's ``robot_type`` of mobile datasets (the fixed ones keep ``franka_panda``)."""
 SUBTASK_KEY = "subtask_index"
 DONE_KEY = "subtask_done"
+ROUTE_KEY = "route"
+"""Key of a mobile episode's route in its ``meta/factory.json`` entry."""
+ROUTE_POSES = ("pick_pose", "place_pose")
+"""The route's base poses (x, y m, yaw rad, world frame)."""
 
 
 @dataclass(frozen=True)
@@ -136,6 +149,55 @@ def mobile_meta_of(meta: dict[str, Any]) -> dict[str, Any]:
     if meta_layout(meta) != MOBILE:
         return {}
     return mobile_meta(meta.get("subtasks"))
+
+
+def route_entry(info: Any) -> dict[str, Any]:
+    """A mobile episode's ``route`` for ``meta/factory.json``: a JSON-ready copy of
+    ``EpisodeInfo.route`` (:meth:`factory.demos.mobile_plan.MobilePlanner.route_record`).
+
+    Raises:
+        StoreError: a route without its base poses (re-record the episode).
+    """
+    route = json.loads(json.dumps(dict(info.route)))
+    for key in ROUTE_POSES:
+        pose = route.get(key)
+        if not isinstance(pose, list) or len(pose) != 3:
+            raise StoreError(
+                f"episode {info.episode_id!r}: its route has no {key} (x, y, yaw): {pose!r} "
+                "(re-record the episode with stage=demos task=mobile_pick_place)"
+            )
+    return dict(route)
+
+
+def episode_routes(root: str | Path) -> dict[int, dict[str, Any]]:
+    """The navigation route of every episode of a mobile dataset, by dataset episode index
+    (the ``episode_index`` of ``LeRobotDataset``'s frames and of ``meta/episodes``).
+
+    Args:
+        root: the dataset folder (``LeRobotDataset.root``).
+
+    Raises:
+        StoreError: not a factory dataset, not a mobile one, or exported before routes were
+            (names the fix).
+    """
+    path = Path(root) / "meta" / "factory.json"
+    if not path.is_file():
+        raise StoreError(f"{root} has no meta/factory.json: export it with stage=dataset")
+    meta = json.loads(path.read_text())
+    if meta_layout(meta) != MOBILE:
+        raise StoreError(
+            f"{root} holds fixed-base episodes, which have no route: routes are recorded by "
+            "stage=demos task=mobile_pick_place"
+        )
+    out: dict[int, dict[str, Any]] = {}
+    for ep in meta["episodes"]:
+        if ROUTE_KEY not in ep:
+            raise StoreError(
+                f"{root}: episode {ep.get('episode_id')!r} has no route in meta/factory.json "
+                "(exported before routes were): re-export with stage=dataset force=true"
+            )
+        out[int(ep["episode_index"])] = dict(ep[ROUTE_KEY])
+    return out
 
 
 def _camera_hw(info: Any, group: Any, cam: str) -> tuple[int, int]:
@@ -282,4 +344,13 @@ def mobile_card_lines(meta: dict[str, Any], cams: list[str], rgb: dict[str, Any]
         "optical axis; fisheye cameras: along the ray), packed into a lossless RGB video: "
         f"{meta['depth_encoding']}. `factory.dataset.unpack_depth_mm` reads it back exactly.",
         "- No `observation.environment_state` (object poses are in `extras/.../states.npz`)",
+        f"- **`{ROUTE_KEY}`** (per episode, in `meta/factory.json` under `episodes[i].route`; "
+        "`factory.dataset.episode_routes` reads them by episode index): the navigation route "
+        "check's base poses the episode drove to, `pick_pose` and `place_pose` (x, y in m, "
+        "yaw in rad, world frame), their indices `pick_index`/`place_index` in the check's "
+        "pose lists (best first), and the check's summary: `pick_poses`/`place_poses` (free "
+        "base poses within reach), `route_pick_poses`/`route_place_poses` (those connected "
+        "by a route), `resolution` (occupancy grid cell, m), `headings` (yaw lattice), "
+        "`footprint_radius` and `carry_front` (m), `reason` (empty: a route exists). The "
+        "spawn pose is the first frame's base pose in `observation.state`",
     ]

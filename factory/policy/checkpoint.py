@@ -311,6 +311,7 @@ class LoadedPolicy:
         self.spec = spec_from_features(info.inputs, info.features, info.depth_max_m, info.action)
         self._tracker = ToolActionTracker() if info.action != "joint" else None
         self._origin: np.ndarray | None = None
+        self._base_origin: np.ndarray | None = None
         self._policy = policy
         self._pre = preprocessor
         self._post = postprocessor
@@ -326,7 +327,7 @@ class LoadedPolicy:
         self._policy.reset()
         if self._tracker is not None:
             self._tracker.reset()
-        self._origin = None
+        self._origin = self._base_origin = None
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         """Actions for a batch of observations.
@@ -345,21 +346,36 @@ class LoadedPolicy:
         """
         import torch
 
-        from factory.policy.inputs import TOOL_POS, convert_observation
+        from factory.policy.inputs import (
+            BASE_DIM,
+            BASE_RAW,
+            TOOL_POS,
+            base_absolute,
+            convert_observation,
+        )
 
         if not self._checked:
             check_features(self.info, obs, {k: np.shape(v)[1:] for k, v in obs.items()})
             self._checked = True
         batch = convert_observation(self.spec, obs)
         with torch.inference_mode():
-            if self.spec.action == "tool_rel" and chunk_starts(self._policy):
-                # this chunk's positions are relative to the tool's position now
-                self._origin = batch["observation.state"][:, TOOL_POS].numpy().copy()
+            if chunk_starts(self._policy):
+                # this chunk's positions are relative to the tool's position now, its base
+                # targets to the base pose now (as the training's chunk_actions)
+                if self.spec.action == "tool_rel":
+                    self._origin = batch["observation.state"][:, TOOL_POS].numpy().copy()
+                if self.spec.mobile:
+                    state = np.asarray(obs["observation.state"], np.float64)
+                    self._base_origin = state[:, BASE_RAW].copy()
             batch = self._pre(batch)
             action = self._policy.select_action(batch)
             action = self._post(action)
         out = np.asarray(action.detach().to("cpu").numpy(), np.float32)
         out = out.reshape(-1, self.spec.action_dim)
+        if self.spec.mobile:
+            assert self._base_origin is not None
+            base = base_absolute(out[:, -BASE_DIM:], self._base_origin)
+            out[:, -BASE_DIM:] = base.astype(np.float32)
         if self._tracker is not None:
             origin = self._origin if self.spec.action == "tool_rel" else None
             arm = self._tracker.joints(out[:, :10], np.asarray(obs["observation.state"]), origin)
@@ -380,6 +396,28 @@ def chunk_starts(policy: Any) -> bool:
     if queue is not None:
         return len(queue) == 0
     return True
+
+
+def _check_mobile_layout(info: TrainInfo, cfg: Any, path: Path) -> None:
+    """Refuses a mobile policy trained on the earlier model inputs (the base pose's raw yaw in a
+    20-wide state, world base targets), which this factory's conversions no longer produce.
+
+    Raises:
+        PolicyError: names the retraining.
+    """
+    from factory.dataset.mobile_features import SUBTASK_KEY
+    from factory.policy.inputs import MOBILE_ROBOT_DIM
+
+    if SUBTASK_KEY not in info.features:
+        return
+    feat = cfg.input_features.get("observation.state")
+    width = int(feat.shape[0]) if feat is not None else MOBILE_ROBOT_DIM
+    if width != MOBILE_ROBOT_DIM:
+        raise PolicyError(
+            f"{path} is a mobile policy with a {width}-wide observation.state, trained before "
+            f"the base heading became cos/sin and the base action relative ({MOBILE_ROBOT_DIM} "
+            "wide): retrain it with stage=train"
+        )
 
 
 def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedPolicy:
@@ -422,6 +460,7 @@ def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedP
         raise PolicyError(
             f"cannot load the policy in {path}: {msg} (retrain with stage=train)"
         ) from None
+    _check_mobile_layout(info, cfg, path)
     policy.to(dev)
     policy.eval()
     policy.reset()

@@ -64,8 +64,10 @@ def check_config(ec: Any) -> None:
 MOBILE_TASK = "mobile_pick_place"
 SUBTASK_RULE = (
     "the env's own check (factory.policy.mobile_env.SubtaskRule): a drive ends when the base "
-    "has rested 0.2 s within reach of the object / of the place support's top, the pick when "
-    "the object is held, lifted >= 3 cm and the tool is in the carry posture"
+    "has rested 0.2 s within reach of the object / of the place support's top, or when the "
+    "next sub-task begins there with the base slow (the hand opens / the arm moves); the pick "
+    "when the object is held, lifted >= 3 cm and the tool is in the carry posture with the "
+    "arm's command still or the arm settled"
 )
 
 

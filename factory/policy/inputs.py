@@ -44,12 +44,23 @@ Mobile datasets (``task=mobile_pick_place``, recognised by their ``subtask_index
 :mod:`factory.dataset.mobile_features`) read ``observation.state`` (11,): arm joints, gripper,
 base x, y (m, world) and yaw (rad), ``observation.ee_pose`` and ``subtask_index``, plus the
 images of the five cameras (left, right, wrist, fisheye_front, fisheye_back) for ``rgb`` and
-``rgbd``. The model then sees ``observation.state`` (20,): the 17 above (the tool pose by
-forward kinematics of the arm, in the robot's base frame) then the base pose x, y, yaw as
-recorded; ``observation.environment_state`` (4,): the sub-task as a one-hot vector
-(navigate_to_pick, pick, navigate_to_place, place); and predicts the arm action above followed
-by the base target x, y (m, world) and yaw (rad): 13 values for ``tool``/``tool_rel``, 11 for
-``joint``. There are no object poses in a mobile dataset, so ``state`` is proprioception and
+``rgbd``. The model then sees ``observation.state`` (21,): the 17 above (the tool pose by
+forward kinematics of the arm, in the robot's base frame) then the base pose x, y (m, world)
+and its heading as cos(yaw), sin(yaw); ``observation.environment_state`` (4,): the
+sub-task as a one-hot vector (navigate_to_pick, pick, navigate_to_place, place); and predicts
+the arm action above followed by the base target relative to the base pose at the frame the
+action chunk is predicted from: dx, dy (m, in that pose's base frame) and dyaw (rad): 13
+values for ``tool``/``tool_rel``, 11 for ``joint`` (:func:`base_relative`; at execution
+:func:`base_absolute` turns them back into the env's world targets).
+
+Why not the recorded world values: the recorded yaw is unwrapped (a drive's heading is
+continuous), so one heading appears as yaw, yaw + 2 pi or yaw - 2 pi in different demos of one
+scene (the same pick pose at 1.83 and -4.45 rad), which a policy cannot tell apart; and a world
+target (x over the room's 5 m) normalised to [-1, 1] is learned to a few per cent of the room,
+5-10 cm, ten times a frame's motion, so the base never comes to rest. Measured on 20 demos:
+teacher-forced world targets were 13 cm off in ``navigate_to_pick`` (docs/POLICY.md).
+
+There are no object poses in a mobile dataset, so ``state`` is proprioception and
 sub-task only (the policy cannot see where the object is).
 
 Why the base frame: the dataset's poses are in the world frame, and every scene puts the robot
@@ -105,8 +116,12 @@ MOBILE_STATE_DIM = 11
 """Dataset ``observation.state`` of mobile episodes: arm joints (7), gripper, base x, y, yaw."""
 BASE_DIM = 3
 """Base pose / base target columns (x, y in m, yaw in rad; world frame) of mobile episodes."""
-MOBILE_ROBOT_DIM = ROBOT_DIM + BASE_DIM
-"""Model ``observation.state`` of mobile policies: the 17 of :data:`ROBOT_DIM` + base pose."""
+BASE_RAW = slice(8, 11)
+"""The base pose (x, y m, world; yaw rad, unwrapped) in a mobile dataset's ``observation.state``
+and the base target in its ``action``."""
+MOBILE_ROBOT_DIM = ROBOT_DIM + 4
+"""Model ``observation.state`` of mobile policies: the 17 of :data:`ROBOT_DIM`, then the base's
+x, y (m, world), cos(yaw) and sin(yaw)."""
 SUBTASK_DIM = len(MOBILE_SUBTASKS)
 """Model ``observation.environment_state`` of mobile policies: the sub-task one-hot."""
 REFRESH = "re-run stage=dataset force=true (datasets written before this feature lack it)"
@@ -358,12 +373,66 @@ def robot_features(state: np.ndarray) -> np.ndarray:
 
 
 def mobile_robot_features(state: np.ndarray) -> np.ndarray:
-    """Model ``observation.state`` (..., 20) from a mobile dataset's ``observation.state``
+    """Model ``observation.state`` (..., 21) from a mobile dataset's ``observation.state``
     (..., 11): :func:`robot_features` of the arm and gripper, then the base x, y (m, world) and
-    yaw (rad) as recorded."""
+    its heading as cos(yaw), sin(yaw) (the same for yaw and yaw + 2 pi)."""
     state = np.asarray(state, np.float32)
     arm = robot_features(state[..., :8])
-    return np.concatenate([arm, state[..., 8:MOBILE_STATE_DIM]], axis=-1).astype(np.float32)
+    yaw = np.asarray(state[..., BASE_RAW.stop - 1 : BASE_RAW.stop], np.float64)
+    heading = np.concatenate([np.cos(yaw), np.sin(yaw)], axis=-1)
+    return np.concatenate([arm, state[..., 8:10], heading], axis=-1).astype(np.float32)
+
+
+def base_relative(target: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """World base targets -> the model's base action: relative to the base pose ``now``.
+
+    Args:
+        target: (..., H, 3) base targets x, y (m, world), yaw (rad, unwrapped).
+        now: (..., 3) the base pose of the frame the chunk is predicted from (same frames).
+
+    Returns:
+        (..., H, 3): dx, dy (m, in the base frame of ``now``) and dyaw = yaw - yaw_now (rad).
+    """
+    target = np.asarray(target, np.float64)
+    now = np.asarray(now, np.float64)[..., None, :]
+    c, s = np.cos(now[..., 2]), np.sin(now[..., 2])
+    dx, dy = target[..., 0] - now[..., 0], target[..., 1] - now[..., 1]
+    out = np.stack([c * dx + s * dy, -s * dx + c * dy, target[..., 2] - now[..., 2]], axis=-1)
+    return out.astype(np.float32)
+
+
+def base_absolute(rel: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`base_relative` for one action per env: (n, 3) relative base
+    actions and the poses ``now`` (n, 3) they are relative to -> world targets (n, 3)."""
+    rel = np.asarray(rel, np.float64)
+    now = np.asarray(now, np.float64)
+    c, s = np.cos(now[:, 2]), np.sin(now[:, 2])
+    x = now[:, 0] + c * rel[:, 0] - s * rel[:, 1]
+    y = now[:, 1] + s * rel[:, 0] + c * rel[:, 1]
+    return np.stack([x, y, now[:, 2] + rel[:, 2]], axis=-1)
+
+
+def chunk_actions(
+    spec: InputSpec, actions: np.ndarray, robot_now: np.ndarray, base_now: np.ndarray | None
+) -> np.ndarray:
+    """Absolute model actions of an action window -> what the model is trained to predict
+    from the window's current frame: ``tool_rel`` positions relative to the tool now
+    (:func:`relative_to`), a mobile base target relative to the base pose now
+    (:func:`base_relative`); otherwise unchanged.
+
+    Args:
+        actions: (..., H, A) from :func:`model_actions`.
+        robot_now: (..., D) the model ``observation.state`` of the current frame.
+        base_now: (..., 3) the dataset's base pose of the current frame (mobile; else None).
+    """
+    out = np.asarray(actions, np.float32)
+    if spec.action == "tool_rel":
+        out = relative_to(out, np.asarray(robot_now)[..., TOOL_POS])
+    if spec.mobile:
+        assert base_now is not None
+        out = np.array(out, np.float32, copy=True)
+        out[..., -BASE_DIM:] = base_relative(out[..., -BASE_DIM:], base_now)
+    return out
 
 
 def state_features(spec: InputSpec, state: np.ndarray) -> np.ndarray:
@@ -570,10 +639,10 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
     for k, v in item.items():
         if k == ACTION:
             act = model_actions(v.numpy(), spec.action)
-            if spec.action == "tool_rel":
-                robot = out[STATE].numpy()
-                act = relative_to(act, robot[-1, TOOL_POS] if robot.ndim == 2 else robot[TOOL_POS])
-            out[k] = torch.from_numpy(act)
+            robot = out[STATE].numpy()
+            now = robot[-1] if robot.ndim == 2 else robot
+            base = (state[-1] if state.ndim == 2 else state)[BASE_RAW] if spec.mobile else None
+            out[k] = torch.from_numpy(chunk_actions(spec, act, now, base))
         elif k.endswith("_is_pad"):
             out[k] = v
     return out

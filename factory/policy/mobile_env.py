@@ -36,7 +36,15 @@ dataset recorded:
   (measured speed and commanded target still) with the object within the arm's reach,
   ``pick`` when the object is held, lifted >= 3 cm and the tool is near the carry position
   (still arm command), ``navigate_to_place`` when the base has rested with the place
-  support's top within reach; ``place`` ends with success;
+  support's top within reach; ``place`` ends with success. A policy's commands never stand
+  as still as a plan's, and it starts the next sub-task as soon as it thinks the last one is
+  done (its action chunk spans the switch), so a sub-task also ends when the policy begins
+  the next one the way every demo begins it, with the same conditions on where the robot is:
+  ``navigate_to_pick`` when the hand opens (the demos drive with it closed and open it first
+  thing in the pick) with the base slow and the object within reach; ``pick`` when the arm
+  has settled (measured joint speeds) with the lifted object held in the carry posture;
+  ``navigate_to_place`` when the arm command starts to move (the place begins) with the base
+  slow and the support within reach;
 * success: the demos' check (:func:`~factory.demos.mobile_execute.mobile_outcome`: the object
   on the place support, released, moved < 5 mm over the last 0.5 s, the base and the arm never
   deeper than 2 cm in anything), tested every frame once the object is over the support;
@@ -190,6 +198,11 @@ class SubtaskRule:
         carry_tol: distance (m) of the tool from the carry position (in the base frame) that
             counts as the carry posture.
         drop_after: the object out of the hand this long (s) while carrying it is a ``drop``.
+        open_grip: a gripper command above this (m) opens the hand: a policy has begun the pick.
+        slow_speed: base speed (m/s) below which a policy's base counts as arrived when it
+            begins the next sub-task; slow_turn: its yaw rate (rad/s).
+        arm_rest: measured arm joint speeds (rad/s) below which the arm has settled.
+        arm_move: commanded arm joint speed (rad/s) above which the arm moves.
     """
 
     settle: float = 0.2
@@ -201,6 +214,11 @@ class SubtaskRule:
     reach_margin: float = 0.1
     carry_tol: float = 0.12
     drop_after: float = 0.25
+    open_grip: float = 0.04
+    slow_speed: float = 0.1
+    slow_turn: float = 0.3
+    arm_rest: float = 0.1
+    arm_move: float = 0.2
 
 
 @dataclass
@@ -456,27 +474,29 @@ class MobileVecEnv:
         )
         ep.rest = ep.rest + 1 if (still and resting) else 0
         ep.rest_long = ep.rest_long + 1 if resting else 0
+        slow = (
+            float(np.linalg.norm(qd[:2])) < rule.slow_speed and abs(float(qd[2])) < rule.slow_turn
+        )
         ep.sub_frames += 1
         held = self._held(v)
         ep.free = 0 if held else ep.free + 1
         moved = float(np.linalg.norm(base[:2] - ep.sub_start_xy)) > rule.moved
         rested = ep.rest >= self.settle_frames or ep.rest_long >= self.wait_frames
-        arrived = rested and (moved or ep.sub_frames >= self.wait_frames)
+        drove = moved or ep.sub_frames >= self.wait_frames
+        arrived = rested and drove
         end = False
         if ep.subtask == 0:
             obj = v.xpos[self.pick][:2]
             near = (
                 float(np.linalg.norm(obj - self._arm_xy(base))) <= PICK_REACH[1] + rule.reach_margin
             )
-            end = arrived and near
+            opens = float(action[7]) > rule.open_grip  # the pick begins: the hand opens
+            end = near and (arrived or (opens and slow and drove))
         elif ep.subtask == 1:
             lifted = float(v.qpos[self._obj_adr + 2]) - ep.start_z >= LIFT_MIN
             arm_still = float(np.abs(action[:7] - prev[:7]).max()) < rule.still_command
-            c, s = np.cos(base[2]), np.sin(base[2])
-            tool = v.site_xpos[robot.site] - np.array([base[0], base[1], 0.0])
-            local = np.array([c * tool[0] + s * tool[1], -s * tool[0] + c * tool[1], tool[2]])
-            carry = float(np.linalg.norm(local - np.asarray(CARRY_TOOL))) <= rule.carry_tol
-            end = held and lifted and arm_still and carry
+            settled = float(np.abs(v.qvel[robot.arm_dof]).max()) < rule.arm_rest
+            end = held and lifted and self._in_carry(v, base) and (arm_still or settled)
             if end:
                 ep.carry_z = float(v.qpos[self._obj_adr + 2])
         elif ep.subtask == 2:
@@ -484,7 +504,9 @@ class MobileVecEnv:
             arm = self._arm_xy(base)
             gap = np.maximum(np.maximum(box[:2] - arm, arm - box[3:5]), 0.0)
             near = float(np.linalg.norm(gap)) <= PLACE_REACH[1] + rule.reach_margin
-            end = arrived and near and held
+            # the place begins: the arm command moves
+            moves = float(np.abs(action[:7] - prev[:7]).max()) * self.spec.fps > rule.arm_move
+            end = near and held and (arrived or (moves and slow and drove))
         if end:
             ep.subtask += 1
             ep.completed += 1
@@ -492,6 +514,13 @@ class MobileVecEnv:
             ep.sub_frames = 0
             ep.rest = ep.rest_long = 0
             ep.sub_start_xy = base[:2].copy()
+
+    def _in_carry(self, v: mujoco.MjData, base: np.ndarray) -> bool:
+        """Whether the tool is within ``carry_tol`` of the carry position (base frame)."""
+        c, s = np.cos(base[2]), np.sin(base[2])
+        tool = v.site_xpos[self.robot.site] - np.array([base[0], base[1], 0.0])
+        local = np.array([c * tool[0] + s * tool[1], -s * tool[0] + c * tool[1], tool[2]])
+        return float(np.linalg.norm(local - np.asarray(CARRY_TOOL))) <= self.rule.carry_tol
 
     # ---- success and failure
     def _outcome(self, i: int) -> Any:

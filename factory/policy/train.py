@@ -47,18 +47,18 @@ from factory.policy.checkpoint import (
 )
 from factory.policy.inputs import (
     ACTION,
+    BASE_RAW,
     DEPTH_PREFIX,
     EE_POSE,
     ENV_STATE,
     STATE,
     SUBTASK_KEY,
-    TOOL_POS,
     InputSpec,
+    chunk_actions,
     convert_sample,
     depth_image,
     env_features,
     model_actions,
-    relative_to,
     state_features,
     subtask_onehot,
 )
@@ -202,6 +202,8 @@ class LowDimFrames:
             return np.stack(table.column(key).to_numpy(zero_copy_only=False)).astype(np.float32)
 
         state = column(STATE)
+        # mobile: the dataset's base pose per frame (x, y m, yaw rad), the actions' origin
+        self.base_pose = state[:, BASE_RAW] if spec.mobile else None
         self.values: dict[str, np.ndarray] = {
             STATE: state_features(spec, state),
             ACTION: model_actions(column(ACTION), spec.action),
@@ -241,9 +243,10 @@ class LowDimFrames:
                 continue
             q = idx + np.asarray(delta)
             out[key] = torch.from_numpy(values[np.clip(q, start, end - 1)])
-        if self.spec.action == "tool_rel":
-            now = self.values[STATE][idx, TOOL_POS]
-            out[ACTION] = torch.from_numpy(relative_to(out[ACTION].numpy(), now))
+        if self.spec.action == "tool_rel" or self.spec.mobile:
+            base = None if self.base_pose is None else self.base_pose[idx]
+            act = chunk_actions(self.spec, out[ACTION].numpy(), self.values[STATE][idx], base)
+            out[ACTION] = torch.from_numpy(act)
         for key, frames in self.videos.items():
             delta = self.delta.get(key)
             at = idx if delta is None else np.clip(idx + np.asarray(delta), start, end - 1)
@@ -388,9 +391,11 @@ def _low_dim(
 def relative_action_rows(
     base: Any, spec: InputSpec, trainset: TrainSet, episodes: list[int] | None
 ) -> np.ndarray:
-    """Every ``tool_rel`` action a training sample holds: for each frame of the episodes
-    trained on and each step of the action window (clamped to the episode, as sampled), the
-    tool action relative to that frame's tool position: (frames x window, 10)."""
+    """Every action a training sample holds (``tool_rel`` or mobile): for each frame of the
+    episodes trained on and each step of the action window (clamped to the episode, as
+    sampled), the model's action relative to that frame (:func:`chunk_actions`: the tool
+    position relative to that frame's, the base target relative to that frame's base pose):
+    (frames x window, A)."""
     import dataclasses as dc
 
     frames = trainset.frames or LowDimFrames(base, dc.replace(spec, cameras=()))
@@ -401,8 +406,9 @@ def relative_action_rows(
     start = np.array([frames.start[int(e)] for e in frames.episode[idx]])
     end = np.array([frames.end[int(e)] for e in frames.episode[idx]])
     q = np.clip(idx[:, None] + delta[None, :], start[:, None], end[:, None] - 1)
-    tool = frames.values[ACTION][q]  # (N, H, 10) absolute tool actions
-    rel = relative_to(tool, frames.values[STATE][idx, TOOL_POS])
+    act = frames.values[ACTION][q]  # (N, H, A) absolute model actions
+    base = None if frames.base_pose is None else frames.base_pose[idx]
+    rel = chunk_actions(spec, act, frames.values[STATE][idx], base)
     return rel.reshape(-1, rel.shape[-1])
 
 
@@ -429,7 +435,7 @@ def model_stats(
     elif spec.inputs == "state":
         keys.append(ENV_STATE)
     rows = _low_dim(root, keys, episodes)
-    if spec.action == "tool_rel":
+    if spec.action == "tool_rel" or spec.mobile:
         actions = relative_action_rows(base, spec, trainset, episodes)
     else:
         actions = model_actions(rows[ACTION], spec.action)

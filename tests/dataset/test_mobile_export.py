@@ -7,6 +7,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -117,6 +118,11 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     assert [subtask[e] for e in ends] == list(range(len(SUBTASKS))) and ends[-1] == n - 1
     assert all(subtask[e + 1] == subtask[e] + 1 for e in ends[:-1])
 
+    from factory.dataset import episode_routes
+
+    route = episode_routes(ds.root)[0]  # the route check's poses the episode drove to
+    assert route == store.info(eid).route and len(route["pick_pose"]) == 3
+    assert route["pick_index"] >= 0 and route["place_index"] >= 0 and not route["reason"]
     card = DatasetCard.load(merged / "README.md")
     assert "mobile-manipulation" in card.data.tags
     for name in SUBTASKS:
@@ -149,3 +155,83 @@ def test_mixed_layouts_refused(tmp_path: Path) -> None:
     with pytest.raises(MixedLayoutError, match="cannot be merged"):
         one_meta_layout([{}, {"layout": "mobile"}], ["a", "b"])
     assert one_meta_layout([{}, {}], ["a", "b"]) == "fixed"
+
+
+def _mobile_episode(fixed: ModuleType, eid: str, n: int, seed: int) -> tuple[Any, dict]:
+    """A synthetic mobile episode (the fixed helper's images and arrays, the mobile columns)
+    with a route like ``MobilePlanner.route_record``'s."""
+    info, arrays = fixed._episode(eid, "kitchen_pick_place", n, seed)
+    del arrays["env_state"]
+    rng = np.random.default_rng(seed)
+    arrays["action"] = rng.normal(size=(n, 11)).astype(np.float32)
+    arrays["base_pose"] = rng.normal(size=(n, 3)).astype(np.float32)
+    arrays["subtask"] = np.minimum(np.arange(n) * 4 // n, 3).astype(np.int8)
+    arrays["subtask_done"] = np.r_[np.diff(arrays["subtask"]) != 0, True]
+    route = {
+        "pick_pose": [1.0 + seed, 1.5, 0.25 * seed],
+        "place_pose": [3.25, 1.5 - seed, -1.5],
+        "pick_index": seed,
+        "place_index": 7,
+        "reason": "",
+        "pick_poses": 13,
+        "place_poses": 167,
+        "route_pick_poses": 12,
+        "route_place_poses": 160,
+        "resolution": 0.05,
+        "headings": 32,
+        "footprint_radius": 0.307,
+        "carry_front": 0.4167,
+    }
+    return replace(info, task="mobile_pick_place", route=route), arrays
+
+
+def test_mobile_route_exported_and_merged(tmp_path: Path) -> None:
+    """Each mobile episode's route lands in its ``meta/factory.json`` entry, survives the shard
+    merge re-indexed, reads back by the episode index of ``LeRobotDataset``'s frames, and is
+    described on the card; a fixed dataset has none."""
+    from huggingface_hub import DatasetCard
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from factory.dataset import episode_routes
+    from factory.dataset.lerobot_export import export_store, merge_datasets
+    from factory.errors import StoreError
+
+    fixed = _module(HERE / "test_dataset.py", "_fixed_helpers")
+    run = fixed._run(tmp_path, shards=1, per_shard=1)
+    infos, shards = {}, []
+    for k, (seed, n) in enumerate([(1, 8), (2, 6)]):  # one episode per shard
+        store = EpisodeStore(tmp_path / f"mobile-{k}.zarr")
+        info, arrays = _mobile_episode(fixed, f"kitchen_pick_place-ep{k}", n, seed)
+        store.write(info, arrays)
+        infos[info.episode_id] = (info, arrays)
+        shard = tmp_path / "shards" / f"shard-{k}"
+        export_store(store, shard, f"x/m-shard{k}", run.root)
+        shards.append(shard)
+    merged = tmp_path / "merged"
+    merge_datasets(shards[::-1], merged, "x/m")  # shard 1 first: indices change in the merge
+
+    ds = LeRobotDataset("x/m", root=merged, video_backend="pyav")
+    routes = episode_routes(ds.root)
+    meta = json.loads((merged / "meta" / "factory.json").read_text())
+    assert sorted(routes) == [0, 1] == sorted(int(e) for e in ds.meta.episodes["episode_index"])
+    for entry in meta["episodes"]:
+        info, arrays = infos[entry["episode_id"]]
+        route = routes[entry["episode_index"]]
+        assert route == info.route
+        # the index is the one of the dataset's frames: their base pose is this episode's
+        start = int(ds.meta.episodes["dataset_from_index"][entry["episode_index"]])
+        item = ds[start]
+        assert int(item["episode_index"]) == entry["episode_index"]
+        assert np.array_equal(item["observation.state"].numpy()[8:], arrays["base_pose"][0])
+    assert routes[0]["pick_pose"] == [3.0, 1.5, 0.5]  # shard 1's episode (seed 2) came first
+    card = DatasetCard.load(merged / "README.md")
+    assert "**`route`**" in card.text and "`pick_pose` and `place_pose`" in card.text
+
+    export_store(EpisodeStore(run.episodes_shard(Shard(0, 1))), tmp_path / "fixed", "x/f", run.root)
+    with pytest.raises(StoreError, match="fixed-base episodes"):
+        episode_routes(tmp_path / "fixed")
+    old = json.loads((shards[0] / "meta" / "factory.json").read_text())
+    del old["episodes"][0]["route"]
+    (shards[0] / "meta" / "factory.json").write_text(json.dumps(old))
+    with pytest.raises(StoreError, match="stage=dataset force=true"):
+        episode_routes(shards[0])

@@ -109,8 +109,9 @@ def _features(root: Path) -> dict[str, Any]:
 
 
 def test_mobile_features_map_to_policy_inputs(mobile_dataset: Path) -> None:
-    """State: joints, gripper, tool pose (base frame) + base x, y, yaw (20); the sub-task as a
-    one-hot (4); actions: tool pose + gripper + base target (13) or the 11 joint targets."""
+    """State: joints, gripper, tool pose (base frame) + base x, y, cos yaw, sin yaw (21); the
+    sub-task as a one-hot (4); actions: tool pose + gripper + base target (13) or the 11 joint
+    targets."""
     import torch
 
     from factory.policy.inputs import (
@@ -130,7 +131,7 @@ def test_mobile_features_map_to_policy_inputs(mobile_dataset: Path) -> None:
         SUBTASK_KEY: [1],
     }
     assert spec.model_features() == {
-        "observation.state": [20],
+        "observation.state": [21],
         "observation.environment_state": [4],
     }
     assert input_spec("state", feats, "joint").action_dim == 11
@@ -143,9 +144,11 @@ def test_mobile_features_map_to_policy_inputs(mobile_dataset: Path) -> None:
     }
     model = convert_observation(spec, obs)
     state = model["observation.state"].numpy()
-    assert state.shape == (5, 20)
+    assert state.shape == (5, 21)
     assert np.allclose(state[:, :17], robot_features(ep["state"][:5, :8]))
-    assert np.array_equal(state[:, 17:], ep["state"][:5, 8:])  # base x, y, yaw as recorded
+    assert np.array_equal(state[:, 17:19], ep["state"][:5, 8:10])  # base x, y as recorded
+    yaw = ep["state"][:5, 10]
+    assert np.allclose(state[:, 19:], np.stack([np.cos(yaw), np.sin(yaw)], 1), atol=1e-6)
     assert torch.equal(model["observation.environment_state"], torch.eye(4)[[0, 1, 2, 3, 3]])
     act = model_actions(ep["action"][:5], "tool")
     assert act.shape == (5, 13) and np.array_equal(act[:, 10:], ep["action"][:5, 8:])
@@ -160,7 +163,7 @@ def test_mobile_features_map_to_policy_inputs(mobile_dataset: Path) -> None:
     rgb = input_spec("rgb", {**feats, **cams}, "tool")
     assert rgb.cameras == MOBILE_CAMERAS and rgb.image_size == (32, 32)
     assert rgb.model_features()["observation.images.fisheye_back"] == [3, 32, 32]
-    assert rgb.model_features()["observation.state"] == [20]
+    assert rgb.model_features()["observation.state"] == [21]
     odd = {**cams, "observation.images.left": {"dtype": "video", "shape": [24, 32, 3]}}
     with pytest.raises(PolicyError, match=r"demos\.width equal to demos\.height"):
         input_spec("rgb", {**feats, **odd}, "tool")
@@ -215,11 +218,103 @@ def test_mobile_policy_trains_and_its_samples_equal_lerobots_own(
     assert result["steps"] == 3 and np.isfinite(result["loss"])
     model_dir = Path(result["checkpoint"]) / "pretrained_model"
     config = json.loads((model_dir / "config.json").read_text())
-    assert config["input_features"]["observation.state"]["shape"] == [20]
+    assert config["input_features"]["observation.state"]["shape"] == [21]
     assert config["input_features"]["observation.environment_state"]["shape"] == [4]
     assert config["output_features"]["action"]["shape"] == [13]
     loaded = load_policy(str(model_dir), run, "cpu")
     assert loaded.spec.mobile and SUBTASK_KEY in loaded.info.features
+
+
+def test_mobile_base_action_is_relative_and_round_trips(mobile_dataset: Path) -> None:
+    """A training sample's base action is the recorded world target relative to the base pose
+    of the sample's current frame (in its base frame); turned back the way ``LoadedPolicy.act``
+    does at execution (``base_absolute`` from the observed pose), it is the recorded target,
+    which the env applies as is. The heading enters the state as cos/sin: a pose at yaw and at
+    yaw + 2 pi (the unwrapped yaw of demos that turned the other way) looks the same, and so
+    do their relative actions."""
+    from factory.policy.inputs import (
+        base_absolute,
+        base_relative,
+        input_spec,
+        mobile_robot_features,
+    )
+    from factory.policy.train import open_dataset, policy_config
+
+    spec = input_spec("state", _features(mobile_dataset), "tool")
+    cfg = policy_config(TrainConfig(options=TINY), spec, "cpu")
+    _, trainset = open_dataset(mobile_dataset, spec, cfg, augment=False)
+    ep = _episode(1)  # the dataset's second episode
+    for f in [0, 5, 20, FRAMES - 3]:
+        sample = trainset[FRAMES + f]
+        rel = sample["action"].numpy()[:, 10:]  # (horizon, 3)
+        window = np.clip(f - 1 + np.arange(rel.shape[0]), 0, FRAMES - 1)  # frames f-1 ...
+        want = base_relative(ep["action"][window, 8:], ep["state"][f, 8:])
+        assert np.allclose(rel, want, atol=1e-5), f
+        now = np.repeat(ep["state"][f : f + 1, 8:], len(rel), 0)
+        back = base_absolute(rel, now)
+        assert np.allclose(back, ep["action"][window, 8:], atol=1e-5), f
+    assert np.abs(rel[:, :2]).max() < 0.2  # a window's motion, not the room's coordinates
+
+    state = ep["state"][:3].copy()
+    turned = state.copy()
+    turned[:, 10] -= 2 * np.pi
+    assert np.allclose(mobile_robot_features(state), mobile_robot_features(turned), atol=1e-5)
+    target = ep["action"][:3, None, 8:]
+    shifted = target.copy()
+    shifted[..., 2] -= 2 * np.pi
+    assert np.allclose(
+        base_relative(target, state[:, 8:]), base_relative(shifted, turned[:, 8:]), atol=1e-5
+    )
+
+
+def test_overfit_mobile_policy_acts_as_recorded(mobile_dataset: Path, tmp_path: Path) -> None:
+    """A small state policy overfit on the two episodes, fed a training episode's recorded
+    observations one frame at a time through ``LoadedPolicy.act`` (the env's path: model
+    output -> joint and world base targets), predicts actions close to the recorded ones: the
+    training's conversions (tool pose, base target relative to the chunk's first frame) and
+    the execution's inverses agree, chunk after chunk."""
+    from factory.policy.checkpoint import load_policy
+    from factory.policy.train_stage import run as train_stage
+
+    run = tmp_path / "run"
+    run.mkdir()
+    options = {"diffusion": {**TINY["diffusion"], "down_dims": [32, 64]}}
+    tc = TrainConfig(
+        name="overfit",
+        dataset=str(mobile_dataset),
+        steps=400,
+        batch_size=16,
+        save_every=400,
+        log_every=100,
+        threads=1,
+        device="cpu",
+        options=options,
+    )
+    ctx = StageContext(
+        FactoryConfig(stage="train", run_dir=str(run), train=tc), RunStore(run), Shard(0, 1)
+    )
+    train_stage(ctx)
+    policy = load_policy("overfit", run, "cpu")
+    ep = _episode(0)
+    policy.reset()
+    pred = np.stack(
+        [
+            policy.act(
+                {
+                    "observation.state": ep["state"][f : f + 1],
+                    "observation.ee_pose": ep["ee"][f : f + 1],
+                    SUBTASK_KEY: ep["subtask"][f : f + 1, None],
+                }
+            )[0]
+            for f in range(FRAMES)
+        ]
+    )
+    base_err = np.linalg.norm(pred[:, 8:10] - ep["action"][:, 8:10], axis=1)
+    # the base drives 1 m over the episode (2.5 cm a frame); a wrong origin or frame is off
+    # by the chunk's motion or the room's coordinates
+    assert base_err.mean() < 0.03 and base_err.max() < 0.1, base_err
+    assert np.abs(pred[:, 10] - ep["action"][:, 10]).mean() < 0.03
+    assert np.abs(pred[:, :7] - ep["action"][:, :7]).mean() < 0.08  # arm joints (rad)
 
 
 def _ctx(run: Path, stage: str, **kw: Any) -> StageContext:
