@@ -146,19 +146,6 @@ def _main_setup(run_dir: str, scene_id: str) -> Any:
     return mobile_setup(store.load_scene(scene_id), store.assets_dir)
 
 
-def writer_count() -> int:
-    """Writer processes: half the cores (2-8), as the fixed task's GPU pipeline
-    (``gpu_pipeline.writer_count``, not imported: that module imports the stage, which imports
-    this one)."""
-    import os
-
-    return max(2, min(8, (os.cpu_count() or 2) // 2))
-
-
-def _init_worker() -> None:
-    logging.basicConfig(level=logging.WARNING)
-
-
 def run_mobile_gpu(
     env: StageEnv, items: list[WorkItem], workers: int, bar: Any = None, device: str | None = None
 ) -> list[dict[str, Any]]:
@@ -167,6 +154,7 @@ def run_mobile_gpu(
     writer processes. One statistics dict per scene (the keys of
     :func:`factory.demos.stage.run_item`'s)."""
     from factory.demos.episodes import EpisodeStore
+    from factory.demos.gpu_pipeline import _init_worker, writer_count
     from factory.demos.mobile_render_warp import RecordingStream, WarpMobileRenderer
     from factory.demos.mobile_stage import mobile_payload
     from factory.demos.slots import store_episode
