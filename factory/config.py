@@ -326,6 +326,13 @@ class DemosConfig:
             record them with the CPU executor while the GPU goes on to the next scene; their
             metadata says ``recorder: cpu``) or ``gpu`` (one more small GPU call per scene,
             which costs the GPU 6-14 s for 2-19 episodes).
+        gpu_tail: share of a scene's planned episodes, the longest, that the ``warp``
+            executor leaves to the planner processes' CPU executor (with
+            ``gpu_retries=cpu``; 0: none). A GPU call lasts as long as its longest episode
+            and a period costs nearly the same for 500 worlds as for 1,000, so the rare long
+            plans (a kitchen's longest of 1,536 ran 24 s against a median of 9 s) would set
+            the length of the whole call; without them the call is shorter and has more
+            worlds.
         gpu_images_on_device: the ``warp`` executor keeps a call's images on the device and
             copies them to host memory at the end of the call (one call's recordings in host
             memory at a time, so calls of ~1,000 worlds fit); false copies every frame to the
@@ -367,6 +374,7 @@ class DemosConfig:
     executor: str = "auto"
     gpu_batch: int = 512
     gpu_retries: str = "cpu"
+    gpu_tail: float = 0.01
     gpu_images_on_device: bool = True
     plan_timeout: float = 5.0
     speed: float = 0.5

@@ -386,6 +386,7 @@ class WarpExecutor:
             mujoco.mj_forward(model, data)
             mujoco.mj_getState(model, data, template[i], STATE_SPEC)
         mujoco.mj_resetData(model, data)
+        parts = {"templates": time.perf_counter() - t0}
         ncam = len(cfg.cameras) if cfg.render else 0
         store = self.images_on_device and ncam > 0  # images stay on the device until the end
         arena = None
@@ -410,7 +411,9 @@ class WarpExecutor:
                 tables = patch_tables(model, [patch for _, patch in looks])
                 m, look_in = self._world_looks(tables, n)
                 look_dim = (n, max(1, tables.width))
+            t_part = time.perf_counter()
             d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
+            parts["put_data"] = time.perf_counter() - t_part
             d.qpos.assign(wp.array(q0[first].astype(np.float32), dtype=float))
             plan_d = wp.array(ctrl, dtype=float)
             offset_d = wp.array(offsets.astype(np.int32), dtype=int)
@@ -432,7 +435,10 @@ class WarpExecutor:
                 overflow_of = wp.zeros(n_ep, dtype=int)
                 # reset_data's kernels are made per call: load them outside the capture.
                 mjw.reset_data(m, d, reset=reset_d)
+            parts["device_state"] = time.perf_counter() - t_part - parts["put_data"]
+            t_part = time.perf_counter()
             rc = self._render_context(n) if ncam else None
+            parts["render_context"] = time.perf_counter() - t_part
             if rc is not None:
                 # The image store: a row per filed frame of the call (kept on the device), or a
                 # row per world that the host copies after each period; camera-major.
@@ -521,6 +527,7 @@ class WarpExecutor:
 
             setup_s = time.perf_counter() - t0
             self.times.setup += setup_s
+            parts["rest"] = setup_s - sum(parts.values())
             captured = None
             copy_s = frames_s = 0.0
             t1 = time.perf_counter()
@@ -591,13 +598,14 @@ class WarpExecutor:
         finish_s = time.perf_counter() - t3
         self.times.finish += finish_s
         log.info(
-            "warp call: %d episodes on %d worlds x %d frames (%.0f %% busy): setup %.1f s, GPU "
-            "and copies %.1f s, filing and image copies %.1f s, success checks %.1f s",
+            "warp call: %d episodes on %d worlds x %d frames (%.0f %% busy): setup %.1f s (%s), "
+            "GPU and copies %.1f s, filing and image copies %.1f s, success checks %.1f s",
             n_ep,
             n,
             nb,
             100 * sched.busy(),
             setup_s,
+            ", ".join(f"{k} {v:.1f}" for k, v in parts.items()),
             frames_s,
             copy_s,
             finish_s,

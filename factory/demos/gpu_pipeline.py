@@ -210,6 +210,35 @@ def gpu_calls(
     return out
 
 
+def split_tail(
+    planned: list[tuple[int, int, Any]], share: float
+) -> tuple[list[tuple[int, int, Any]], list[tuple[int, int, Any]]]:
+    """Splits a scene's planned episodes into those for the GPU and its longest ``share``
+    (rounded down; ties broken by slot) for the CPU executor: a GPU call lasts as long as its
+    longest episode, so a few long plans would lengthen the call of all the others.
+
+    Args:
+        planned: ``(slot, seed, EpisodePlan)`` of one scene.
+        share: 0 to below 1.
+
+    Returns:
+        ``(for the GPU, for the CPU)``, each in the order of ``planned``.
+    """
+    n = int(share * len(planned))
+    if n <= 0:
+        return planned, []
+    order = sorted(planned, key=lambda item: (-len(item[2].ctrl), item[0]))
+    tail = {item[0] for item in order[:n]}
+    return [p for p in planned if p[0] not in tail], [p for p in planned if p[0] in tail]
+
+
+def spread(slots: list[int], workers: int) -> list[list[int]]:
+    """``slots`` in at most ``workers`` work items of nearly equal size (in order), so that
+    the CPU executor records them in parallel."""
+    parts = max(1, min(len(slots), workers))
+    return [slots[j::parts] for j in range(parts)] if slots else []
+
+
 def _init_worker() -> None:
     logging.basicConfig(level=logging.WARNING)
 
@@ -339,6 +368,20 @@ def run_gpu(
                     elif isinstance(res, str):
                         out["failures"]["scene_unusable"] += 1
                 done: set[int] = set()
+                tail: list[int] = []  # slots whose plan the CPU executor records
+                if dc.gpu_retries == "cpu" and dc.gpu_tail > 0:
+                    from factory.demos.cpu_items import run_item_logged
+
+                    planned, longest = split_tail(planned, dc.gpu_tail)
+                    tail = [k for k, _, _ in longest]
+                    # The same seeds: the CPU plans the same episodes again.
+                    for part in spread(tail, workers):
+                        item = WorkItem(sid, tuple(part))
+                        first = {k: attempt[k] for k in part}
+                        cpu_retries.append(
+                            (out, len(part), pool.submit(run_item_logged, env, item, first))
+                        )
+                    out["cpu_tail"] = len(tail)
                 if early is not None:  # the arena pool is this thread's again
                     t_wait = time.perf_counter()
                     early.result()
@@ -383,21 +426,22 @@ def run_gpu(
                     del recs
                 retry = []  # slots whose plan failed in execution: their next seed
                 for k, _, res, _, _ in (f.result() for f in futures):
-                    if k in done or not isinstance(res, EpisodePlan):
+                    if k in done or k in tail or not isinstance(res, EpisodePlan):
                         continue
                     attempt[k] += 1
                     if attempt[k] < dc.attempts:
                         retry.append(k)
                 if bar is not None:
-                    bar.update(len(futures) - len(retry))
+                    bar.update(len(futures) - len(retry) - len(tail))
                 if retry and dc.gpu_retries == "cpu":
                     from factory.demos.cpu_items import run_item_logged
 
-                    item = WorkItem(sid, tuple(retry))
-                    first = {k: attempt[k] for k in retry}
-                    cpu_retries.append(
-                        (out, len(retry), pool.submit(run_item_logged, env, item, first))
-                    )
+                    for part in spread(retry, workers):
+                        item = WorkItem(sid, tuple(part))
+                        first = {k: attempt[k] for k in part}
+                        cpu_retries.append(
+                            (out, len(part), pool.submit(run_item_logged, env, item, first))
+                        )
                     out["cpu_retries"] = len(retry)
                     retry = []
                 futures = submit(sid, retry, attempt) if retry else []
@@ -424,14 +468,19 @@ def run_gpu(
             out["failures"].update(got["failures"])
             out["plan"].extend(got["plan"])
             out["segments"].extend(got["segments"])
-            out["cpu_retry_seconds"] = {"simulate": got["simulate"], "render": got["render"]}
+            cpu_s = out.setdefault("cpu_retry_seconds", {"simulate": 0.0, "render": 0.0})
+            cpu_s["simulate"] += got["simulate"]
+            cpu_s["render"] += got["render"]
             if bar is not None:
                 bar.update(n)
         if cpu_retries:
             log.info(
-                "CPU retries: %d episodes of %d scenes, %d new; waited %.1f s for them at the end",
+                "CPU executor: %d episodes (%d longest, %d retries) of %d scenes, %d new; waited "
+                "%.1f s for them at the end",
                 sum(n for _, n, _ in cpu_retries),
-                len(cpu_retries),
+                sum(r.get("cpu_tail", 0) for r in results),
+                sum(r.get("cpu_retries", 0) for r in results),
+                len({id(r) for r, _, _ in cpu_retries}),
                 retried_new,
                 time.perf_counter() - t_wait,
             )

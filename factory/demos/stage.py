@@ -91,6 +91,11 @@ def check_config(dc: DemosConfig, task: str) -> None:
         raise ConfigError("demos.gpu_batch must be >= 1")
     if dc.gpu_retries not in ("cpu", "gpu"):
         raise ConfigError(f"demos.gpu_retries={dc.gpu_retries!r} is unknown: choose cpu or gpu")
+    if not 0.0 <= dc.gpu_tail < 0.5:
+        raise ConfigError(
+            f"demos.gpu_tail={dc.gpu_tail} is out of range: give the share of a scene's longest "
+            "episodes to record on the CPU, from 0 (none) to below 0.5 (e.g. 0.01)"
+        )
     if not dc.freeze_beyond >= 0:
         raise ConfigError(
             f"demos.freeze_beyond must be >= 0 m (0 keeps every object free), "

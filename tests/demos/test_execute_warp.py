@@ -65,6 +65,27 @@ def test_executor_config() -> None:
         check_config(DemosConfig(gpu_batch=0), "pick_place")
     with pytest.raises(ConfigError, match="gpu_retries='later' is unknown"):
         check_config(DemosConfig(gpu_retries="later"), "pick_place")
+    with pytest.raises(ConfigError, match=r"gpu_tail=0\.5 is out of range"):
+        check_config(DemosConfig(gpu_tail=0.5), "pick_place")
+
+
+def test_the_longest_plans_go_to_the_cpu_in_parallel_items() -> None:
+    """``split_tail`` leaves a scene's longest plans (rounded down share, ties by slot) to the
+    CPU; ``spread`` deals slots over at most ``workers`` items."""
+    from types import SimpleNamespace
+
+    from factory.demos.gpu_pipeline import split_tail, spread
+
+    lengths = [50, 400, 90, 400, 120, 70, 300, 60, 80, 100]
+    planned = [(k, 100 + k, SimpleNamespace(ctrl=np.zeros((t, 2)))) for k, t in enumerate(lengths)]
+    gpu, cpu = split_tail(planned, 0.25)
+    assert [k for k, _, _ in cpu] == [1, 3]  # 2 of 10: the two 400-step plans
+    assert [k for k, _, _ in gpu] == [0, 2, 4, 5, 6, 7, 8, 9]
+    assert split_tail(planned, 0.09) == (planned, [])
+    assert split_tail(planned, 0.0) == (planned, [])
+    assert spread([4, 5, 6, 7, 8], 2) == [[4, 6, 8], [5, 7]]
+    assert spread([4, 5], 15) == [[4], [5]]
+    assert spread([], 3) == []
 
 
 def test_cpu_retries_continue_from_the_gpu_attempts(make_kitchen, tmp_path: Path) -> None:
@@ -134,7 +155,8 @@ def test_gpu_executor_agrees_with_cpu(setup) -> None:
 @pytest.mark.slow
 def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     """The GPU pipeline end to end on Warp's CPU device (kernels compile in about 2-3 min):
-    three slots packed onto two worlds of one call, stored by the writer processes, replayable."""
+    four slots: the longest left to the CPU executor (``demos.gpu_tail``), three packed onto
+    two worlds of one call, stored by the writer processes, replayable."""
     from factory.demos.episodes import EpisodeStore
     from factory.demos.gpu_pipeline import run_gpu
     from factory.demos.slots import StageEnv, WorkItem
@@ -144,17 +166,23 @@ def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     scene = make_kitchen(run / "assets")
     (run / "scenes" / scene.id).mkdir(parents=True)
     (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
-    dc = DemosConfig(sleep=False, width=32, height=32, gpu_batch=2)
+    dc = DemosConfig(sleep=False, width=32, height=32, gpu_batch=2, gpu_tail=0.25)
     store_path = run / "episodes" / "shard-0.zarr"
     env = StageEnv(str(run), str(store_path), dc, "pick_place", 0, 1)
-    (out,) = run_gpu(env, [WorkItem(scene.id, (0, 1, 2))], 1, device="cpu")
+    (out,) = run_gpu(env, [WorkItem(scene.id, (0, 1, 2, 3))], 1, device="cpu")
     assert out["executor"] == "warp" and out["error"] is None
-    assert out["new"] + sum(out["failures"].values()) >= 3
-    assert out["new"] >= 2, dict(out["failures"])
+    assert out["new"] + sum(out["failures"].values()) >= 4
+    assert out["new"] >= 3, dict(out["failures"])
+    assert out["cpu_tail"] == 1
     store = EpisodeStore(store_path)
     assert len(store.episode_ids()) == out["new"]
-    info = store.info(store.episode_ids()[0])
-    assert info.success and info.n_frames > 50 and info.recorder == "warp"
+    infos = [store.info(e) for e in store.episode_ids()]
+    by = {i.recorder: i for i in infos}
+    assert sorted(i.recorder for i in infos).count("cpu") == 1, [i.recorder for i in infos]
+    # The CPU recorded the longest episode, the GPU the others.
+    assert by["cpu"].n_frames >= max(i.n_frames for i in infos if i.recorder == "warp")
+    info = by["warp"]
+    assert info.success and info.n_frames > 50
     assert store.arrays(info.episode_id)["rgb/wrist"].shape == (info.n_frames, 32, 32, 3)
 
 
