@@ -175,6 +175,30 @@ def buffer_sizes(model: mujoco.MjModel, qpos: np.ndarray, headroom: float = 3.0)
     return nconmax, njmax
 
 
+RENDER_CLIP = (0.01, 100.0)
+"""Near and far clip distances (m) of the GPU renderer's cameras, the same in every scene.
+MuJoCo Warp's render kernel takes them as compile-time constants (``vis.map.znear`` and
+``zfar`` times the scene's ``stat.extent``), so clip planes that followed the scene's extent
+compiled a new render kernel for every scene (20-30 s of an H200 node's set-up per scene, its
+CPUs busy). The near distance only scales each camera ray before it is normalised; the far one
+ends rays at 100 m, beyond any room."""
+
+
+def render_context(model: mujoco.MjModel, **kwargs: Any) -> Any:
+    """``mujoco_warp.create_render_context(model, **kwargs)`` with the clip planes of
+    :data:`RENDER_CLIP` (``model`` is left as it was)."""
+    import mujoco_warp as mjw
+
+    vis, stat = model.vis.map, model.stat
+    saved = (float(vis.znear), float(vis.zfar), float(stat.extent))
+    vis.znear, vis.zfar = RENDER_CLIP
+    stat.extent = 1.0
+    try:
+        return mjw.create_render_context(model, **kwargs)
+    finally:
+        vis.znear, vis.zfar, stat.extent = saved
+
+
 @dataclass
 class WarpTimes:
     """Seconds spent by one :meth:`WarpExecutor.execute` call."""
@@ -250,7 +274,7 @@ class WarpExecutor:
     def _render_context(self, n: int) -> Any:
         cfg = self.cfg
         names = [CAMERAS[c] for c in cfg.cameras]
-        return self.mjw.create_render_context(
+        return render_context(
             self.setup.model,
             nworld=n,
             cam_res=(cfg.width, cfg.height),
@@ -393,7 +417,9 @@ class WarpExecutor:
         if self.arenas is not None and not store:
             arena = self.arenas.take(_Frames.nbytes(sched.n_rows, nstate, cfg))
             self._arenas.append(arena)
+        t_part = time.perf_counter()
         frames = _Frames.allocate(sched.n_rows, nstate, cfg, arena, images=not store)
+        parts["frames"] = time.perf_counter() - t_part
         npix = cfg.width * cfg.height
         pick = model.body(setup.objects.pick.id).id
         target = model.body(setup.objects.target.id).id
@@ -408,8 +434,10 @@ class WarpExecutor:
             if looks is not None:
                 from factory.demos.appearance import patch_tables
 
+                t_part = time.perf_counter()
                 tables = patch_tables(model, [patch for _, patch in looks])
                 m, look_in = self._world_looks(tables, n)
+                parts["looks"] = time.perf_counter() - t_part
                 look_dim = (n, max(1, tables.width))
             t_part = time.perf_counter()
             d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
@@ -446,6 +474,7 @@ class WarpExecutor:
                 nr = sched.n_rows if store else n
                 img_rows = sched.row if store else np.where(sched.row >= 0, np.arange(n), -1)
                 rows_d = wp.array(img_rows.astype(np.int32), dtype=int)
+                t_part = time.perf_counter()
                 rgb_store = wp.empty((ncam, nr, 3 * npix), dtype=wp.uint8)
                 mm_store = wp.empty((ncam, nr, npix) if mm else (1, 1, 1), wp.uint16)
                 m_store = wp.empty((1, 1, 1) if mm else (ncam, nr, npix), dtype=float)
@@ -514,6 +543,9 @@ class WarpExecutor:
             if rc is not None and not store:
                 sources.update(rgb=rgb_store, depth=mm_store if mm else m_store)
             sources = {k: a for k, a in sources.items() if a.size}
+            if rc is not None:
+                parts["stores"] = time.perf_counter() - t_part
+            t_part = time.perf_counter()
             mirrors = {
                 k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
                 for k, a in sources.items()
@@ -525,6 +557,7 @@ class WarpExecutor:
                 wp.synchronize()
                 return {k: a.numpy() for k, a in mirrors.items()}
 
+            parts["mirrors"] = time.perf_counter() - t_part
             setup_s = time.perf_counter() - t0
             self.times.setup += setup_s
             parts["rest"] = setup_s - sum(parts.values())

@@ -172,7 +172,9 @@ class WarpMobileRenderer:
             self.worlds = max(1, min(cap, budget // max(1, per_world)))
             n = self.worlds
             self.d = mjw.make_data(model, nworld=n, nconmax=1, njmax=1)
-            self.rc = mjw.create_render_context(
+            from factory.demos.execute_warp import render_context
+
+            self.rc = render_context(
                 model,
                 nworld=n,
                 cam_res=res,
