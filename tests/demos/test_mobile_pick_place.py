@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
-pytest.importorskip("robosuite")
+if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
+    pytest.importorskip("robosuite")
 pytest.importorskip("ruckig")
 pytest.importorskip("ompl")
 pytest.importorskip("mink")
