@@ -544,7 +544,7 @@ class WarpExecutor:
                 sources.update(rgb=rgb_store, depth=mm_store if mm else m_store)
             sources = {k: a for k, a in sources.items() if a.size}
             if rc is not None:
-                parts["stores"] = time.perf_counter() - t_part
+                parts["stores_first_draw"] = time.perf_counter() - t_part
             t_part = time.perf_counter()
             mirrors = {
                 k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
