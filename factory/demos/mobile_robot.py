@@ -31,23 +31,20 @@ from __future__ import annotations
 import functools
 import logging
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from factory.demos.robosuite_models import robosuite_cache_dir, robosuite_panda_xml
 from factory.demos.robot import (
-    _KP,
-    _KV,
-    CACHE_KEY,
-    PANDA,
-    ROBOSUITE_VERSION,
-    SQUEEZE,
+    FingerTargets,
     _look_quat,
+    add_panda_actuators,
     cached_mjcf,
     export_mjcf,
+    finish_panda_spec,
     yaw_quat,
 )
 from factory.nav.base_trajectory import BaseLimits
@@ -142,34 +139,12 @@ class MobileCameraRig:
 
 def mobile_cache_dir() -> Path:
     """Where the composed mobile robot MJCF and its meshes are kept (``FACTORY_ROBOT_CACHE``)."""
-    root = os.environ.get("FACTORY_ROBOT_CACHE") or "~/.cache/factory/robots"
-    return Path(root).expanduser() / f"panda-omron-robosuite-{ROBOSUITE_VERSION}-{CACHE_KEY}"
+    return robosuite_cache_dir("panda-omron")
 
 
 def _robosuite_xml() -> str:
     """Panda + gripper on the Omron base from robosuite's model classes (absolute paths)."""
-    for name in ("robosuite", "robosuite_logs"):
-        logging.getLogger(name).setLevel(logging.ERROR)
-    try:
-        import robosuite
-        from robosuite.models.bases import OmronMobileBase
-        from robosuite.models.grippers import PandaGripper
-        from robosuite.models.robots import Panda
-    except ImportError as e:  # pragma: no cover - the demos extra is part of setup.sh
-        from factory.errors import ConfigError
-
-        raise ConfigError(
-            f"the mobile robot model needs robosuite {ROBOSUITE_VERSION} ({e}) or a robot "
-            f"cache at {mobile_cache_dir()}: pip install -e '.[demos]'"
-        ) from None
-    if robosuite.__version__ != ROBOSUITE_VERSION:
-        log.warning(
-            "robosuite %s, models expected from %s", robosuite.__version__, ROBOSUITE_VERSION
-        )
-    robot = Panda()
-    robot.add_base(OmronMobileBase())
-    robot.add_gripper(PandaGripper())
-    return str(robot.get_xml())
+    return robosuite_panda_xml("OmronMobileBase", "mobile robot model", mobile_cache_dir())
 
 
 def export_mobile_robot(cache: Path) -> None:
@@ -239,25 +214,7 @@ def mobile_spec(
         act.forcelimited = True
         act.forcerange = [-_BASE_FORCE[i], _BASE_FORCE[i]]
 
-    for i in range(7):
-        act = spec.add_actuator(name=f"robot0_act{i + 1}", target=f"robot0_joint{i + 1}")
-        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        act.set_to_position(kp=_KP[i], kv=_KV[i])
-        act.ctrllimited = True
-        act.ctrlrange = [PANDA.q_min[i], PANDA.q_max[i]]
-        act.forcelimited = True
-        act.forcerange = [-PANDA.tau_max[i], PANDA.tau_max[i]]
-    for k in range(2):
-        act = spec.add_actuator(name=f"gripper0_act{k + 1}", target=f"gripper0_finger_joint{k + 1}")
-        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        act.set_to_position(kp=2000.0, kv=20.0)
-        act.ctrllimited = True
-        act.ctrlrange = [-SQUEEZE, PANDA.finger_max] if k == 0 else [-PANDA.finger_max, SQUEEZE]
-        act.forcelimited = True
-        act.forcerange = [-40.0, 40.0]
-    for body in spec.bodies:
-        if body.name.startswith(("robot0_", "gripper0_")) and body.name != "robot0_base":
-            body.gravcomp = 1.0
+    add_panda_actuators(spec)
     for geom in spec.geoms:
         if geom.name in ("mobilebase0_fixed_support", "mobilebase0_support"):
             geom.contype = geom.conaffinity = 0  # robosuite's visual copies of the columns
@@ -265,18 +222,10 @@ def mobile_spec(
             geom.mass = _BASE_MASS
         elif geom.parent.name.startswith("mobilebase0_") and not (geom.contype or geom.conaffinity):
             geom.density = 0.0
-        if "pad_collision" in geom.name:
-            geom.friction = [2.0, 0.05, 0.0001]
-            geom.condim = 4
-        if geom.contype or geom.conaffinity:
-            geom.group = 3
+    # As on the fixed robot (after the columns above lost their collisions), but the base
+    # body, which carries the wheeled body, gets no gravity compensation.
+    finish_panda_spec(spec, rig.wrist_fovy, no_gravcomp=("robot0_base",))
 
-    spec.body("robot0_right_hand").add_camera(
-        name="wrist_camera",
-        pos=[0.05, 0.0, 0.0],
-        quat=[0.0, 0.707108, 0.707108, 0.0],
-        fovy=rig.wrist_fovy,
-    )
     target = np.asarray(rig.workspace, float)
     for name, side in (("camera_left", 1.0), ("camera_right", -1.0)):
         eye = np.array([rig.eye_x, side * rig.eye_y, rig.eye_z])
@@ -320,7 +269,7 @@ def mobile_robot_model(
 
 
 @dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
-class MobileRobotIndex:
+class MobileRobotIndex(FingerTargets):
     """Addresses of the mobile robot in a compiled model.
 
     Attributes:
@@ -396,16 +345,6 @@ class MobileRobotIndex:
     def base_pose(self, data: mujoco.MjData) -> np.ndarray:
         """The base's world pose (3,): x, y (m), unwrapped yaw (rad)."""
         return np.array(data.qpos[self.base_qpos])
-
-    def gripper_ctrl(self, opening: float) -> np.ndarray:
-        """Finger targets (2,) for a total opening (m): 0.08 open, negative squeezes."""
-        half = float(np.clip(opening / 2, -SQUEEZE, PANDA.finger_max))
-        return np.array([half, -half])
-
-    def finger_pos(self, opening: float) -> np.ndarray:
-        """Finger joint positions (2,) for a total opening (m), within the joint range."""
-        half = float(np.clip(opening / 2, 0.0, PANDA.finger_max))
-        return np.array([half, -half])
 
     def stow(self, data: mujoco.MjData) -> None:
         """Puts the arm in ``STOW_QPOS`` with closed fingers, and the arm and finger targets

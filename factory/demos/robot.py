@@ -26,7 +26,10 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from factory.demos.visual_mesh import SIMPLIFY_VERSION, VISUAL_FACES, simplify_visual_mesh
+from factory.demos.robosuite_models import CACHE_KEY as CACHE_KEY  # re-exported
+from factory.demos.robosuite_models import ROBOSUITE_VERSION as ROBOSUITE_VERSION  # re-exported
+from factory.demos.robosuite_models import robosuite_cache_dir, robosuite_panda_xml
+from factory.demos.visual_mesh import VISUAL_FACES, simplify_visual_mesh
 
 if TYPE_CHECKING:
     import xml.etree.ElementTree as ET
@@ -152,42 +155,14 @@ class CameraRig:
     wrist_fovy: float = 75.0
 
 
-ROBOSUITE_VERSION = "1.5.1"
-
-
-CACHE_KEY = f"vis{VISUAL_FACES}-s{SIMPLIFY_VERSION}"
-"""Part of the robot caches' directory names: caches made with other visual meshes (another
-face budget or simplification) are not read, and a new one is made."""
-
-
 def robot_cache_dir() -> Path:
     """Where the composed robot MJCF and its meshes are kept (``FACTORY_ROBOT_CACHE``)."""
-    root = os.environ.get("FACTORY_ROBOT_CACHE") or "~/.cache/factory/robots"
-    return Path(root).expanduser() / f"panda-robosuite-{ROBOSUITE_VERSION}-{CACHE_KEY}"
+    return robosuite_cache_dir("panda")
 
 
 def _robosuite_xml() -> str:
     """The arm + hand MJCF from robosuite's model classes (absolute mesh paths)."""
-    # robosuite logs set-up hints on import (macros, optional robots); they are not ours.
-    for name in ("robosuite", "robosuite_logs"):
-        logging.getLogger(name).setLevel(logging.ERROR)
-    try:
-        import robosuite
-        from robosuite.models.grippers import PandaGripper
-        from robosuite.models.robots import Panda
-    except ImportError as e:  # pragma: no cover - the demos extra is part of setup.sh
-        from factory.errors import ConfigError
-
-        raise ConfigError(
-            f"the robot model needs robosuite {ROBOSUITE_VERSION} ({e}): pip install -e '.[demos]'"
-        ) from None
-    if robosuite.__version__ != ROBOSUITE_VERSION:
-        log.warning(
-            "robosuite %s, models expected from %s", robosuite.__version__, ROBOSUITE_VERSION
-        )
-    robot = Panda()
-    robot.add_gripper(PandaGripper())
-    return str(robot.get_xml())
+    return robosuite_panda_xml()
 
 
 def is_visual_mesh(el: ET.Element) -> bool:
@@ -262,6 +237,59 @@ def _robot_xml() -> str:
     return cached_mjcf(robot_cache_dir(), _robosuite_xml)
 
 
+def add_panda_actuators(spec: mujoco.MjSpec) -> None:
+    """Appends the Panda's position actuators to a robosuite Panda spec (in place):
+    ``robot0_act1..7`` (arm joint targets, rad, with the Panda's torque limits), then the two
+    finger actuators ``gripper0_act1..2`` (m)."""
+    for i in range(7):
+        act = spec.add_actuator(name=f"robot0_act{i + 1}", target=f"robot0_joint{i + 1}")
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_position(kp=_KP[i], kv=_KV[i])
+        act.ctrllimited = True
+        act.ctrlrange = [PANDA.q_min[i], PANDA.q_max[i]]
+        act.forcelimited = True
+        act.forcerange = [-PANDA.tau_max[i], PANDA.tau_max[i]]
+    for k in range(2):
+        act = spec.add_actuator(name=f"gripper0_act{k + 1}", target=f"gripper0_finger_joint{k + 1}")
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_position(kp=2000.0, kv=20.0)
+        act.ctrllimited = True
+        # Targets reach past the closed stop so that a closed hand keeps squeezing.
+        act.ctrlrange = [-SQUEEZE, PANDA.finger_max] if k == 0 else [-PANDA.finger_max, SQUEEZE]
+        act.forcelimited = True
+        act.forcerange = [-40.0, 40.0]
+
+
+def finish_panda_spec(
+    spec: mujoco.MjSpec, wrist_fovy: float, no_gravcomp: tuple[str, ...] = ()
+) -> None:
+    """Finishes a robosuite Panda spec (in place): gravity compensation for the arm and hand
+    bodies, grippy finger pads, collision geoms hidden from cameras, and the ``wrist`` camera.
+
+    Args:
+        spec: the robot's spec (names without a prefix).
+        wrist_fovy: vertical field of view of the ``wrist`` camera (deg).
+        no_gravcomp: ``robot0_``/``gripper0_`` bodies left without gravity compensation.
+    """
+    for body in spec.bodies:
+        if body.name.startswith(("robot0_", "gripper0_")) and body.name not in no_gravcomp:
+            body.gravcomp = 1.0
+    # Finger pads grip with high friction, as robosuite sets them. Collision geoms go to
+    # group 3, which cameras do not draw (the visual meshes are in groups 1-2).
+    for geom in spec.geoms:
+        if "pad_collision" in geom.name:
+            geom.friction = [2.0, 0.05, 0.0001]
+            geom.condim = 4
+        if geom.contype or geom.conaffinity:
+            geom.group = 3
+    spec.body("robot0_right_hand").add_camera(
+        name="wrist_camera",
+        pos=[0.05, 0.0, 0.0],
+        quat=[0.0, 0.707108, 0.707108, 0.0],
+        fovy=wrist_fovy,
+    )
+
+
 def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco.MjSpec:
     """The Panda arm + gripper as an MjSpec, with position-controlled joints.
 
@@ -281,41 +309,8 @@ def panda_spec(pedestal_height: float = 0.0, wrist_fovy: float = 75.0) -> mujoco
     fingers = list(spec.actuators)
     for act in fingers:  # re-added after the arm so that the order is arm, fingers
         spec.delete(act)
-    for i in range(7):
-        act = spec.add_actuator(name=f"robot0_act{i + 1}", target=f"robot0_joint{i + 1}")
-        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        act.set_to_position(kp=_KP[i], kv=_KV[i])
-        act.ctrllimited = True
-        act.ctrlrange = [PANDA.q_min[i], PANDA.q_max[i]]
-        act.forcelimited = True
-        act.forcerange = [-PANDA.tau_max[i], PANDA.tau_max[i]]
-    for k in range(2):
-        act = spec.add_actuator(name=f"gripper0_act{k + 1}", target=f"gripper0_finger_joint{k + 1}")
-        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        act.set_to_position(kp=2000.0, kv=20.0)
-        act.ctrllimited = True
-        # Targets reach past the closed stop so that a closed hand keeps squeezing.
-        act.ctrlrange = [-SQUEEZE, PANDA.finger_max] if k == 0 else [-PANDA.finger_max, SQUEEZE]
-        act.forcelimited = True
-        act.forcerange = [-40.0, 40.0]
-    for body in spec.bodies:
-        if body.name.startswith(("robot0_", "gripper0_")):
-            body.gravcomp = 1.0
-    # Finger pads grip with high friction, as robosuite sets them. Collision geoms go to
-    # group 3, which cameras do not draw (the visual meshes are in groups 1-2).
-    for geom in spec.geoms:
-        if "pad_collision" in geom.name:
-            geom.friction = [2.0, 0.05, 0.0001]
-            geom.condim = 4
-        if geom.contype or geom.conaffinity:
-            geom.group = 3
-    hand = spec.body("robot0_right_hand")
-    hand.add_camera(
-        name="wrist_camera",
-        pos=[0.05, 0.0, 0.0],
-        quat=[0.0, 0.707108, 0.707108, 0.0],
-        fovy=wrist_fovy,
-    )
+    add_panda_actuators(spec)
+    finish_panda_spec(spec, wrist_fovy)
     base = spec.body("robot0_base")
     if pedestal_height > 0:
         base.add_geom(
@@ -376,8 +371,22 @@ def robot_model() -> mujoco.MjModel:
     return spec.compile()
 
 
+class FingerTargets:
+    """The Panda hand's finger values for a total opening, shared by the robot indexes."""
+
+    def gripper_ctrl(self, opening: float) -> np.ndarray:
+        """Finger targets (2,) for a total opening (m): 0.08 open, negative squeezes."""
+        half = float(np.clip(opening / 2, -SQUEEZE, PANDA.finger_max))
+        return np.array([half, -half])
+
+    def finger_pos(self, opening: float) -> np.ndarray:
+        """Finger joint positions (2,) for a total opening (m), within the joint range."""
+        half = float(np.clip(opening / 2, 0.0, PANDA.finger_max))
+        return np.array([half, -half])
+
+
 @dataclass
-class RobotIndex:
+class RobotIndex(FingerTargets):
     """Addresses of the robot in a compiled model (ids into qpos, qvel, ctrl, bodies, geoms).
 
     Attributes:
@@ -427,13 +436,3 @@ class RobotIndex:
             finger_geoms=np.flatnonzero(np.isin(model.geom_bodyid, finger_bodies) & collides),
             bodies=bodies,
         )
-
-    def gripper_ctrl(self, opening: float) -> np.ndarray:
-        """Finger targets (2,) for a total opening (m): 0.08 open, negative squeezes."""
-        half = float(np.clip(opening / 2, -SQUEEZE, PANDA.finger_max))
-        return np.array([half, -half])
-
-    def finger_pos(self, opening: float) -> np.ndarray:
-        """Finger joint positions (2,) for a total opening (m), within the joint range."""
-        half = float(np.clip(opening / 2, 0.0, PANDA.finger_max))
-        return np.array([half, -half])
