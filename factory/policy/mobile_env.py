@@ -91,6 +91,7 @@ from factory.demos.pick_place import targets_to_ctrl  # noqa: E402
 from factory.errors import StoreError, TaskError  # noqa: E402
 from factory.nav import BASE_COLLISION  # noqa: E402
 from factory.nav.task_poses import ARM_X, PICK_REACH, PLACE_REACH  # noqa: E402
+from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -222,16 +223,9 @@ class SubtaskRule:
 
 
 @dataclass
-class _Episode:
-    """Book-keeping of one env's running episode."""
+class _Episode(Episode):
+    """Book-keeping of one env's running episode: its sub-tasks and deepest contacts too."""
 
-    seed: int | None = None
-    limit: int = 0
-    steps: int = 0
-    done: bool = False
-    success: bool = False
-    reason: str = ""
-    details: dict[str, float] = field(default_factory=dict)
     subtask: int = 0
     completed: int = 0
     switches: list[int] = field(default_factory=list)
@@ -240,15 +234,12 @@ class _Episode:
     rest: int = 0
     rest_long: int = 0
     free: int = 0
-    start_z: float = 0.0
-    max_z: float = 0.0
     carry_z: float | None = None
     worst_base: float = 0.0
     worst_arm: float = 0.0
-    history: deque[np.ndarray] = field(default_factory=deque)
 
 
-class MobileVecEnv:
+class MobileVecEnv(EpisodeEnv[_Episode, MobileRenderer]):
     """``num_envs`` mobile pick-and-place episodes of one scene (see the module docstring).
 
     Args:
@@ -324,10 +315,7 @@ class MobileVecEnv:
         self._video: MobileRenderer | None = None
         self._episodes = [_Episode(done=True) for _ in range(num_envs)]
         self._prev = np.zeros((num_envs, ACTION_DIM))
-        self._obs = {
-            k: np.zeros((num_envs, *shape), dtype)
-            for k, (shape, dtype) in self.spec.shapes().items()
-        }
+        self._obs = self._empty_obs(self.spec.shapes())
 
     # ---- set-up helpers
     def _record_cfg(self, cameras: tuple[str, ...]) -> MobileRecordConfig:
@@ -367,9 +355,7 @@ class MobileVecEnv:
         """
         from factory.demos.mobile_robot import STOW_FINGERS
 
-        ids = list(range(self.num_envs)) if ids is None else list(ids)
-        if sum(x is not None for x in (seeds, states, qpos)) != 1:
-            raise ValueError("reset needs exactly one of seeds, states or qpos")
+        ids = self._reset_ids(ids, seeds, states, qpos)
         if seeds is not None:
             qpos = np.stack([self.sample_qpos(int(s)) for s in seeds])
         m, robot = self.model, self.robot
@@ -395,16 +381,10 @@ class MobileVecEnv:
                 self._prev[i] = np.concatenate([arm, [grip], base])
                 d.ctrl[:] = self._ctrl(self._prev[i][None], np.zeros((1, ACTION_DIM)))[0]
             mujoco.mj_forward(m, d)
-            self._episodes[i] = _Episode(
-                seed=None if seeds is None else int(seeds[k]),
-                limit=self.max_steps if max_steps is None else int(max_steps[k]),
-            )
+            seed, limit = self._episode_start(k, seeds, max_steps, self.max_steps)
+            self._episodes[i] = _Episode(seed=seed, limit=limit)
             self._observe(i, first=True)
-        return self.observations(), {"seed": [e.seed for e in self._episodes]}
-
-    def observations(self) -> dict[str, np.ndarray]:
-        """The latest observation of every env (copies), (n, ...) per key."""
-        return {k: v.copy() for k, v in self._obs.items()}
+        return self.observations(), self._reset_info()
 
     def _load(self, i: int) -> mujoco.MjData:
         """Env ``i``'s current state in a fresh view (``mj_setState`` + ``mj_forward``), as the
@@ -628,46 +608,23 @@ class MobileVecEnv:
             ep.steps += 1
             self._observe(i, action=actions[i])
             self._prev[i] = actions[i]
-        eps = self._episodes
-        success = np.array([e.success for e in eps])
-        done = self.done
-        new = done & ~was_done
-        truncated = new & np.array([e.steps >= e.limit and not e.success for e in eps])
-        truncated &= np.array([e.reason not in (DROP, BASE_COLLISION, "collision") for e in eps])
-        terminated = new & ~truncated
-        info = {
-            "success": success,
-            "reason": np.array([e.reason for e in eps], dtype=object),
-            "steps": self.steps,
-            "subtask": np.array([e.subtask for e in eps]),
-        }
-        return self.observations(), (new & success).astype(np.float32), terminated, truncated, info
+        reward, terminated, truncated, info = self._step_outcome(
+            was_done, terminal=(DROP, BASE_COLLISION, "collision")
+        )
+        info["subtask"] = np.array([e.subtask for e in self._episodes])
+        return self.observations(), reward, terminated, truncated, info
 
     @property
     def last_actions(self) -> np.ndarray:
         """(n, 11): each env's last action (at a reset: the targets it rests at), a copy."""
         return self._prev.copy()
 
-    @property
-    def steps(self) -> np.ndarray:
-        """(n,) int: frames stepped in each env's episode."""
-        return np.array([e.steps for e in self._episodes])
-
-    @property
-    def done(self) -> np.ndarray:
-        """(n,) bool: which envs' episodes have ended."""
-        return np.array([e.done for e in self._episodes])
-
     def result(self, i: int) -> dict[str, Any]:
         """Env ``i``'s episode so far: success, reason, steps, seed, the check's numbers, the
         sub-task it is in, how many sub-tasks it completed and the frames it switched at."""
         e = self._episodes[i]
         return {
-            "success": e.success,
-            "reason": e.reason,
-            "steps": e.steps,
-            "seed": e.seed,
-            "details": dict(e.details),
+            **self._result(i),
             "record": {
                 "subtask": SUBTASKS[min(e.subtask, len(SUBTASKS) - 1)],
                 "subtasks_done": int(e.completed),
@@ -678,21 +635,14 @@ class MobileVecEnv:
     def render(self, i: int, cameras: tuple[str, ...] = ALL_CAMERAS) -> np.ndarray:
         """RGB frame of env ``i``'s current state, ``cameras`` side by side at the spec's size
         (fisheye views are ``width`` square; shorter views are padded with black), for videos."""
-        if self._video is None or self._video.cfg.cameras != cameras:
-            if self._video is not None:
-                self._video.close()
-            self._video = MobileRenderer(self.model, self._record_cfg(cameras))
-        views = self._video.render(self._load(i))
+        video = self._video_renderer(
+            cameras, lambda: MobileRenderer(self.model, self._record_cfg(cameras))
+        )
+        views = video.render(self._load(i))
         ims = [views[c][0] for c in cameras]
         h = max(im.shape[0] for im in ims)
         ims = [np.pad(im, ((0, h - im.shape[0]), (0, 0), (0, 0))) for im in ims]
         return np.concatenate(ims, axis=1)
-
-    def close(self) -> None:
-        for r in (self.renderer, self._video):
-            if r is not None:
-                r.close()
-        self.renderer = self._video = None
 
 
 def make_mobile_vec_env(

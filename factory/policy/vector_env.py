@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from factory.sim.gl import configure_gl
@@ -47,6 +47,7 @@ from factory.demos.pick_place import (  # noqa: E402
     targets_to_ctrl,
 )
 from factory.demos.task import Outcome, Workspace, check_success  # noqa: E402
+from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -105,23 +106,13 @@ class ObsSpec:
 
 
 @dataclass
-class _Episode:
-    """Book-keeping of one env's running episode."""
+class _Episode(Episode):
+    """Book-keeping of one env's running episode: the deepest robot contact (m) too."""
 
-    seed: int | None = None
-    limit: int = 0
-    steps: int = 0
-    start_z: float = 0.0
-    max_z: float = 0.0
     worst: float = 0.0
-    history: deque[np.ndarray] = field(default_factory=deque)
-    done: bool = False
-    success: bool = False
-    reason: str = ""
-    details: dict[str, float] = field(default_factory=dict)
 
 
-class PickPlaceVecEnv:
+class PickPlaceVecEnv(EpisodeEnv[_Episode, FrameRenderer]):
     """``num_envs`` pick-and-place episodes of one scene, stepped together.
 
     Args:
@@ -179,18 +170,12 @@ class PickPlaceVecEnv:
         self._video: FrameRenderer | None = None
         self._episodes = [_Episode(done=True) for _ in range(num_envs)]  # none started
         self._prev = np.zeros((num_envs, 8))
-        self._obs = self._empty_obs()
+        self._obs = self._empty_obs(self.spec.shapes())
 
     # ---- set-up helpers
     def _record_cfg(self, cameras: tuple[str, ...]) -> RecordConfig:
         s = self.spec
         return RecordConfig(s.fps, s.width, s.height, cameras, "uint16_mm", True)
-
-    def _empty_obs(self) -> dict[str, np.ndarray]:
-        return {
-            k: np.zeros((self.num_envs, *shape), dtype)
-            for k, (shape, dtype) in self.spec.shapes().items()
-        }
 
     def sample_qpos(self, seed: int) -> np.ndarray:
         """The initial qpos (nq,) of seed ``seed``: the demos' sampler with
@@ -222,10 +207,7 @@ class PickPlaceVecEnv:
         Raises:
             TaskError: a seed the sampler cannot place the objects with.
         """
-        ids = list(range(self.num_envs)) if ids is None else list(ids)
-        given = [x is not None for x in (seeds, states, qpos)]
-        if sum(given) != 1:
-            raise ValueError("reset needs exactly one of seeds, states or qpos")
+        ids = self._reset_ids(ids, seeds, states, qpos)
         if seeds is not None:
             qpos = np.stack([self.sample_qpos(int(s)) for s in seeds])
         b = self.batch
@@ -245,17 +227,10 @@ class PickPlaceVecEnv:
                 )[0]
         b.forward(ids=ids)
         for k, i in enumerate(ids):
-            ep = _Episode(
-                seed=None if seeds is None else int(seeds[k]),
-                limit=self.max_steps if max_steps is None else int(max_steps[k]),
-            )
-            self._episodes[i] = ep
+            seed, limit = self._episode_start(k, seeds, max_steps, self.max_steps)
+            self._episodes[i] = _Episode(seed=seed, limit=limit)
             self._observe(i, first=True)
-        return self.observations(), {"seed": [e.seed for e in self._episodes]}
-
-    def observations(self) -> dict[str, np.ndarray]:
-        """The latest observation of every env (copies), (n, ...) per key."""
-        return {k: v.copy() for k, v in self._obs.items()}
+        return self.observations(), self._reset_info()
 
     def _load(self, i: int) -> mujoco.MjData:
         """Env ``i``'s current state in the scratch data, with kinematics and contacts."""
@@ -355,7 +330,7 @@ class PickPlaceVecEnv:
         if actions.shape != (self.num_envs, 8):
             raise ValueError(f"actions must be ({self.num_envs}, 8), got {actions.shape}")
         ids = [i for i, e in enumerate(self._episodes) if not e.done]
-        was_done = np.array([e.done for e in self._episodes])
+        was_done = self.done
         if ids:
             ctrl = self._controls(actions[ids], ids)
             self.batch.rollout(self.per_frame, control=ctrl, ids=ids, record=())
@@ -363,53 +338,18 @@ class PickPlaceVecEnv:
             for i in ids:
                 self._episodes[i].steps += 1
                 self._observe(i)
-        eps = self._episodes
-        success = np.array([e.success for e in eps])
-        done = np.array([e.done for e in eps])
-        new = done & ~was_done
-        truncated = new & np.array([e.steps >= e.limit and not e.success for e in eps])
-        terminated = new & ~truncated
-        reward = (new & success).astype(np.float32)
-        info = {
-            "success": success,
-            "reason": np.array([e.reason for e in eps], dtype=object),
-            "steps": np.array([e.steps for e in eps]),
-        }
+        reward, terminated, truncated, info = self._step_outcome(was_done)
         return self.observations(), reward, terminated, truncated, info
-
-    @property
-    def steps(self) -> np.ndarray:
-        """(n,) int: frames stepped in each env's episode."""
-        return np.array([e.steps for e in self._episodes])
-
-    @property
-    def done(self) -> np.ndarray:
-        """(n,) bool: which envs' episodes have ended."""
-        return np.array([e.done for e in self._episodes])
 
     def result(self, i: int) -> dict[str, Any]:
         """Env ``i``'s episode so far: success, reason, steps, seed and the check's numbers."""
-        e = self._episodes[i]
-        return {
-            "success": e.success,
-            "reason": e.reason,
-            "steps": e.steps,
-            "seed": e.seed,
-            "details": dict(e.details),
-        }
+        return self._result(i)
 
     def render(self, i: int, cameras: tuple[str, ...] = ("left", "right", "wrist")) -> np.ndarray:
         """RGB frame (H, len(cameras) * W, 3) of env ``i``'s current state, cameras side by
         side (for videos)."""
-        if self._video is None or self._video.cfg.cameras != cameras:
-            if self._video is not None:
-                self._video.close()
-            self._video = FrameRenderer(self.model, self._record_cfg(cameras))
-        rgbs, _ = self._video.render(self._load(i))
+        video = self._video_renderer(
+            cameras, lambda: FrameRenderer(self.model, self._record_cfg(cameras))
+        )
+        rgbs, _ = video.render(self._load(i))
         return np.concatenate(rgbs, axis=1)
-
-    def close(self) -> None:
-        for r in (self.renderer, self._video):
-            if r is not None:
-                r.close()
-        self.renderer = self._video = None
