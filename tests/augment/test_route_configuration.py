@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from living_room import can, desk, living_room
 
 from factory.assets import AssetLibrary
 from factory.augment.check import pose_rows
@@ -19,13 +20,11 @@ from factory.scenes.brain import AgentConfig, generate_scene
 from factory.schema import (
     Physics,
     Placement,
-    Room,
     Scene,
     SceneObject,
     Size3,
     Task,
     Vec3,
-    Wall,
     scene_to_json,
 )
 from factory.sim.compile import compile_scene
@@ -40,18 +39,6 @@ LIVING = "a living room where the robot moves the coke can from the coffee table
 
 
 def _room() -> Scene:
-    corners = [(0.0, 0.0), (W, 0.0), (W, L), (0.0, L)]
-    walls = [
-        Wall(id=f"w{i}", start=Vec3(*a, 0.0), end=Vec3(*b, 0.0), height=2.5)
-        for i, (a, b) in enumerate(zip(corners, corners[1:] + corners[:1], strict=True))
-    ]
-    room = Room(
-        id="living",
-        room_type="living_room",
-        position=Vec3(0, 0, 0),
-        dimensions=Size3(W, L, 2.7),
-        walls=walls,
-    )
     x0, x1 = COUNTER
     objects = [
         SceneObject(
@@ -62,29 +49,13 @@ def _room() -> Scene:
             dimensions=Size3(x1 - x0, L - 0.1, TOP),
             physics=Physics(mass=80.0, static=True),
         ),
-        SceneObject(  # at the counter's east edge: reachable from the desk's side
-            id="can",
-            room_id="living",
-            category="can",
-            position=Vec3(x1 - 0.2, L / 2, TOP),
-            dimensions=Size3(0.066, 0.066, 0.12),
-            placement=Placement(kind="on_top", support_id="counter"),
-            physics=Physics(mass=0.3),
-            task_role="pick",
-        ),
-        SceneObject(
-            id="desk",
-            room_id="living",
-            category="desk",
-            position=Vec3(5.0, 1.2, 0.0),
-            dimensions=Size3(1.2, 0.6, 0.75),
-            physics=Physics(mass=30.0),
-            task_role="place_support",
-        ),
+        # at the counter's east edge: reachable from the desk's side
+        can(Vec3(x1 - 0.2, L / 2, TOP), "counter"),
+        desk(5.0, 1.2, "place_support"),
     ]
     return Scene(
         id="bar",
-        rooms=[room],
+        rooms=[living_room(W, L)],
         objects=objects,
         source="example",
         task=Task(

@@ -13,6 +13,8 @@ pytest.importorskip("ruckig")
 pytest.importorskip("ompl")
 pytest.importorskip("mink")
 
+from living_room import can, desk, living_room
+
 from factory.demos.grasps import Grasp
 from factory.demos.mobile_pick_place import (
     ALL_CAMERAS,
@@ -30,7 +32,7 @@ from factory.demos.mobile_pick_place import (
     mobile_task_objects,
     replay,
 )
-from factory.schema import Physics, Placement, Room, Scene, SceneObject, Size3, Vec3, Wall
+from factory.schema import Physics, Scene, SceneObject, Size3, Vec3
 
 ROOM_W, ROOM_L = 6.0, 5.0
 TABLE = (1.6, 2.5)
@@ -43,18 +45,6 @@ def _living_room(enclose_desk: bool = False, stool_in_door: bool = False) -> Sce
     """A 6 x 5 m living room: a coffee table with a can on it and a desk 3.3 m away; with
     ``enclose_desk`` static panels close the desk in; with ``stool_in_door`` a static
     partition at x = 3 m splits the room, its 1 m doorway blocked by a light stool."""
-    corners = [(0.0, 0.0), (ROOM_W, 0.0), (ROOM_W, ROOM_L), (0.0, ROOM_L)]
-    walls = [
-        Wall(id=f"w{i}", start=Vec3(*a, 0.0), end=Vec3(*b, 0.0), height=2.5)
-        for i, (a, b) in enumerate(zip(corners, corners[1:] + corners[:1], strict=True))
-    ]
-    room = Room(
-        id="living",
-        room_type="living_room",
-        position=Vec3(0, 0, 0),
-        dimensions=Size3(ROOM_W, ROOM_L, 2.7),
-        walls=walls,
-    )
     objects = [
         SceneObject(
             id="coffee_table",
@@ -64,25 +54,8 @@ def _living_room(enclose_desk: bool = False, stool_in_door: bool = False) -> Sce
             dimensions=Size3(1.0, 0.6, 0.45),
             physics=Physics(mass=15.0),
         ),
-        SceneObject(
-            id="can",
-            room_id="living",
-            category="can",
-            position=Vec3(TABLE[0], TABLE[1] - 0.1, 0.45),
-            dimensions=Size3(0.066, 0.066, 0.12),
-            placement=Placement(kind="on_top", support_id="coffee_table"),
-            physics=Physics(mass=0.3),
-            task_role="pick",
-        ),
-        SceneObject(
-            id="desk",
-            room_id="living",
-            category="desk",
-            position=Vec3(*DESK, 0.0),
-            dimensions=Size3(1.2, 0.6, 0.75),
-            physics=Physics(mass=30.0),
-            task_role="place_target",
-        ),
+        can(Vec3(TABLE[0], TABLE[1] - 0.1, 0.45), "coffee_table"),
+        desk(*DESK, "place_target"),
     ]
     if enclose_desk:  # a closed pen of static panels 0.9 m around the desk
         x, y = DESK
@@ -127,7 +100,9 @@ def _living_room(enclose_desk: bool = False, stool_in_door: bool = False) -> Sce
                 physics=Physics(mass=4.0),
             )
         )
-    return Scene(id="living", rooms=[room], objects=objects, source="example")
+    return Scene(
+        id="living", rooms=[living_room(ROOM_W, ROOM_L)], objects=objects, source="example"
+    )
 
 
 def _near_box(xy: np.ndarray, centre: tuple[float, float], half: tuple[float, float]) -> float:
