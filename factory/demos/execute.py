@@ -18,6 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from factory.demos.frame_render import CameraStrip, size_offscreen
 from factory.demos.pick_place import EpisodePlan, SceneSetup
 from factory.demos.robot import CAMERAS, RobotIndex
 from factory.demos.task import Outcome, check_success
@@ -85,8 +86,9 @@ class Recording:
     render_seconds: float = 0.0
 
 
-class FrameRenderer:
-    """Renders the recording cameras of a composed model: RGB and depth from one GL pass.
+class FrameRenderer(CameraStrip):
+    """Renders the recording cameras of a composed model: RGB and depth from one GL pass
+    (a :class:`~factory.demos.frame_render.CameraStrip` of ``cfg.cameras``).
 
     Reflections, the skybox and multisampling are off (they cost more than the image itself
     at this size), and shadows unless ``cfg.shadows`` (shadow maps of :data:`SHADOW_SIZE`);
@@ -105,102 +107,15 @@ class FrameRenderer:
     """
 
     def __init__(self, model: mujoco.MjModel, cfg: RecordConfig, cull: bool = True) -> None:
-        from factory.sim.frustum import FrustumCuller
         from factory.sim.gl import configure_gl
-        from factory.sim.render_model import infinite_planes, render_model
 
         configure_gl("auto")
-        self.model = model
         self.cfg = cfg
-        self.culler = FrustumCuller(model) if cull else None
-        self._planes = frozenset(infinite_planes(model)) if cull else frozenset()
-        half = 1.05 * float(model.vis.map.zfar * model.stat.extent)
-        # render_model's finite plane: spacing = half, 4 x 4 quads
-        self._plane_size = np.array([half, half, half / 2.0])
-        self._geom_obj = int(mujoco.mjtObj.mjOBJ_GEOM)
-        self._catmask = int(mujoco.mjtCatBit.mjCAT_ALL)
-        n = len(cfg.cameras)
-        model.vis.quality.offsamples = 0  # no multisampling: 1.7x faster on Mesa at 128 px
         if cfg.shadows:
             model.vis.quality.shadowsize = min(int(model.vis.quality.shadowsize), SHADOW_SIZE)
-        if n * cfg.width > model.vis.global_.offwidth or cfg.height > model.vis.global_.offheight:
-            model.vis.global_.offwidth = max(model.vis.global_.offwidth, n * cfg.width)
-            model.vis.global_.offheight = max(model.vis.global_.offheight, cfg.height)
-        # the GL context bakes each plane's grid from the model it is made with
-        drawn = render_model(model) if cull else model
-        self.renderer = mujoco.Renderer(drawn, cfg.height, n * cfg.width)
-        self._camera = mujoco.MjvCamera()
-        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
-        flags = self.renderer.scene.flags
-        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = cfg.shadows
-        flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-        flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
-        self.option = mujoco.MjvOption()
-        self.option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
-        self.option.sitegroup[:] = 0
-        self.cams = [model.camera(CAMERAS[c]).id for c in cfg.cameras]
-        self._rgb = np.empty((cfg.height, n * cfg.width, 3), np.uint8)
-        self._z = np.empty((cfg.height, n * cfg.width), np.float32)
-        self._rect = mujoco.MjrRect(0, 0, n * cfg.width, cfg.height)
-        extent = model.stat.extent
-        self._near = np.float32(model.vis.map.znear * extent)
-        self._far = np.float32(model.vis.map.zfar * extent)
-
-    def _metric(self, z: np.ndarray) -> np.ndarray:
-        """Reversed-Z depth buffer -> distance along the optical axis (m), as mujoco.Renderer."""
-        near, far = self._near, self._far
-        c = -(far + near) / (far - near)
-        d = -(np.float32(2) * far * near) / (far - near)
-        c = np.float32(-0.5) * c - np.float32(0.5)
-        d = np.float32(-0.5) * d
-        return (d / (z.astype(np.float64) + c)).astype(np.float32)
-
-    def render(self, data: mujoco.MjData) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """RGB (H, W, 3) uint8 and depth (H, W) images per camera of the state in ``data``.
-
-        The cameras are drawn side by side into one offscreen buffer and read back at once
-        (one GPU synchronization per frame). ``data`` needs current kinematics.
-        """
-        r = self.renderer
-        r._gl_context.make_current()
-        ctx = r._mjr_context
-        w, h = self.cfg.width, self.cfg.height
-        culler = self.culler
-        for k, cam in enumerate(self.cams):
-            # the scene from this model (appearance patches are written into it), drawn with
-            # the context of its render copy
-            self._camera.fixedcamid = cam
-            mujoco.mjv_updateScene(
-                self.model, data, self.option, None, self._camera, self._catmask, r.scene
-            )
-            if self._planes:
-                self._finite_planes(r.scene)
-            if culler is not None:
-                culler.bind(r.scene, data)
-                culler.hide(w, h)
-            mujoco.mjr_render(mujoco.MjrRect(k * w, 0, w, h), r.scene, ctx)
-            if culler is not None:
-                culler.restore()
-        mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
-        rgb = np.flipud(self._rgb)
-        depth = self._metric(np.flipud(self._z))
-        if self.cfg.depth == "uint16_mm":
-            depth = np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
-        rgbs = [rgb[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
-        depths = [depth[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
-        return rgbs, depths
-
-    def _finite_planes(self, scene: mujoco.MjvScene) -> None:
-        """Resizes the scene's infinite planes to :func:`~factory.sim.render_model.render_model`'s
-        finite ones. ``mjv_updateScene`` adds geoms in model order, so model geom ``g`` is at
-        most at slot ``g``."""
-        for k in range(min(int(scene.ngeom), max(self._planes) + 1)):
-            g = scene.geoms[k]
-            if g.objtype == self._geom_obj and g.objid in self._planes:
-                g.size[:] = self._plane_size
-
-    def close(self) -> None:
-        self.renderer.close()
+        size_offscreen(model, len(cfg.cameras) * cfg.width, cfg.height)
+        cams = [model.camera(CAMERAS[c]).id for c in cfg.cameras]
+        super().__init__(model, cams, cfg.width, cfg.height, cfg.depth, cfg.shadows, cull)
 
 
 def robot_signals(

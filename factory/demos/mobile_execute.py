@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from factory.demos.frame_render import CameraStrip, encode_depth, size_offscreen
 from factory.demos.mobile_robot import CAMERAS
 from factory.demos.mobile_scene import (
     ALL_CAMERAS,
@@ -116,7 +117,8 @@ class MobileRecording:
 
 class MobileRenderer:
     """Renders the mobile robot's recording cameras: the pinhole ones (``left``, ``right``,
-    ``wrist``) side by side in one GL pass, RGB and depth read together (as
+    ``wrist``) side by side in one GL pass, RGB and depth read together (a
+    :class:`~factory.demos.frame_render.CameraStrip`, as
     :class:`factory.demos.execute.FrameRenderer`), and the fisheye ones through
     :class:`factory.sim.fisheye.FisheyeRenderer` (its own GL context).
 
@@ -135,7 +137,6 @@ class MobileRenderer:
 
     def __init__(self, model: mujoco.MjModel, cfg: MobileRecordConfig, cull: bool = True) -> None:
         from factory.sim.fisheye import FisheyeRenderer, FisheyeSpec
-        from factory.sim.frustum import FrustumCuller
         from factory.sim.gl import configure_gl
         from factory.sim.render_model import render_model
 
@@ -144,81 +145,36 @@ class MobileRenderer:
         self.cfg = cfg
         self.pinhole = [c for c in cfg.cameras if c in CAMERAS]
         self.fisheye = [c for c in cfg.cameras if c in FISHEYE_CAMERAS]
-        self.renderer: mujoco.Renderer | None = None
+        self.strip: CameraStrip | None = None
         self.fish: FisheyeRenderer | None = None
         n, w, h = len(self.pinhole), cfg.width, cfg.height
         if n:
-            vis = model.vis
-            vis.quality.offsamples = 0
-            vis.global_.offwidth = max(vis.global_.offwidth, n * w)
-            vis.global_.offheight = max(vis.global_.offheight, h)
-            self.renderer = mujoco.Renderer(model, h, n * w)
-            flags = self.renderer.scene.flags
-            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-            flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-            flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
-            self.option = mujoco.MjvOption()
-            self.option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
-            self.option.sitegroup[:] = 0
-            self.cams = [model.camera(CAMERAS[c]).id for c in self.pinhole]
-            self.culler = FrustumCuller(model) if cull else None
-            self._rgb = np.empty((h, n * w, 3), np.uint8)
-            self._z = np.empty((h, n * w), np.float32)
-            self._rect = mujoco.MjrRect(0, 0, n * w, h)
-            extent = model.stat.extent
-            self._near = np.float32(model.vis.map.znear * extent)
-            self._far = np.float32(model.vis.map.zfar * extent)
+            size_offscreen(model, n * w, h)
+            cams = [model.camera(CAMERAS[c]).id for c in self.pinhole]
+            self.strip = CameraStrip(model, cams, w, h, cfg.depth, cull=cull)
         if self.fisheye:
             spec = FisheyeSpec(resolution=cfg.width, fov_deg=cfg.fisheye_fov_deg)
             self.fish = FisheyeRenderer(model, spec, cull=cull)
             self.fish_ids = {c: model.camera(FISHEYE_CAMERAS[c]).id for c in self.fisheye}
 
-    def _metric(self, z: np.ndarray) -> np.ndarray:
-        near, far = self._near, self._far
-        c = -(far + near) / (far - near)
-        d = -(np.float32(2) * far * near) / (far - near)
-        c = np.float32(-0.5) * c - np.float32(0.5)
-        d = np.float32(-0.5) * d
-        return (d / (z.astype(np.float64) + c)).astype(np.float32)
-
-    def _depth(self, depth: np.ndarray) -> np.ndarray:
-        if self.cfg.depth == "uint16_mm":
-            return np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
-        return depth.astype(np.float32)
-
     def render(self, data: mujoco.MjData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Camera -> (RGB (H, W, 3) uint8, depth (H, W)) of the state in ``data`` (current
         kinematics needed)."""
         out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        r = self.renderer
-        if r is not None:
-            r._gl_context.make_current()
-            ctx = r._mjr_context
-            w, h = self.cfg.width, self.cfg.height
-            culler = self.culler
-            for k, cam in enumerate(self.cams):
-                r.update_scene(data, camera=cam, scene_option=self.option)
-                if culler is not None:
-                    culler.bind(r.scene, data)
-                    culler.hide(w, h)
-                mujoco.mjr_render(mujoco.MjrRect(k * w, 0, w, h), r.scene, ctx)
-                if culler is not None:
-                    culler.restore()
-            mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
-            rgb = np.flipud(self._rgb)
-            depth = self._depth(self._metric(np.flipud(self._z)))
-            for k, c in enumerate(self.pinhole):
-                out[c] = (rgb[:, k * w : (k + 1) * w].copy(), depth[:, k * w : (k + 1) * w].copy())
+        if self.strip is not None:
+            rgbs, depths = self.strip.render(data)
+            for c, im, dp in zip(self.pinhole, rgbs, depths, strict=True):
+                out[c] = (im, dp)
         if self.fish is not None:
             for c in self.fisheye:
                 im, dp = self.fish.render(data, self.fish_ids[c])
-                out[c] = (im, self._depth(dp))
+                out[c] = (im, encode_depth(dp, self.cfg.depth))
         return out
 
     def close(self) -> None:
         """Frees the GL contexts."""
-        if self.renderer is not None:
-            self.renderer.close()
+        if self.strip is not None:
+            self.strip.close()
         if self.fish is not None:
             self.fish.close()
 
