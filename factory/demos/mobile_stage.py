@@ -41,20 +41,6 @@ log = logging.getLogger(__name__)
 TASK = "mobile_pick_place"
 
 
-def _write(
-    store: Any,
-    env: StageEnv,
-    setup: MobileSetup,
-    k: int,
-    seed: int,
-    plan: MobileEpisodePlan,
-    rec: MobileRecording,
-    cfg: MobileRecordConfig,
-) -> None:
-    """Stores a successful mobile recording as episode ``k`` of its scene."""
-    store.write(*mobile_payload(setup, k, seed, plan, rec, cfg))
-
-
 def mobile_payload(
     setup: MobileSetup,
     k: int,
@@ -67,13 +53,11 @@ def mobile_payload(
     """The metadata and arrays a successful mobile recording is stored as (episode ``k`` of
     its scene), its images drawn by the ``recorder`` (``cpu``: OpenGL, ``warp``: MuJoCo Warp's
     batch renderer, :mod:`factory.demos.mobile_gpu_pipeline`)."""
-    from factory import __version__
     from factory.demos.mobile_pick_place import STATE_SPEC
-    from factory.demos.slots import episode_id
-    from factory.schema.episode import EpisodeInfo, RobotBase
+    from factory.demos.slots import episode_arrays, episode_meta
+    from factory.schema.episode import RobotBase
 
     objs = setup.objects
-    per_frame = max(1, round(1.0 / (cfg.fps * setup.model.opt.timestep)))
     scene = setup.scene
     instruction = (
         scene.task.instruction
@@ -81,49 +65,30 @@ def mobile_payload(
         else f"pick up the {objs.pick.category} and put it on the {objs.place_support.category}"
     )
     assert rec.outcome is not None
-    meta = EpisodeInfo(
-        episode_id=episode_id(scene.id, k),
-        scene_id=scene.id,
+    meta = episode_meta(
+        setup,
+        k,
+        seed,
+        plan,
+        rec,
         task=TASK,
         instruction=instruction,
-        seed=seed,
-        success=True,
-        failure_reason="",
+        settings=cfg,
+        rec_cfg=cfg,
+        state_spec=int(STATE_SPEC),
+        recorder=recorder,
         pick_id=objs.pick.id,
         target_id=objs.place_support.id,
         support_id=objs.pick_support.id,
         robot=RobotBase(float(plan.spawn[0]), float(plan.spawn[1]), 0.0, float(plan.spawn[2])),
-        fps=cfg.fps,
-        timestep=float(setup.model.opt.timestep),
-        n_frames=len(rec.time),
-        cameras=list(cfg.cameras) if cfg.render else [],
-        image_size=[cfg.height, cfg.width],
-        depth_format=cfg.depth,
-        state_spec=int(STATE_SPEC),
-        phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
-        grasp_width=plan.grasp_width,
-        plan_seconds=plan.plan_seconds,
-        outcome=rec.outcome.details,
-        factory_version=__version__,
-        cleared=list(setup.cleared),
         route=dict(plan.route),
-        recorder=recorder,
     )
-    arrays: dict[str, np.ndarray] = {
-        "time": rec.time,
-        "state": rec.state,
-        "joint_pos": rec.joint_pos.astype(np.float32),
-        "gripper": rec.gripper.astype(np.float32),
-        "ee_pose": rec.ee_pose.astype(np.float32),
-        "action": rec.action.astype(np.float32),
-        "base_pose": rec.base_pose.astype(np.float32),
-        "subtask": rec.subtask.astype(np.int8),
-        "subtask_done": rec.subtask_done.astype(bool),
-    }
-    for cam, im in rec.rgb.items():
-        arrays[f"rgb/{cam}"] = im
-    for cam, dp in rec.depth.items():
-        arrays[f"depth/{cam}"] = dp
+    arrays = episode_arrays(
+        rec,
+        base_pose=rec.base_pose.astype(np.float32),
+        subtask=rec.subtask.astype(np.int8),
+        subtask_done=rec.subtask_done.astype(bool),
+    )
     return meta, arrays
 
 
@@ -253,7 +218,7 @@ def run_mobile_item(env: StageEnv, item: WorkItem) -> dict[str, Any]:
                     out["failures"][rec.outcome.reason] += 1
                     log.debug("scene %s slot %d: %s", item.scene_id, k, rec.outcome.details)
                     continue
-                _write(store, env, setup, k, seed, res, rec, cfg)
+                store.write(*mobile_payload(setup, k, seed, res, rec, cfg))
                 out["frames"] += len(rec.time)
                 out["new"] += 1
                 break

@@ -1,6 +1,7 @@
 """Episode slots of ``stage=demos``: their seeds and ids, work items, the scene set-up each
 process keeps, and writing a recorded episode (shared by the CPU path in
-:mod:`factory.demos.stage` and the GPU pipeline in :mod:`factory.demos.gpu_pipeline`).
+:mod:`factory.demos.stage`, the GPU pipeline in :mod:`factory.demos.gpu_pipeline` and the
+mobile task's :mod:`factory.demos.mobile_stage`).
 """
 
 from __future__ import annotations
@@ -152,6 +153,93 @@ def store_episode(store_path: str, meta: Any, arrays: dict[str, np.ndarray]) -> 
     EpisodeStore(store_path).write(meta, opened(arrays))
 
 
+def episode_meta(
+    setup: Any,
+    k: int,
+    seed: int,
+    plan: Any,
+    rec: Any,
+    *,
+    task: str,
+    instruction: str,
+    settings: Any,
+    rec_cfg: Any,
+    state_spec: int,
+    recorder: str,
+    **fields: Any,
+) -> Any:
+    """The metadata of a successful recording stored as episode ``k`` of its scene (the
+    fields every task fills the same way; shared by the fixed and the mobile task).
+
+    Args:
+        setup: the scene set-up (``scene``, ``model``, ``cleared``).
+        k: the episode slot.
+        seed: the episode's seed.
+        plan: the episode plan (``phases`` in steps, ``grasp_width``, ``plan_seconds``).
+        rec: the recording (``time``, ``outcome``).
+        task: the task name stored.
+        instruction: the task instruction stored.
+        settings: frame rate, image size and depth format (``fps``, ``width``, ``height``,
+            ``depth``).
+        rec_cfg: the recording settings (``cameras``, ``render``).
+        state_spec: the MuJoCo state spec of the ``state`` array.
+        recorder: the executor that recorded it (``cpu`` or ``warp``).
+        **fields: the task's own :class:`~factory.schema.episode.EpisodeInfo` fields (object
+            ids, robot pose, ...).
+
+    Returns:
+        The :class:`~factory.schema.episode.EpisodeInfo`.
+    """
+    from factory import __version__
+    from factory.schema.episode import EpisodeInfo
+
+    per_frame = max(1, round(1.0 / (settings.fps * setup.model.opt.timestep)))
+    scene_id = setup.scene.id
+    return EpisodeInfo(
+        episode_id=episode_id(scene_id, k),
+        scene_id=scene_id,
+        task=task,
+        instruction=instruction,
+        seed=seed,
+        success=True,
+        failure_reason="",
+        fps=settings.fps,
+        timestep=float(setup.model.opt.timestep),
+        n_frames=len(rec.time),
+        cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
+        image_size=[settings.height, settings.width],
+        depth_format=settings.depth,
+        state_spec=int(state_spec),
+        phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
+        grasp_width=plan.grasp_width,
+        plan_seconds=plan.plan_seconds,
+        outcome=rec.outcome.details,
+        factory_version=__version__,
+        cleared=list(setup.cleared),
+        recorder=recorder,
+        **fields,
+    )
+
+
+def episode_arrays(rec: Any, **extra: np.ndarray) -> dict[str, np.ndarray]:
+    """The arrays a recording is stored as: the robot signals every task records, then the
+    task's own ``extra`` arrays (as given), then ``rgb/<camera>`` and ``depth/<camera>``."""
+    arrays: dict[str, np.ndarray] = {
+        "time": rec.time,
+        "state": rec.state,
+        "joint_pos": rec.joint_pos.astype(np.float32),
+        "gripper": rec.gripper.astype(np.float32),
+        "ee_pose": rec.ee_pose.astype(np.float32),
+        "action": rec.action.astype(np.float32),
+        **extra,
+    }
+    for cam, im in rec.rgb.items():
+        arrays[f"rgb/{cam}"] = im
+    for cam, dp in rec.depth.items():
+        arrays[f"depth/{cam}"] = dp
+    return arrays
+
+
 def episode_payload(
     env: StageEnv,
     setup: Any,
@@ -165,56 +253,29 @@ def episode_payload(
 ) -> tuple[Any, dict[str, np.ndarray]]:
     """The metadata and arrays a successful recording is stored as (episode ``k``), recorded
     by the ``recorder`` executor (``cpu`` or ``warp``)."""
-    from factory import __version__
     from factory.demos.execute import STATE_SPEC
-    from factory.schema.episode import EpisodeInfo, RobotBase
+    from factory.schema.episode import RobotBase
 
-    dc = env.demos
     objects = setup.objects
-    per_frame = max(1, round(1.0 / (dc.fps * setup.model.opt.timestep)))
-    scene_id = setup.scene.id
-    meta = EpisodeInfo(
-        episode_id=episode_id(scene_id, k),
-        scene_id=scene_id,
+    meta = episode_meta(
+        setup,
+        k,
+        seed,
+        plan,
+        rec,
         task=env.task,
         instruction=instruction,
-        seed=seed,
-        success=True,
-        failure_reason="",
+        settings=env.demos,
+        rec_cfg=rec_cfg,
+        state_spec=int(STATE_SPEC),
+        recorder=recorder,
         pick_id=objects.pick.id,
         target_id=objects.target.id,
         support_id=objects.support.id,
         robot=RobotBase(
             setup.placement.x, setup.placement.y, setup.placement.z, setup.placement.yaw
         ),
-        fps=dc.fps,
-        timestep=float(setup.model.opt.timestep),
-        n_frames=len(rec.time),
-        cameras=list(rec_cfg.cameras) if rec_cfg.render else [],
-        image_size=[dc.height, dc.width],
-        depth_format=dc.depth,
-        state_spec=int(STATE_SPEC),
-        phases={n: int(np.ceil(s / per_frame)) for n, s in plan.phases.items()},
-        grasp_width=plan.grasp_width,
-        plan_seconds=plan.plan_seconds,
-        outcome=rec.outcome.details,
-        factory_version=__version__,
-        cleared=list(setup.cleared),
         frozen=list(getattr(setup, "frozen", ())),
         appearance=getattr(rec, "appearance", None),
-        recorder=recorder,
     )
-    arrays: dict[str, np.ndarray] = {
-        "time": rec.time,
-        "state": rec.state,
-        "joint_pos": rec.joint_pos.astype(np.float32),
-        "gripper": rec.gripper.astype(np.float32),
-        "ee_pose": rec.ee_pose.astype(np.float32),
-        "action": rec.action.astype(np.float32),
-        "env_state": rec.env_state.astype(np.float32),
-    }
-    for cam, im in rec.rgb.items():
-        arrays[f"rgb/{cam}"] = im
-    for cam, dp in rec.depth.items():
-        arrays[f"depth/{cam}"] = dp
-    return meta, arrays
+    return meta, episode_arrays(rec, env_state=rec.env_state.astype(np.float32))
