@@ -37,6 +37,7 @@ from factory.demos.slots import (
     item_stats,
     record_config,
     scene_planner,
+    slots_by_scene,
     store_episode,
 )
 from factory.errors import FactoryError
@@ -276,9 +277,7 @@ def run_gpu(
     dc = env.demos
     rec_cfg = record_config(dc)
     store = EpisodeStore(env.store_path)
-    by_scene: dict[str, list[int]] = {}
-    for it in items:
-        by_scene.setdefault(it.scene_id, []).extend(it.slots)
+    by_scene = slots_by_scene(items)
     scenes = list(by_scene)
     results: list[dict[str, Any]] = []
     ctx = mp.get_context("spawn")

@@ -35,7 +35,14 @@ from concurrent.futures import (
 from dataclasses import dataclass, field
 from typing import Any
 
-from factory.demos.slots import StageEnv, WorkItem, episode_id, episode_seed, item_stats
+from factory.demos.slots import (
+    StageEnv,
+    WorkItem,
+    episode_id,
+    episode_seed,
+    item_stats,
+    slots_by_scene,
+)
 from factory.errors import FactoryError
 
 log = logging.getLogger(__name__)
@@ -162,9 +169,7 @@ def run_mobile_gpu(
     dc = env.demos
     cfg = record_config(dc)
     store = EpisodeStore(env.store_path)
-    by_scene: dict[str, list[int]] = {}
-    for it in items:
-        by_scene.setdefault(it.scene_id, []).extend(it.slots)
+    by_scene = slots_by_scene(items)
     scenes = list(by_scene)
     results: list[dict[str, Any]] = []
     ctx = mp.get_context("spawn")

@@ -34,6 +34,15 @@ class WorkItem:
     slots: tuple[int, ...]
 
 
+def slots_by_scene(items: list[WorkItem]) -> dict[str, list[int]]:
+    """The slots of ``items`` per scene, scenes in their first item's order (the GPU
+    pipelines take a scene's slots together)."""
+    by_scene: dict[str, list[int]] = {}
+    for it in items:
+        by_scene.setdefault(it.scene_id, []).extend(it.slots)
+    return by_scene
+
+
 @dataclass(frozen=True)
 class StageEnv:
     """What a worker needs besides the item (picklable)."""
