@@ -308,6 +308,7 @@ def _warp(
     import warp as wp
 
     from factory.demos.execute import RecordConfig
+    from factory.demos.execute_warp import render_context
     from factory.demos.robot import CAMERAS
 
     wp.config.quiet = True  # type: ignore[attr-defined]
@@ -325,19 +326,7 @@ def _warp(
             qpos[:, np.asarray(setup.robot.qpos)] = arm
             d.qpos.assign(qpos.astype(np.float32))
             mjw.forward(m, d)
-            # as factory.demos.execute_warp builds it
-            rc = mjw.create_render_context(
-                model,
-                nworld=worlds,
-                cam_res=(cfg.width, cfg.height),
-                render_rgb=True,
-                render_depth=True,
-                render_seg=False,
-                use_textures=True,
-                use_shadows=False,
-                enabled_geom_groups=[0, 1, 2],
-                cam_active=names,
-            )
+            rc = render_context(model, worlds, (cfg.width, cfg.height), names)
             mjw.refit_bvh(m, d, rc)
             mjw.render(m, d, rc)  # warm up: kernel compilation
             wp.synchronize()

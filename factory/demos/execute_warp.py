@@ -184,9 +184,17 @@ CPUs busy). The near distance only scales each camera ray before it is normalise
 ends rays at 100 m, beyond any room."""
 
 
-def render_context(model: mujoco.MjModel, **kwargs: Any) -> Any:
-    """``mujoco_warp.create_render_context(model, **kwargs)`` with the clip planes of
-    :data:`RENDER_CLIP` (``model`` is left as it was)."""
+def render_context(model: mujoco.MjModel, nworld: int, cam_res: Any, cameras: list[str]) -> Any:
+    """MuJoCo Warp's render context for recording: RGB and depth (no segmentation), textures,
+    no shadows, geom groups 0-2, the clip planes of :data:`RENDER_CLIP` (``model`` is left
+    as it was).
+
+    Args:
+        model: the scene's compiled model.
+        nworld: worlds drawn per call.
+        cam_res: ``(width, height)`` px of every camera, or a list of them per camera.
+        cameras: the model's names of the cameras drawn, in order.
+    """
     import mujoco_warp as mjw
 
     vis, stat = model.vis.map, model.stat
@@ -194,7 +202,18 @@ def render_context(model: mujoco.MjModel, **kwargs: Any) -> Any:
     vis.znear, vis.zfar = RENDER_CLIP
     stat.extent = 1.0
     try:
-        return mjw.create_render_context(model, **kwargs)
+        return mjw.create_render_context(
+            model,
+            nworld=nworld,
+            cam_res=cam_res,
+            render_rgb=True,
+            render_depth=True,
+            render_seg=False,
+            use_textures=True,
+            use_shadows=False,
+            enabled_geom_groups=[0, 1, 2],
+            cam_active=cameras,
+        )
     finally:
         vis.znear, vis.zfar, stat.extent = saved
 
@@ -274,18 +293,7 @@ class WarpExecutor:
     def _render_context(self, n: int) -> Any:
         cfg = self.cfg
         names = [CAMERAS[c] for c in cfg.cameras]
-        return render_context(
-            self.setup.model,
-            nworld=n,
-            cam_res=(cfg.width, cfg.height),
-            render_rgb=True,
-            render_depth=True,
-            render_seg=False,
-            use_textures=True,
-            use_shadows=False,
-            enabled_geom_groups=[0, 1, 2],
-            cam_active=names,
-        )
+        return render_context(self.setup.model, n, (cfg.width, cfg.height), names)
 
     def execute(
         self,

@@ -291,6 +291,18 @@ def run_gpu(
         def submit(scene_id: str, slots: list[int], attempt: dict[int, int]) -> list[Future[Any]]:
             return [pool.submit(plan_slot, env, scene_id, k, attempt[k]) for k in slots]
 
+        def to_cpu(
+            out: dict[str, Any], scene_id: str, slots: list[int], at: dict[int, int]
+        ) -> None:
+            """Has the planner processes record ``slots`` with the CPU executor, from their
+            attempts ``at``, in up to ``workers`` items (counted into ``out`` at the end)."""
+            from factory.demos.cpu_items import run_item_logged
+
+            for part in spread(slots, workers):
+                item = WorkItem(scene_id, tuple(part))
+                first = {k: at[k] for k in part}
+                cpu_retries.append((out, len(part), pool.submit(run_item_logged, env, item, first)))
+
         def open_slots(scene_id: str) -> list[int]:
             return [k for k in by_scene[scene_id] if episode_id(scene_id, k) not in store]
 
@@ -389,17 +401,9 @@ def run_gpu(
                 done: set[int] = set()
                 tail: list[int] = []  # slots whose plan the CPU executor records
                 if dc.gpu_retries == "cpu" and dc.gpu_tail > 0:
-                    from factory.demos.cpu_items import run_item_logged
-
                     planned, longest = split_tail(planned, dc.gpu_tail)
                     tail = [k for k, _, _ in longest]
-                    # The same seeds: the CPU plans the same episodes again.
-                    for part in spread(tail, workers):
-                        item = WorkItem(sid, tuple(part))
-                        first = {k: attempt[k] for k in part}
-                        cpu_retries.append(
-                            (out, len(part), pool.submit(run_item_logged, env, item, first))
-                        )
+                    to_cpu(out, sid, tail, attempt)  # the same seeds: the same plans again
                     out["cpu_tail"] = len(tail)
                 if early is not None:  # the arena pool is this thread's again
                     t_wait = time.perf_counter()
@@ -452,14 +456,7 @@ def run_gpu(
                 if bar is not None:
                     bar.update(len(futures) - len(retry) - len(tail))
                 if retry and dc.gpu_retries == "cpu":
-                    from factory.demos.cpu_items import run_item_logged
-
-                    for part in spread(retry, workers):
-                        item = WorkItem(sid, tuple(part))
-                        first = {k: attempt[k] for k in part}
-                        cpu_retries.append(
-                            (out, len(part), pool.submit(run_item_logged, env, item, first))
-                        )
+                    to_cpu(out, sid, retry, attempt)
                     out["cpu_retries"] = len(retry)
                     retry = []
                 futures = submit(sid, retry, attempt) if retry else []

@@ -174,18 +174,7 @@ class WarpMobileRenderer:
             self.d = mjw.make_data(model, nworld=n, nconmax=1, njmax=1)
             from factory.demos.execute_warp import render_context
 
-            self.rc = render_context(
-                model,
-                nworld=n,
-                cam_res=res,
-                render_rgb=True,
-                render_depth=True,
-                render_seg=False,
-                use_textures=True,
-                use_shadows=False,
-                enabled_geom_groups=[0, 1, 2],
-                cam_active=names,
-            )
+            self.rc = render_context(model, n, res, names)
             rgb_adr = np.asarray(self.rc.rgb_adr.numpy(), np.int64)
             depth_adr = np.asarray(self.rc.depth_adr.numpy(), np.int64)
             if not (
