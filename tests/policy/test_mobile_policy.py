@@ -184,7 +184,6 @@ def test_mobile_policy_trains_and_its_samples_equal_lerobots_own(
     from factory.policy.checkpoint import load_policy
     from factory.policy.inputs import convert_sample, input_spec
     from factory.policy.train import open_dataset, policy_config
-    from factory.policy.train_stage import run as train_stage
 
     spec = input_spec("state", _features(mobile_dataset), "tool")
     cfg = policy_config(TrainConfig(options=TINY), spec, "cpu")
@@ -199,22 +198,7 @@ def test_mobile_policy_trains_and_its_samples_equal_lerobots_own(
     assert fast["action"].shape == (8, 13)
 
     run = tmp_path / "run"
-    run.mkdir()
-    tc = TrainConfig(
-        name="mobile",
-        dataset=str(mobile_dataset),
-        steps=3,
-        batch_size=4,
-        save_every=3,
-        log_every=1,
-        threads=1,
-        device="cpu",
-        options=TINY,
-    )
-    ctx = StageContext(
-        FactoryConfig(stage="train", run_dir=str(run), train=tc), RunStore(run), Shard(0, 1)
-    )
-    result = train_stage(ctx)
+    result = _train(run, mobile_dataset, "mobile", steps=3, batch_size=4, log_every=1)
     assert result["steps"] == 3 and np.isfinite(result["loss"])
     model_dir = Path(result["checkpoint"]) / "pretrained_model"
     config = json.loads((model_dir / "config.json").read_text())
@@ -274,26 +258,10 @@ def test_overfit_mobile_policy_acts_as_recorded(mobile_dataset: Path, tmp_path: 
     training's conversions (tool pose, base target relative to the chunk's first frame) and
     the execution's inverses agree, chunk after chunk."""
     from factory.policy.checkpoint import load_policy
-    from factory.policy.train_stage import run as train_stage
 
     run = tmp_path / "run"
-    run.mkdir()
     options = {"diffusion": {**TINY["diffusion"], "down_dims": [32, 64]}}
-    tc = TrainConfig(
-        name="overfit",
-        dataset=str(mobile_dataset),
-        steps=400,
-        batch_size=16,
-        save_every=400,
-        log_every=100,
-        threads=1,
-        device="cpu",
-        options=options,
-    )
-    ctx = StageContext(
-        FactoryConfig(stage="train", run_dir=str(run), train=tc), RunStore(run), Shard(0, 1)
-    )
-    train_stage(ctx)
+    _train(run, mobile_dataset, "overfit", steps=400, batch_size=16, log_every=100, options=options)
     policy = load_policy("overfit", run, "cpu")
     ep = _episode(0)
     policy.reset()
@@ -315,6 +283,38 @@ def test_overfit_mobile_policy_acts_as_recorded(mobile_dataset: Path, tmp_path: 
     assert base_err.mean() < 0.03 and base_err.max() < 0.1, base_err
     assert np.abs(pred[:, 10] - ep["action"][:, 10]).mean() < 0.03
     assert np.abs(pred[:, :7] - ep["action"][:, :7]).mean() < 0.08  # arm joints (rad)
+
+
+def _train(
+    run: Path,
+    dataset: Path,
+    name: str,
+    steps: int,
+    batch_size: int,
+    log_every: int,
+    options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Trains policy ``name`` on ``dataset`` in a new run directory ``run`` (CPU, one thread,
+    one checkpoint at the end; ``options`` default to the tiny model's) through ``stage=train``;
+    its result."""
+    from factory.policy.train_stage import run as train_stage
+
+    run.mkdir()
+    tc = TrainConfig(
+        name=name,
+        dataset=str(dataset),
+        steps=steps,
+        batch_size=batch_size,
+        save_every=steps,
+        log_every=log_every,
+        threads=1,
+        device="cpu",
+        options=options or TINY,
+    )
+    ctx = StageContext(
+        FactoryConfig(stage="train", run_dir=str(run), train=tc), RunStore(run), Shard(0, 1)
+    )
+    return train_stage(ctx)
 
 
 def _ctx(run: Path, stage: str, **kw: Any) -> StageContext:
