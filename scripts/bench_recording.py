@@ -66,36 +66,17 @@ DEFAULT_REQUEST = "a kitchen where the robot picks up a coke can and puts it in 
 
 
 def _machine(executor: str) -> dict[str, Any]:
-    """What this ran on."""
-    info: dict[str, Any] = {
-        "host": platform.node(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpus_total": os.cpu_count(),
-        "cores_used": 1 if executor == "cpu" else len(os.sched_getaffinity(0)),
-        "gl": os.environ.get("MUJOCO_GL", "auto"),
-    }
-    try:
-        with open("/proc/cpuinfo") as f:
-            names = [ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")]
-        info["cpu_model"] = names[0] if names else None
-    except OSError:
-        pass
-    import mujoco
+    """What this ran on: :func:`bench_stability.machine`'s description, the platform, the
+    cores used and the GL backend."""
+    from bench_stability import machine
 
-    info["mujoco"] = mujoco.__version__
-    if executor == "warp":
-        try:
-            out = subprocess.run(
-                ["nvidia-smi", "--query-gpu=name,driver_version", "--format=csv,noheader"],
-                capture_output=True,
-                text=True,
-                timeout=20,
-                check=False,
-            )
-            info["gpu"] = out.stdout.strip()
-        except OSError:
-            info["gpu"] = None
+    info = machine()
+    info.update(
+        platform=platform.platform(),
+        cpus_total=os.cpu_count(),
+        cores_used=1 if executor == "cpu" else len(os.sched_getaffinity(0)),
+        gl=os.environ.get("MUJOCO_GL", "auto"),
+    )
     return info
 
 
