@@ -23,12 +23,12 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def main() -> None:
     from factory.config import DemosConfig
-    from factory.demos.agreement import compare_executors
-    from factory.demos.execute import RecordConfig
-    from factory.demos.pick_place import EpisodePlan
+    from factory.demos.execute.agreement import compare_executors
+    from factory.demos.execute.cpu import RecordConfig
     from factory.demos.stage import episode_seed, scene_planner
     from factory.errors import FactoryError
     from factory.store import RunStore
+    from factory.tasks.pick_place.plan import EpisodePlan
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--run-dir", type=Path, required=True)

@@ -18,13 +18,13 @@ The two looks of one pick-and-place scene:
 
 Without ``--run``/``--flat-run`` both runs are generated under ``--workdir`` from ``--request``
 and ``--seed`` (``stage=generate``, about 20 s each). Each run's scene is set up for the demos
-(:func:`factory.demos.pick_place.setup_scene`: base spot, cameras, far objects static); the
+(:func:`factory.tasks.pick_place.plan.setup_scene`: base spot, cameras, far objects static); the
 flat one is then recomposed with the flat compile options.
 
 ``--executor cpu`` (default): the process pins itself to one core (``os.sched_setaffinity``)
 and Mesa to one render thread before any GL context exists; each look's frame is what the CPU
 executor does per recorded frame (write the episode's appearance into the model, set the
-state, ``mj_forward``, :class:`factory.demos.execute.FrameRenderer`: 3 cameras, 128 px, RGB +
+state, ``mj_forward``, :class:`factory.demos.execute.cpu.FrameRenderer`: 3 cameras, 128 px, RGB +
 depth). The looks alternate in rounds (flat, new, new, flat, ...) over the same arm states;
 per round frames per CPU-second of this process (other load on the machine does not count)
 and per wall second, of the whole frame and of the draw alone. The median of the rounds is
@@ -32,7 +32,7 @@ kept and the ratio new / flat reported.
 
 ``--executor warp`` (CUDA only; skipped with a message otherwise): each look's model on the
 GPU with ``--worlds`` worlds in the arm states, MuJoCo Warp's render context built as
-:mod:`factory.demos.execute_warp` builds it (textures, no shadows, geom groups 0-2, the three
+:mod:`factory.demos.execute.warp` builds it (textures, no shadows, geom groups 0-2, the three
 recording cameras); a round times ``--frames`` draws (BVH refit + render) of every world;
 frames/s (a frame: three images of one world) and images/s, median of the rounds, and the
 ratio.
@@ -104,10 +104,10 @@ def _setup(run: Path, flat: bool) -> Any:
     """The demos' set-up of the run's pick-and-place scene, its model compiled in the look."""
     import mujoco
 
-    from factory.demos.pick_place import setup_scene
-    from factory.demos.robot import RobotIndex, add_robot
+    from factory.robots.panda import RobotIndex, add_robot
     from factory.sim.compile import CompileOptions, compile_scene
     from factory.store import RunStore
+    from factory.tasks.pick_place.plan import setup_scene
 
     store = RunStore(run)
     for sid in store.scene_ids():
@@ -133,7 +133,7 @@ def _setup(run: Path, flat: bool) -> Any:
 
 def _arm_states(frames: int, seed: int = 0) -> np.ndarray:
     """The arm's joint positions (frames, 7) rad: home plus a smooth sweep."""
-    from factory.demos.robot import HOME_QPOS
+    from factory.robots.panda import HOME_QPOS
 
     phase = np.random.default_rng(seed).uniform(0, 2 * np.pi, 7)
     k = np.arange(frames)[:, None]
@@ -157,15 +157,15 @@ def _describe(setup: Any) -> dict[str, Any]:
 
 
 class _CpuLook:
-    """One look's model, renderer (``cull``: :class:`~factory.demos.execute.FrameRenderer`'s
+    """One look's model, renderer (``cull``: :class:`~factory.demos.execute.cpu.FrameRenderer`'s
     culling; off: the renderer before it) and per-frame episode looks on the CPU."""
 
     def __init__(self, setup: Any, appearance: bool, cfg: Any, episodes: int, cull: bool) -> None:
         import mujoco
 
         from factory.config import AppearanceConfig
-        from factory.demos.appearance import episode_looks, setup_index
-        from factory.demos.execute import FrameRenderer
+        from factory.demos.execute.cpu import FrameRenderer
+        from factory.demos.record.appearance import episode_looks, setup_index
 
         self.setup = setup
         self.model = setup.model
@@ -184,7 +184,7 @@ class _CpuLook:
         """Records one frame per row of ``arm``; frames per CPU- and wall-second."""
         import mujoco
 
-        from factory.demos.appearance import apply_patch
+        from factory.demos.record.appearance import apply_patch
 
         m, d = self.model, self.data
         q0 = m.qpos0.copy()
@@ -239,7 +239,7 @@ def _summary(
 
 
 def _cpu(setups: dict[str, Any], frames: int, rounds: int, episodes: int) -> dict[str, Any]:
-    from factory.demos.execute import RecordConfig
+    from factory.demos.execute.cpu import RecordConfig
 
     cfg = RecordConfig()
     looks = {
@@ -288,9 +288,9 @@ def _warp(
     import mujoco_warp as mjw
     import warp as wp
 
-    from factory.demos.execute import RecordConfig
-    from factory.demos.execute_warp import render_context
-    from factory.demos.robot import CAMERAS
+    from factory.demos.execute.cpu import RecordConfig
+    from factory.demos.execute.warp import render_context
+    from factory.robots.panda import CAMERAS
 
     wp.config.quiet = True  # type: ignore[attr-defined]
     wp.init()

@@ -1,5 +1,5 @@
 """Rendering rate of the demos' CPU recording in one scene: frames/s (three cameras, RGB +
-depth, 128 px) of what :func:`factory.demos.execute.execute` does per frame and episode
+depth, 128 px) of what :func:`factory.demos.execute.cpu.execute` does per frame and episode
 (write the episode's appearance into the model, set the state, ``mj_forward``, draw).
 
     python scripts/bench_recording_render.py RUN_DIR [--frames 150] [--shadows]
@@ -7,7 +7,7 @@ depth, 128 px) of what :func:`factory.demos.execute.execute` does per frame and 
 
 Meant for A/B comparisons on a loaded machine: run it pinned to one core (``taskset -c 0``)
 alternately with another checkout's code on ``PYTHONPATH``; a checkout without
-``factory.demos.appearance`` (before issue 17's lighting) is timed without appearance. Prints
+``factory.demos.record.appearance`` (before issue 17's lighting) is timed without appearance. Prints
 one JSON line: the median frames/s over the rounds and each round's.
 """
 
@@ -35,9 +35,9 @@ def main() -> None:
     import numpy as np
 
     import factory
-    from factory.demos.execute import FrameRenderer, RecordConfig
-    from factory.demos.pick_place import setup_scene
+    from factory.demos.execute.cpu import FrameRenderer, RecordConfig
     from factory.store import RunStore
+    from factory.tasks.pick_place.plan import setup_scene
 
     store = RunStore(args.run_dir)
     scene = store.load_scene(store.scene_ids()[0])
@@ -48,7 +48,7 @@ def main() -> None:
     patches = []
     try:
         from factory.config import AppearanceConfig
-        from factory.demos.appearance import apply_patch, episode_looks, setup_index
+        from factory.demos.record.appearance import apply_patch, episode_looks, setup_index
 
         if not args.no_appearance:
             index = setup_index(setup, cfg.cameras)

@@ -62,8 +62,8 @@ def _models(run: Path, textures: bool) -> dict[str, Any]:
     """Robot-composed models of the run's pick-and-place scenes, compiled with or without
     textures (``setup_scene`` compiles with the default options, which are swapped here)."""
     import factory.sim.compile as fc
-    from factory.demos.pick_place import setup_scene
     from factory.store import RunStore
+    from factory.tasks.pick_place.plan import setup_scene
 
     original = fc.compile_scene
 
@@ -87,7 +87,7 @@ def _fps(model: Any, frames: int) -> float:
     """Frames per CPU-second of the demos' renderer, the arm moving."""
     import mujoco
 
-    from factory.demos.execute import FrameRenderer, RecordConfig
+    from factory.demos.execute.cpu import FrameRenderer, RecordConfig
 
     data = mujoco.MjData(model)
     renderer = FrameRenderer(model, RecordConfig())

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from factory.demos.episodes import EpisodeStore
+from factory.demos.record.episodes import EpisodeStore
 from factory.report.gifs import subsample, to_gif
 
 log = logging.getLogger("render_demo")

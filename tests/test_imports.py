@@ -16,27 +16,41 @@ FLOORS: dict[str, int] = {
     "errors": 1,
     "config": 1,
     "store": 1,
+    "context": 1,
+    "console": 1,
+    "summary": 1,
+    "tasks": 1,
+    "tasks.base": 1,
+    "tasks.*": 6,
     "sim": 2,
     "textures": 2,
     "assets": 3,
     "nav": 3,
+    "robots": 4,
     "scenes": 4,
     "augment": 5,
-    "demos": 5,
-    "dataset": 6,
-    "policy": 7,
-    "report": 8,
-    "context": 1,
-    "console": 1,
-    "summary": 1,
-    "stages": 9,
-    "runner": 10,
-    "__main__": 11,
+    "demos.plan": 5,
+    "demos.record": 5,
+    "demos": 7,
+    "dataset": 8,
+    "policy": 9,
+    "report": 10,
+    "stages": 11,
+    "runner": 12,
+    "__main__": 13,
 }
-"""Top-level module or package -> floor. A module may import its own floor or lower ones,
-except the listed siblings (same floor, independent)."""
+"""Module or package (dotted, below ``factory``) -> floor; a module takes the floor of its
+longest listed prefix (``tasks.*``: every task package under ``factory/tasks/``; ``tasks``
+alone is the registry and the :class:`~factory.tasks.base.Task` protocol, which lower floors
+read). A module may import its own floor or lower ones, except the listed siblings (same
+floor, independent)."""
 
-INDEPENDENT: set[frozenset[str]] = {frozenset({"augment", "demos"}), frozenset({"assets", "nav"})}
+INDEPENDENT: set[frozenset[str]] = {
+    frozenset({"augment", "demos.plan"}),
+    frozenset({"augment", "demos.record"}),
+    frozenset({"assets", "nav"}),
+    frozenset({"robots", "scenes"}),
+}
 
 
 def _modules() -> dict[str, Path]:
@@ -128,8 +142,27 @@ def test_cycle_finder_finds_a_cycle() -> None:
 
 
 def _top(mod: str) -> str:
-    parts = mod.split(".")
-    return parts[1] if len(parts) > 1 else "factory"
+    """The FLOORS key a module belongs to (its longest listed prefix), ``factory`` for the
+    package's own top-level ``__init__``."""
+    parts = mod.split(".")[1:]
+    if not parts:
+        return "factory"
+    for n in range(len(parts), 0, -1):
+        key = ".".join(parts[:n])
+        if n < len(parts) and f"{key}.*" in FLOORS:
+            return f"{key}.*"
+        if key in FLOORS:
+            return key
+    return parts[0]
+
+
+def test_floor_keys() -> None:
+    """Sub-package keys resolve to the longest listed prefix."""
+    assert _top("factory.demos.plan.grasps") == "demos.plan"
+    assert _top("factory.demos.stage") == "demos"
+    assert _top("factory.tasks") == "tasks"
+    assert _top("factory.tasks.pick_place.plan") == "tasks.*"
+    assert _top("factory") == "factory"
 
 
 def test_floors() -> None:

@@ -1,6 +1,6 @@
 """LeRobot features of mobile pick-and-place episodes (``task=mobile_pick_place``).
 
-A mobile episode (:mod:`factory.demos.mobile_stage`) has the fixed task's arrays but an
+A mobile episode (:mod:`factory.demos.mobile_items`) has the fixed task's arrays but an
 ``action`` of 11 columns, no ``env_state``, and in addition ``base_pose`` (F, 3),
 ``subtask`` (F,) int8 and ``subtask_done`` (F,) bool; its cameras are the pinhole ones then
 ``fisheye_front``/``fisheye_back`` (square images of the pinhole width). Exported features:
@@ -47,7 +47,7 @@ MOBILE_TASK = "mobile_pick_place"
 FIXED = "fixed"
 MOBILE = "mobile"
 MOBILE_SUBTASKS: tuple[str, ...] = ("navigate_to_pick", "pick", "navigate_to_place", "place")
-"""Sub-task names by ``subtask_index`` (``factory.demos.mobile_pick_place.SUBTASKS``, copied so
+"""Sub-task names by ``subtask_index`` (``factory.tasks.mobile_pick_place.SUBTASKS``, copied so
 that exporting needs no robot or planner imports; a test keeps the two equal)."""
 ARM_NAMES = [f"joint{i}" for i in range(1, 8)] + ["gripper"]
 MOBILE_STATE_NAMES = [*ARM_NAMES, "base_x", "base_y", "base_yaw"]
@@ -153,7 +153,7 @@ def mobile_meta_of(meta: dict[str, Any]) -> dict[str, Any]:
 
 def route_entry(info: Any) -> dict[str, Any]:
     """A mobile episode's ``route`` for ``meta/factory.json``: a JSON-ready copy of
-    ``EpisodeInfo.route`` (:meth:`factory.demos.mobile_plan.MobilePlanner.route_record`).
+    ``EpisodeInfo.route`` (:meth:`factory.tasks.mobile_pick_place.plan.MobilePlanner.route_record`).
 
     Raises:
         StoreError: a route without its base poses (re-record the episode).

@@ -94,7 +94,7 @@ def finished_shards(manifest: dict[str, Any]) -> int:
 def _export_part(args: tuple[Any, ...]) -> None:
     """One worker process of a parallel shard export (top level: picklable)."""
     from factory.dataset.lerobot_export import export_store
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
 
     store_path, dest, repo_id, run_dir, rgb, version, video_file_mb, ids, cpu = args
     if cpu is not None:
@@ -131,7 +131,7 @@ def _export_shard(ctx: StageContext, k: int, n: int, out: Path) -> tuple[Path, d
         merge_datasets,
     )
     from factory.dataset.video import rgb_codec
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.store import Shard
 
     store = ctx.require_store()

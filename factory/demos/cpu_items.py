@@ -37,13 +37,13 @@ def run_item(
         first_attempts: slot -> the attempt (seed) to start from (default 0): the GPU
             executor's retries continue where its own attempts stopped.
     """
-    from factory.demos.appearance import episode_looks, setup_index
-    from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import FrameRenderer, execute
-    from factory.demos.pick_place import EpisodePlan
+    from factory.demos.execute.cpu import FrameRenderer, execute
+    from factory.demos.record.appearance import episode_looks, setup_index
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.tasks.pick_place.plan import EpisodePlan
 
     if env.task == "mobile_pick_place":  # CPU path, one episode at a time
-        from factory.demos.mobile_stage import run_mobile_item
+        from factory.demos.mobile_items import run_mobile_item
 
         return run_mobile_item(env, item)
     dc = env.demos

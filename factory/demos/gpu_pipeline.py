@@ -3,10 +3,11 @@
 Scenes are taken one after another. The episode slots of a scene are planned in a pool of
 ``spawn``ed worker processes (one plan per task, each worker keeping the scene's planner), the
 plans are executed and recorded together on the worlds of one MuJoCo Warp model
-(:class:`~factory.demos.execute_warp.WarpExecutor`: up to ``demos.gpu_batch`` worlds per call,
+(:class:`~factory.demos.execute.warp.WarpExecutor`: up to ``demos.gpu_batch`` worlds per call,
 each world taking its next episode as soon as its last one ends), and the successful
 recordings are written by a few processes while the GPU goes on; they read the images in
-place from the call's shared memory (:mod:`factory.demos.shared_frames`). While the GPU runs a
+place from the call's shared memory (:mod:`factory.demos.execute.shared_frames`). While the GPU
+runs a
 scene, the pool already plans the next scene's episodes, so neither waits for the other as long
 as planning keeps up. Failed slots are planned again with their next seed
 (``demos.attempts``), exactly as on the CPU path: the same seeds give the same plans, so the CPU
@@ -24,8 +25,8 @@ import time
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any
 
-from factory.demos import shared_frames
-from factory.demos.shared_frames import ArenaPool, share
+from factory.demos.execute import shared_frames
+from factory.demos.execute.shared_frames import ArenaPool, share
 from factory.demos.slots import (
     StageEnv,
     WorkItem,
@@ -56,12 +57,12 @@ def plan_slot(
         last ``PlanFailure``, or a string (the scene cannot host the task, and why);
         ``attempt`` is the attempt of the result; ``failed`` the ``(reason, detail)`` of the
         attempts that did not plan; ``look`` the planned episode's appearance and model patch
-        (:func:`~factory.demos.appearance.episode_looks` of its seed; None when nothing is
+        (:func:`~factory.demos.record.appearance.episode_looks` of its seed; None when nothing is
         rendered or the plan failed), drawn here so that the process feeding the GPU does
         not (1.5 ms an episode, ten times that on a busy node).
     """
-    from factory.demos.appearance import episode_looks, setup_index
-    from factory.demos.pick_place import EpisodePlan
+    from factory.demos.record.appearance import episode_looks, setup_index
+    from factory.tasks.pick_place.plan import EpisodePlan
 
     try:
         setup, planner = cached_setup(env, scene_id)
@@ -170,9 +171,11 @@ def gpu_calls(
     """The planned episodes of a scene in GPU calls, and the worlds of each call.
 
     A call packs its episodes onto worlds back to back
-    (:func:`~factory.demos.world_schedule.packed_schedule`; at most ``gpu_batch`` worlds, and
+    (:func:`~factory.demos.execute.world_schedule.packed_schedule`; at most ``gpu_batch`` worlds,
+    and
     no more than keep the call about as long as its longest episode,
-    :func:`~factory.demos.world_schedule.worlds_for`), so episode lengths cost little padding
+    :func:`~factory.demos.execute.world_schedule.worlds_for`), so episode lengths cost little
+    padding
     and a scene needs one call as long as its recordings fit in memory: ``budget`` bytes per
     call (a share of host memory, and of device memory when images stay on the device). Where
     they do not, the episodes are dealt, longest first, over as few calls as fit, so that every
@@ -210,7 +213,7 @@ def gpu_calls(
             "/".join(str(len(g)) for g in groups),
             (budget or 0) / 1e9,
         )
-    from factory.demos.world_schedule import worlds_for
+    from factory.demos.execute.world_schedule import worlds_for
 
     per_frame = max(1, round(1.0 / (rec_cfg.fps * timestep)))
     out = []
@@ -270,9 +273,9 @@ def run_gpu(
 ) -> list[dict[str, Any]]:
     """Fills the slots of ``items`` with the GPU executor; one statistics dict per scene (the
     keys of :func:`factory.demos.cpu_items.run_item`'s)."""
-    from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute_warp import WarpExecutor
-    from factory.demos.pick_place import EpisodePlan
+    from factory.demos.execute.warp import WarpExecutor
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.tasks.pick_place.plan import EpisodePlan
 
     dc = env.demos
     rec_cfg = record_config(dc)

@@ -4,11 +4,12 @@ the GPU renders.
 A mobile episode's cost on a CPU is its five cameras (about 34 of its 40 s at 128 px), so the
 pipeline moves the images alone to the GPU. ``spawn``ed worker processes each take an episode
 slot, plan it and simulate it on the CPU without images (:func:`plan_and_simulate`: the CPU
-path's :func:`~factory.demos.mobile_execute.execute_mobile` with ``render=False``, the same
-seeds and retries as :func:`~factory.demos.mobile_stage.run_mobile_item`), and return the
+path's :func:`~factory.tasks.mobile_pick_place.execute.execute_mobile` with ``render=False``, the
+same
+seeds and retries as :func:`~factory.demos.mobile_items.run_mobile_item`), and return the
 recording's states and signals. The main process renders the successful recordings of a scene
-on MuJoCo Warp (:class:`~factory.demos.mobile_render_warp.WarpMobileRenderer`): their frames
-fill the worlds of each render call back to back (:class:`~factory.demos.mobile_render_warp.
+on MuJoCo Warp (:class:`~factory.demos.execute.mobile_render_warp.WarpMobileRenderer`): their frames
+fill the worlds of each render call back to back (:class:`~factory.demos.execute.mobile_render_warp.
 RecordingStream`), and each episode, once its last frame is drawn, goes to a writer process
 (:func:`~factory.demos.slots.store_episode`, images as numpy arrays). Scenes are rendered one
 after another while the workers already plan and simulate the next scenes' slots (submitted
@@ -82,8 +83,8 @@ class SlotResult:
 
 def record_config(dc: Any, render: bool | None = None) -> Any:
     """The mobile recording settings of ``demos.*``: the pinhole ``demos.cameras`` plus both
-    fisheye cameras (a :class:`~factory.demos.mobile_execute.MobileRecordConfig`)."""
-    from factory.demos.mobile_pick_place import FISHEYE_CAMERAS, MobileRecordConfig
+    fisheye cameras (a :class:`~factory.tasks.mobile_pick_place.execute.MobileRecordConfig`)."""
+    from factory.tasks.mobile_pick_place import FISHEYE_CAMERAS, MobileRecordConfig
 
     return MobileRecordConfig(
         fps=dc.fps,
@@ -97,7 +98,7 @@ def record_config(dc: Any, render: bool | None = None) -> Any:
 
 def _scene(env: StageEnv, scene_id: str) -> Any:
     """The scene's set-up and planner, made once per worker and scene (the last few kept)."""
-    from factory.demos.mobile_stage import mobile_scene_planner
+    from factory.demos.mobile_items import mobile_scene_planner
 
     if scene_id in _SCENES:
         _SCENES[scene_id] = _SCENES.pop(scene_id)
@@ -111,8 +112,8 @@ def _scene(env: StageEnv, scene_id: str) -> Any:
 def plan_and_simulate(env: StageEnv, scene_id: str, slot: int, attempt: int = 0) -> SlotResult:
     """Plans and simulates (no images) one slot in a worker, trying the slot's seeds from
     ``attempt`` on until an episode succeeds or ``demos.attempts`` are spent, as
-    :func:`~factory.demos.mobile_stage.run_mobile_item` does."""
-    from factory.demos.mobile_pick_place import MobileEpisodePlan, execute_mobile
+    :func:`~factory.demos.mobile_items.run_mobile_item` does."""
+    from factory.tasks.mobile_pick_place import MobileEpisodePlan, execute_mobile
 
     out = SlotResult(slot)
     try:
@@ -146,8 +147,8 @@ def plan_and_simulate(env: StageEnv, scene_id: str, slot: int, attempt: int = 0)
 def _main_setup(run_dir: str, scene_id: str) -> Any:
     """The scene composed with the mobile robot in the main process (the model the workers
     simulate; deterministic)."""
-    from factory.demos.mobile_pick_place import mobile_setup
     from factory.store import RunStore
+    from factory.tasks.mobile_pick_place import mobile_setup
 
     store = RunStore(run_dir)
     return mobile_setup(store.load_scene(scene_id), store.assets_dir)
@@ -160,10 +161,10 @@ def run_mobile_gpu(
     processes, rendered on MuJoCo Warp (``device``, default CUDA when present), written by
     writer processes. One statistics dict per scene (the keys of
     :func:`factory.demos.stage.run_item`'s)."""
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.execute.mobile_render_warp import RecordingStream, WarpMobileRenderer
     from factory.demos.gpu_pipeline import _init_worker, writer_count
-    from factory.demos.mobile_render_warp import RecordingStream, WarpMobileRenderer
-    from factory.demos.mobile_stage import mobile_payload
+    from factory.demos.mobile_items import mobile_payload
+    from factory.demos.record.episodes import EpisodeStore
     from factory.demos.slots import store_episode
 
     dc = env.demos

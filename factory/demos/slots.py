@@ -1,7 +1,7 @@
 """Episode slots of ``stage=demos``: their seeds and ids, work items, the scene set-up each
 process keeps, and writing a recorded episode (shared by the CPU path in
 :mod:`factory.demos.stage`, the GPU pipeline in :mod:`factory.demos.gpu_pipeline` and the
-mobile task's :mod:`factory.demos.mobile_stage`).
+mobile task's :mod:`factory.demos.mobile_items`).
 """
 
 from __future__ import annotations
@@ -74,8 +74,9 @@ def item_stats(scene_id: str, **extra: Any) -> dict[str, Any]:
 
 
 def record_config(dc: DemosConfig) -> Any:
-    """The recording settings of ``demos.*`` (a :class:`~factory.demos.execute.RecordConfig`)."""
-    from factory.demos.execute import RecordConfig
+    """The recording settings of ``demos.*`` (a
+    :class:`~factory.demos.execute.cpu.RecordConfig`)."""
+    from factory.demos.execute.cpu import RecordConfig
 
     return RecordConfig(
         fps=dc.fps,
@@ -92,7 +93,7 @@ def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[
     """A scene of a run composed with the robot as ``stage=demos`` records it, and its planner.
 
     The base spot, cleared objects and cameras come from
-    :func:`~factory.demos.pick_place.setup_scene` (deterministic per scene); island sleeping
+    :func:`~factory.tasks.pick_place.plan.setup_scene` (deterministic per scene); island sleeping
     follows ``demos.sleep``; the planner's timing, timeout and grasp count follow ``demos``.
 
     Returns:
@@ -103,9 +104,9 @@ def scene_planner(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> tuple[
     """
     import mujoco
 
-    from factory.demos.pick_place import EpisodePlanner, MotionConfig, setup_scene
-    from factory.demos.planner import PlannerConfig
+    from factory.demos.plan.planner import PlannerConfig
     from factory.store import RunStore
+    from factory.tasks.pick_place.plan import EpisodePlanner, MotionConfig, setup_scene
 
     store = RunStore(run_dir)
     scene = store.load_scene(scene_id)
@@ -154,10 +155,10 @@ def episode_instruction(setup: Any) -> str:
 def store_episode(store_path: str, meta: Any, arrays: dict[str, np.ndarray]) -> None:
     """Writes one episode into the store at ``store_path`` (run in writer processes: each has
     its own zarr event loop, so episodes compress and write in parallel). Arrays given as
-    :class:`~factory.demos.shared_frames.SharedView` are read in place from the caller's
+    :class:`~factory.demos.execute.shared_frames.SharedView` are read in place from the caller's
     shared memory."""
-    from factory.demos.episodes import EpisodeStore
-    from factory.demos.shared_frames import opened
+    from factory.demos.execute.shared_frames import opened
+    from factory.demos.record.episodes import EpisodeStore
 
     EpisodeStore(store_path).write(meta, opened(arrays))
 
@@ -262,7 +263,7 @@ def episode_payload(
 ) -> tuple[Any, dict[str, np.ndarray]]:
     """The metadata and arrays a successful recording is stored as (episode ``k``), recorded
     by the ``recorder`` executor (``cpu`` or ``warp``)."""
-    from factory.demos.execute import STATE_SPEC
+    from factory.demos.execute.cpu import STATE_SPEC
     from factory.schema.episode import RobotBase
 
     objects = setup.objects

@@ -56,8 +56,8 @@ TASKS: dict[str, str] = {
 
 EXECUTORS: dict[str, str] = {
     "auto": "warp when CUDA is present, else cpu",
-    "cpu": "mujoco.batch threads + EGL/OSMesa rendering (factory.demos.execute)",
-    "warp": "MuJoCo Warp worlds + its batch renderer (factory.demos.execute_warp; the mobile "
+    "cpu": "mujoco.batch threads + EGL/OSMesa rendering (factory.demos.execute.cpu)",
+    "warp": "MuJoCo Warp worlds + its batch renderer (factory.demos.execute.warp; the mobile "
     "task: CPU simulation, Warp rendering, factory.demos.mobile_gpu_pipeline)",
 }
 """``demos.executor`` values."""
@@ -132,7 +132,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     from tqdm import tqdm
 
     from factory.console import terminal
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
 
     cfg = ctx.cfg
     dc = cfg.demos

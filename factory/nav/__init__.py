@@ -10,7 +10,7 @@ spawn poses (:mod:`.goals`), and ``recheck_base_trajectory`` drives the real rob
 a trajectory in MuJoCo (:mod:`.recheck`). Failures are results with reasons ``nav_failed``
 and ``base_collision``.
 
-The robot model itself is ``factory.demos.mobile_robot`` (this package does not import it).
+The robot model itself is ``factory.robots.mobile_panda`` (this package does not import it).
 """
 
 from factory.nav.base_trajectory import (

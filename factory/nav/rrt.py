@@ -10,7 +10,7 @@ Failures are results, not exceptions: ``ok`` is False and ``reason`` is ``nav_fa
 
 Seeding (:func:`seed_ompl`): OMPL draws the seeds of the generators it makes (one per planner,
 state sampler and path simplifier) from one process-wide generator; ``ompl.util.RNG.setSeed``
-resets that one. Called before every query, as :func:`factory.demos.planner.plan` does for
+resets that one. Called before every query, as :func:`factory.demos.plan.planner.plan` does for
 the arm, a query's result depends on its seed alone, not on the queries the process ran
 before: an episode plans the same in a worker that ran others first. OMPL logs an error
 ("Random number generation already started ...") for every call after the first; it is

@@ -3,7 +3,8 @@
 The mobile task moves an object from one support (a coffee table) to another (a desk). Its
 base must stand, arm stowed, somewhere its arm reaches the object, and somewhere its arm
 reaches the place support's top, with the object in the hand. This module holds what the
-demos (``factory.demos.mobile_scene``) and the scene checks (:mod:`factory.nav.route`) share:
+demos (``factory.tasks.mobile_pick_place.scene``) and the scene checks (:mod:`factory.nav.route`)
+share:
 the task's objects read from their ``task_role``, the supports' boxes in a compiled model,
 the points of a top where the object may go, and the base poses within reach of both
 (:func:`task_work_poses`, over :func:`factory.nav.goals.work_poses`).
@@ -14,7 +15,7 @@ poses and :func:`factory.nav.route.clear_for_base` all take it from here, with t
 below, so a scene that passes the route check is judged by the demos on the same cells.
 
 The robot's geometry enters as numbers: :data:`MOBILE_FOOTPRINT` and :data:`ARM_X` are the
-mobile robot's (``factory.demos.mobile_robot.BASE_FOOTPRINT`` and ``ARM_MOUNT[0]``; this
+mobile robot's (``factory.robots.mobile_panda.BASE_FOOTPRINT`` and ``ARM_MOUNT[0]``; this
 package does not import the robot, and a test keeps them equal).
 
 Frames: world frame, metres, radians; a base pose is the footprint centre's (x, y) and yaw.

@@ -181,7 +181,7 @@ def _box(shape: tuple[int, ...], dtype: str) -> gym.spaces.Box:
 def action_space() -> gym.spaces.Box:
     """The 8-D action: arm joint targets within the Panda's limits (rad), gripper command
     from squeezing shut to open (m)."""
-    from factory.demos.robot import GRIP_CLOSED, GRIP_OPEN, PANDA
+    from factory.robots.panda import GRIP_CLOSED, GRIP_OPEN, PANDA
 
     low = np.array([*PANDA.q_min, GRIP_CLOSED], np.float32)
     high = np.array([*PANDA.q_max, GRIP_OPEN], np.float32)

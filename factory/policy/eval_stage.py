@@ -140,7 +140,7 @@ def _replay_jobs(
 ) -> tuple[list[Any], dict[str, Any]]:
     """Replay jobs from the dataset (recorded initial states and actions), or from the
     episode stores when the run has no dataset."""
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.policy.eval import Job
 
     jobs: list[Job] = []

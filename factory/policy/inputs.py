@@ -334,7 +334,7 @@ class _Kinematics:
     def __init__(self) -> None:
         import mujoco
 
-        from factory.demos.robot import RobotIndex, robot_model
+        from factory.robots.panda import RobotIndex, robot_model
 
         self._mujoco = mujoco
         self.model = robot_model()
@@ -575,7 +575,7 @@ class ToolActionTracker:
             origin: ``tool_rel``: the tool positions (n, 3) the positions are relative to.
         """
         if self._solver is None:
-            from factory.demos.ik import IKConfig, IKSolver
+            from factory.robots.ik import IKConfig, IKSolver
 
             self._solver = IKSolver(IKConfig(max_iters=self.iters, pos_tol=5e-4, rot_tol_deg=0.5))
         tool = np.array(tool, np.float64, copy=True)

@@ -2,10 +2,10 @@
 ``stage=eval`` for the Panda on the Omron base.
 
 :class:`MobileVecEnv` runs ``n`` episodes of one scene with the demos' own pieces
-(:mod:`factory.demos.mobile_pick_place`), so that what a policy sees and does in it is what the
+(:mod:`factory.tasks.mobile_pick_place`), so that what a policy sees and does in it is what the
 dataset recorded:
 
-* scene: :func:`factory.demos.mobile_stage.mobile_scene_planner`, the same set-up as
+* scene: :func:`factory.demos.mobile_items.mobile_scene_planner`, the same set-up as
   ``stage=demos`` (the scene composed with the mobile robot, light floor objects in the base's
   way taken out, the same supports and the object where the scene puts it);
 * reset: from a seed, the planner's own spawn (:meth:`MobilePlanner.initial_qpos`: seed ``s``
@@ -13,19 +13,20 @@ dataset recorded:
   stowed, hand closed), or a recorded MuJoCo integration state (replay);
 * action (11,) as recorded: arm joint targets (7, rad), gripper command (m; 0.08 open,
   negative squeezes), base target x, y (m, world) and unwrapped yaw (rad), one per frame
-  (``1 / fps`` s). The controller is the demos': :func:`~factory.demos.pick_place.
+  (``1 / fps`` s). The controller is the demos': :func:`~factory.tasks.pick_place.plan.
   targets_to_ctrl` for the arm and fingers, the base's position actuators with the planner's
   velocity lead. With ``interpolate`` (default) arm and base targets move linearly from the
   previous action over the frame with the velocity ``(a - a_prev) * fps`` as lead (the
   recorded action of frame ``f`` is the plan's target at the end of frame ``f``, so this
   first-order hold follows the plan's per-step targets closely); the gripper command is held;
 * physics: one ``mujoco.MjData`` per episode stepped one physics step at a time as
-  :func:`~factory.demos.mobile_execute.simulate` does, the deepest contact of the base and of
-  the arm measured after every step (:func:`~factory.demos.mobile_execute.penetrations`);
+  :func:`~factory.tasks.mobile_pick_place.execute.simulate` does, the deepest contact of the base
+  and of
+  the arm measured after every step (:func:`~factory.tasks.mobile_pick_place.execute.penetrations`);
 * observations keyed like the dataset's features: ``observation.state`` (11: arm joints,
   finger opening, base x, y, yaw), ``observation.ee_pose`` (7: tool position + quaternion wxyz,
   world), ``subtask_index`` (1, int64), and per camera ``observation.images.<cam>`` /
-  ``observation.depth.<cam>`` drawn by the demos' :class:`~factory.demos.mobile_execute.
+  ``observation.depth.<cam>`` drawn by the demos' :class:`~factory.tasks.mobile_pick_place.execute.
   MobileRenderer` from the frame's state set into a fresh ``MjData`` (as ``render_frames``:
   the same images for the same state; fisheye images are ``width`` square);
 * sub-tasks (``navigate_to_pick``, ``pick``, ``navigate_to_place``, ``place``): the env's own
@@ -45,7 +46,8 @@ dataset recorded:
   has settled (measured joint speeds) with the lifted object held in the carry posture;
   ``navigate_to_place`` when the arm command starts to move (the place begins) with the base
   slow and the support within reach;
-* success: the demos' check (:func:`~factory.demos.mobile_execute.mobile_outcome`: the object
+* success: the demos' check (:func:`~factory.tasks.mobile_pick_place.execute.mobile_outcome`: the
+object
   on the place support, released, moved < 5 mm over the last 0.5 s, the base and the arm never
   deeper than 2 cm in anything), tested every frame once the object is over the support;
 * failures: ``base_collision`` / ``collision`` (a contact deeper than 2 cm ends the episode),
@@ -71,15 +73,19 @@ configure_gl("auto")  # before mujoco is imported: the env renders offscreen
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from factory.demos.mobile_execute import (  # noqa: E402
+from factory.errors import StoreError, TaskError  # noqa: E402
+from factory.nav import BASE_COLLISION  # noqa: E402
+from factory.nav.task_poses import ARM_X, PICK_REACH, PLACE_REACH  # noqa: E402
+from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
+from factory.robots.mobile_panda import CAMERAS as PINHOLE  # noqa: E402
+from factory.tasks.mobile_pick_place.execute import (  # noqa: E402
     STATE_SPEC,
     MobileRecordConfig,
     MobileRenderer,
     mobile_outcome,
     penetrations,
 )
-from factory.demos.mobile_robot import CAMERAS as PINHOLE  # noqa: E402
-from factory.demos.mobile_scene import (  # noqa: E402
+from factory.tasks.mobile_pick_place.scene import (  # noqa: E402
     ALL_CAMERAS,
     CARRY_TOOL,
     FISHEYE_CAMERAS,
@@ -87,11 +93,7 @@ from factory.demos.mobile_scene import (  # noqa: E402
     MobileSetup,
     body_box,
 )
-from factory.demos.pick_place import targets_to_ctrl  # noqa: E402
-from factory.errors import StoreError, TaskError  # noqa: E402
-from factory.nav import BASE_COLLISION  # noqa: E402
-from factory.nav.task_poses import ARM_X, PICK_REACH, PLACE_REACH  # noqa: E402
-from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
+from factory.tasks.pick_place.plan import targets_to_ctrl  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -243,7 +245,7 @@ class MobileVecEnv(EpisodeEnv[_Episode, MobileRenderer]):
     """``num_envs`` mobile pick-and-place episodes of one scene (see the module docstring).
 
     Args:
-        setup: the scene with the mobile robot (:func:`~factory.demos.mobile_stage.
+        setup: the scene with the mobile robot (:func:`~factory.demos.mobile_items.
             mobile_scene_planner`).
         planner: its planner (the spawn rule, and the privileged agent).
         num_envs: episodes run at once (stepped one after the other).
@@ -353,7 +355,7 @@ class MobileVecEnv(EpisodeEnv[_Episode, MobileRenderer]):
         Raises:
             TaskError: a seed without a free spawn pose.
         """
-        from factory.demos.mobile_robot import STOW_FINGERS
+        from factory.robots.mobile_panda import STOW_FINGERS
 
         ids = self._reset_ids(ids, seeds, states, qpos)
         if seeds is not None:
@@ -667,7 +669,7 @@ def make_mobile_vec_env(
     Raises:
         StoreError: no such scene; TaskError: the scene cannot host the mobile task.
     """
-    from factory.demos.mobile_stage import mobile_scene_planner
+    from factory.demos.mobile_items import mobile_scene_planner
     from factory.policy.env import demos_config_of
 
     run_dir = Path(run_dir)

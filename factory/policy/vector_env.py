@@ -5,7 +5,7 @@
 plans), with the demos' own composed model (robot base spot, cleared chairs, cameras), the same
 controller, the same renderer and the same success check:
 
-* reset: the demos' sampler (:func:`~factory.demos.pick_place.initial_configuration`) from a
+* reset: the demos' sampler (:func:`~factory.tasks.pick_place.plan.initial_configuration`) from a
   seed, or a recorded MuJoCo integration state (replay);
 * step: one action per env (8,) = desired arm joints (rad) + gripper command (m), held for one
   frame (``1 / fps`` s = ``per_frame`` physics steps). With ``interpolate`` (default) the arm
@@ -15,7 +15,8 @@ controller, the same renderer and the same success check:
   reproduces the demos' control closely. Without it the target jumps to the action at once;
 * observations keyed like the dataset's features, with a leading batch axis;
 * termination: success (the object in/on the target, released, at rest for 0.5 s, by
-  :func:`~factory.demos.task.check_success`), or a robot collision deeper than 2 cm; truncation
+  :func:`~factory.tasks.pick_place.objects.check_success`), or a robot collision deeper than 2 cm;
+  truncation
   after ``max_steps`` frames, with the success check's failure reason.
 """
 
@@ -33,7 +34,7 @@ configure_gl("auto")  # before mujoco is imported: the env renders offscreen
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from factory.demos.execute import (  # noqa: E402
+from factory.demos.execute.cpu import (  # noqa: E402
     STATE_SPEC,
     FrameRenderer,
     RecordConfig,
@@ -41,13 +42,13 @@ from factory.demos.execute import (  # noqa: E402
     robot_penetration,
     robot_signals,
 )
-from factory.demos.pick_place import (  # noqa: E402
+from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
+from factory.tasks.pick_place.objects import Outcome, Workspace, check_success  # noqa: E402
+from factory.tasks.pick_place.plan import (  # noqa: E402
     SceneSetup,
     initial_configuration,
     targets_to_ctrl,
 )
-from factory.demos.task import Outcome, Workspace, check_success  # noqa: E402
-from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
 
 log = logging.getLogger(__name__)
 

@@ -130,7 +130,7 @@ def episode_gif(
         StoreError: the store or episode cannot be read (zarr missing, no such episode).
         KeyError: the episode has no RGB frames (recorded with ``demos.render=false``).
     """
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
 
     episodes = EpisodeStore(store)
     info = episodes.info(episode_id)

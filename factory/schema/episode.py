@@ -1,6 +1,6 @@
 """The episode record: what one recorded demonstration is (metadata beside its arrays).
 
-An episode store (``episodes/shard-<k>.zarr``, see :mod:`factory.demos.episodes`) holds one
+An episode store (``episodes/shard-<k>.zarr``, see :mod:`factory.demos.record.episodes`) holds one
 group per episode; the group's attributes are an :class:`EpisodeInfo` as JSON and its arrays
 are named in :data:`EPISODE_ARRAYS`.
 """
@@ -101,7 +101,7 @@ class CameraLook:
 @dataclass
 class EpisodeAppearance:
     """The appearance randomisation of one episode (``demos.appearance``): applying it to
-    the recording model (:func:`factory.demos.appearance.model_patch`) reproduces the images.
+    the recording model (:func:`factory.demos.record.appearance.model_patch`) reproduces the images.
 
     Attributes:
         seed: seed it was drawn from (derived from the episode seed).
@@ -149,7 +149,7 @@ class EpisodeInfo:
         route: the mobile task only: the route check's base poses the episode drove to
             (``pick_pose``, ``place_pose``: x, y m, yaw rad, world frame), their indices in the
             route's pose lists and the route's pose counts, grid cell (m) and footprint
-            (``factory.demos.mobile_plan.MobilePlanner.route_record``); empty otherwise.
+            (``factory.tasks.mobile_pick_place.plan.MobilePlanner.route_record``); empty otherwise.
         recorder: the executor that simulated and rendered it: ``cpu`` (MuJoCo and its
             OpenGL renderer) or ``warp`` (MuJoCo Warp and its ray-traced batch renderer);
             empty before schema version 3.

@@ -13,7 +13,7 @@ MuJoCo's OpenGL renderer (EGL, OSMesa) draws only spot and directional lights (a
 light lights nothing there) and at most eight lights per image, the headlight included:
 ceiling lights are added with the rooms, before any lamp, so a scene of many rooms keeps its
 ceiling lights first (the recording of demonstrations switches off the lights of the rooms
-the robot is not in, :func:`factory.demos.appearance.room_lights`). Each shadow-casting light
+the robot is not in, :func:`factory.demos.record.appearance.room_lights`). Each shadow-casting light
 costs one depth pass per rendered image.
 """
 

@@ -74,7 +74,8 @@ def main() -> None:
     import mujoco
     import numpy as np
 
-    from factory.demos.mobile_pick_place import (
+    from factory.store import RunStore
+    from factory.tasks.mobile_pick_place import (
         ALL_CAMERAS,
         FISHEYE_CAMERAS,
         MobileEpisodePlan,
@@ -85,7 +86,6 @@ def main() -> None:
         mobile_setup,
         render_frames,
     )
-    from factory.store import RunStore
 
     store = RunStore(args.run_dir)
     scene_id = args.scene or sorted(p.name for p in (args.run_dir / "scenes").iterdir())[0]

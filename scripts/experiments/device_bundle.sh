@@ -54,7 +54,7 @@ apt-get $o update -qq
 (cd .gl && apt-get $o download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2)
 mkdir -p .gpu
 FACTORY_ROBOT_CACHE=$PWD/.gpu/robots "$PY" -c \
-  "from factory.demos.robot import export_robot, robot_cache_dir as d; d().is_dir() or export_robot(d())"
+  "from factory.robots.panda import export_robot, robot_cache_dir as d; d().is_dir() or export_robot(d())"
 cat > .gpu/env.sh <<'EOF'
 export PYTHONPATH=/tmp/site:/tmp/site2:$PWD MUJOCO_GL=egl FACTORY_ROBOT_CACHE=$PWD/.gpu/robots \
   PYTHONUNBUFFERED=1 HF_HUB_OFFLINE=1

@@ -19,11 +19,11 @@ def main() -> None:
     import mujoco
 
     from factory.config import DemosConfig
-    from factory.demos.execute import RecordConfig
-    from factory.demos.execute_warp import WarpExecutor
-    from factory.demos.pick_place import EpisodePlan
+    from factory.demos.execute.cpu import RecordConfig
+    from factory.demos.execute.warp import WarpExecutor
     from factory.demos.stage import scene_planner
     from factory.store import RunStore
+    from factory.tasks.pick_place.plan import EpisodePlan
 
     p = argparse.ArgumentParser()
     p.add_argument("--run-dir", type=Path, required=True)

@@ -4,7 +4,7 @@
         [--out docs/images/robot_meshes.png] [--cache-root /tmp/robot-mesh-compare]
 
 Each row is one version of the robot's visual meshes: robosuite's originals first, then the
-robot cache's simplification (:func:`factory.demos.visual_mesh.simplify_visual_mesh`) at each
+robot cache's simplification (:func:`factory.robots.visual_mesh.simplify_visual_mesh`) at each
 ``--faces`` budget (a cache per budget is exported under ``--cache-root``). Columns: the whole
 robot from the front left, the base from behind, and the hand close up. Each row is labelled
 with the robot's visual triangles. Renders use MuJoCo's default lighting with shadows on (the
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from factory.demos.visual_mesh import VISUAL_FACES
+from factory.robots.visual_mesh import VISUAL_FACES
 
 log = logging.getLogger("robot_mesh_compare")
 
@@ -36,7 +36,7 @@ def _model(xml: str) -> object:
     """The mobile robot (arm in a reaching pose) on a floor, from an MJCF string."""
     import mujoco
 
-    from factory.demos import mobile_robot as mr
+    from factory.robots import mobile_panda as mr
 
     mr._mobile_xml.cache_clear()
     original = mr._mobile_xml
@@ -68,7 +68,7 @@ def _faces(model: object) -> int:
 def _row(model: object, size: int) -> np.ndarray:
     import mujoco
 
-    from factory.demos.mobile_robot import MobileRobotIndex
+    from factory.robots.mobile_panda import MobileRobotIndex
 
     m = model
     data = mujoco.MjData(m)
@@ -110,8 +110,8 @@ def main() -> None:
     configure_gl("auto")
     from PIL import Image, ImageDraw
 
-    from factory.demos.mobile_robot import _robosuite_xml
-    from factory.demos.robot import cached_mjcf, export_mjcf
+    from factory.robots.mobile_panda import _robosuite_xml
+    from factory.robots.panda import cached_mjcf, export_mjcf
 
     source = _robosuite_xml()
     versions: list[tuple[str, str]] = [("robosuite's meshes", source)]

@@ -230,9 +230,9 @@ def test_demo_picks_up_the_coke_can(tmp_path: Path) -> None:
     """The demos' planner grasps the real can (its collision hull) and the executor lifts it
     into the bowl: a successful episode."""
     pytest.importorskip("ompl")
-    from factory.demos.execute import RecordConfig, execute
-    from factory.demos.pick_place import EpisodePlan, EpisodePlanner, setup_scene
+    from factory.demos.execute.cpu import RecordConfig, execute
     from factory.scenes.tools import ToolSession
+    from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner, setup_scene
 
     assets = tmp_path / "assets"
     session = ToolSession(AssetLibrary(assets), physics=False)

@@ -13,8 +13,8 @@ import pytest
 pytest.importorskip("lerobot")
 
 from factory.config import CompileConfig
-from factory.demos.episodes import EpisodeStore
-from factory.demos.execute import STATE_SPEC
+from factory.demos.execute.cpu import STATE_SPEC
+from factory.demos.record.episodes import EpisodeStore
 from factory.scenes.build import compile_one
 from factory.schema.episode import EpisodeInfo, RobotBase
 from factory.store import RunStore, Shard

@@ -20,7 +20,7 @@ from factory.dataset.mobile_features import (
     MOBILE_SUBTASKS,
     one_meta_layout,
 )
-from factory.demos.episodes import EpisodeStore
+from factory.demos.record.episodes import EpisodeStore
 from factory.errors import MixedLayoutError
 from factory.store import Shard
 
@@ -47,8 +47,8 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from factory.dataset.lerobot_export import unpack_depth_mm
-    from factory.demos.mobile_pick_place import SUBTASKS
     from factory.schema import scene_to_json
+    from factory.tasks.mobile_pick_place import SUBTASKS
 
     assert tuple(MOBILE_SUBTASKS) == tuple(SUBTASKS)  # the export's copy of the names
     helpers = _module(HERE.parent / "demos" / "test_mobile_pick_place.py", "_mobile_helpers")

@@ -79,7 +79,7 @@ def test_renders_are_neither_dark_nor_washed_out(kitchen) -> None:
 def setup(kitchen):
     pytest.importorskip("robosuite")
     pytest.importorskip("ompl")
-    from factory.demos.pick_place import setup_scene
+    from factory.tasks.pick_place.plan import setup_scene
 
     scene, assets = kitchen
     return setup_scene(scene, assets)
@@ -87,13 +87,13 @@ def setup(kitchen):
 
 @pytest.fixture(scope="module")
 def index(setup):
-    from factory.demos.appearance import setup_index
+    from factory.demos.record.appearance import setup_index
 
     return setup_index(setup, ("left", "right", "wrist"))
 
 
 def test_choice_is_seeded(index) -> None:
-    from factory.demos.appearance import choose
+    from factory.demos.record.appearance import choose
 
     cfg = AppearanceConfig()
     a, b, c = choose(index, cfg, 7), choose(index, cfg, 7), choose(index, cfg, 8)
@@ -109,7 +109,7 @@ def test_choice_is_seeded(index) -> None:
 
 
 def test_bounds_and_task_objects_untouched(setup, index) -> None:
-    from factory.demos.appearance import choose, model_patch
+    from factory.demos.record.appearance import choose, model_patch
 
     model = setup.model
     cfg = AppearanceConfig()
@@ -138,11 +138,11 @@ def test_bounds_and_task_objects_untouched(setup, index) -> None:
 
 def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) -> None:
     from factory.config import DemosConfig
-    from factory.demos.appearance import apply_patch, episode_looks, setup_index
-    from factory.demos.episodes import EpisodeStore
-    from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute
-    from factory.demos.pick_place import EpisodePlan, EpisodePlanner
+    from factory.demos.execute.cpu import STATE_SPEC, FrameRenderer, RecordConfig, execute
+    from factory.demos.record.appearance import apply_patch, episode_looks, setup_index
+    from factory.demos.record.episodes import EpisodeStore
     from factory.demos.slots import StageEnv, episode_payload, episode_seed
+    from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner
 
     planner = EpisodePlanner(setup)
     plan = next(

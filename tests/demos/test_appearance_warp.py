@@ -19,15 +19,15 @@ if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the expor
 pytest.importorskip("ompl")
 
 from factory.config import AppearanceConfig
-from factory.demos.appearance import (
+from factory.demos.execute.cpu import RecordConfig
+from factory.demos.record.appearance import (
     PATCH_FIELDS,
     PATCH_GROUPS,
     episode_looks,
     patch_tables,
     setup_index,
 )
-from factory.demos.execute import RecordConfig
-from factory.demos.pick_place import EpisodePlan, EpisodePlanner, setup_scene
+from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner, setup_scene
 
 CAMERAS = ("left", "right", "wrist")
 
@@ -88,7 +88,7 @@ def test_set_looks_gives_starting_worlds_their_episodes_rows() -> None:
     at this boundary, and leaves the other worlds and elements alone."""
     import warp as wp
 
-    from factory.demos.warp_kernels import set_looks
+    from factory.demos.execute.warp_kernels import set_looks
 
     wp.config.quiet = True  # type: ignore[attr-defined]
     n, per_frame = 3, 4
@@ -147,8 +147,8 @@ def test_gpu_looks_match_cpu_looks(setup, device: str) -> None:
     the third starts with its own in the world the shortest frees, through the reset inside the
     call) draw what the CPU executor draws with the same looks; the physics is untouched and the
     episodes record the same appearance metadata."""
-    from factory.demos.execute import execute
-    from factory.demos.execute_warp import WarpExecutor
+    from factory.demos.execute.cpu import execute
+    from factory.demos.execute.warp import WarpExecutor
     from factory.errors import AppearanceError
 
     planner = EpisodePlanner(setup)

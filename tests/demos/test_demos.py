@@ -15,9 +15,8 @@ pytest.importorskip("robosuite")
 pytest.importorskip("ompl")
 
 from factory.assets import AssetLibrary
-from factory.demos.episodes import EpisodeStore
-from factory.demos.execute import STATE_SPEC, FrameRenderer, RecordConfig, execute
-from factory.demos.grasps import (
+from factory.demos.execute.cpu import STATE_SPEC, FrameRenderer, RecordConfig, execute
+from factory.demos.plan.grasps import (
     GraspConfig,
     GripperShape,
     antipodal_candidates,
@@ -26,27 +25,28 @@ from factory.demos.grasps import (
     gripper_clear,
     pad_contacts,
 )
-from factory.demos.ik import IKSolver
-from factory.demos.pick_place import (
-    EpisodePlan,
-    EpisodePlanner,
-    clear_clutter,
-    has_room,
-    setup_scene,
-)
-from factory.demos.planner import CollisionChecker, PlannerConfig, plan
-from factory.demos.robot import HOME_QPOS, PANDA, RobotIndex
-from factory.demos.task import (
+from factory.demos.plan.planner import CollisionChecker, PlannerConfig, plan
+from factory.demos.plan.timing import Limits, time_path, time_segment
+from factory.demos.record.episodes import EpisodeStore
+from factory.errors import StoreError, TaskError
+from factory.robots.ik import IKSolver
+from factory.robots.panda import HOME_QPOS, PANDA, RobotIndex
+from factory.schema import Scene, scene_to_json
+from factory.schema.episode import episode_info_from_dict
+from factory.tasks.pick_place.objects import (
     Workspace,
     check_success,
     initial_state,
     move_robot,
     task_objects,
 )
-from factory.demos.timing import Limits, time_path, time_segment
-from factory.errors import StoreError, TaskError
-from factory.schema import Scene, scene_to_json
-from factory.schema.episode import episode_info_from_dict
+from factory.tasks.pick_place.plan import (
+    EpisodePlan,
+    EpisodePlanner,
+    clear_clutter,
+    has_room,
+    setup_scene,
+)
 
 
 @pytest.fixture(scope="module")
@@ -478,8 +478,8 @@ def test_robot_index(setup) -> None:
 
 
 def test_robot_cache_matches_robosuite(tmp_path: Path, monkeypatch) -> None:
-    from factory.demos import robot as robot_mod
-    from factory.demos.visual_mesh import face_budget
+    from factory.robots import panda as robot_mod
+    from factory.robots.visual_mesh import face_budget
 
     monkeypatch.setenv("FACTORY_ROBOT_CACHE", str(tmp_path / "cache"))
     robot_mod._robot_xml.cache_clear()

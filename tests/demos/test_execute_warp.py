@@ -3,7 +3,7 @@ CPU executor on the GPU machine (``gpu`` marker).
 
 CPU twins in CI: the CPU executor's own tests (tests/demos/test_demos.py) cover the recording,
 success check and replay that both executors share
-(:func:`factory.demos.execute.finish_recordings`), and the GPU pipeline itself runs on Warp's
+(:func:`factory.demos.execute.cpu.finish_recordings`), and the GPU pipeline itself runs on Warp's
 CPU device (``test_gpu_pipeline_on_warp_cpu``: planning processes, length-sorted calls, the
 executor, writer processes; sleeping off, since MuJoCo Warp's sleeping solver path does not
 run on the CPU device).
@@ -24,10 +24,10 @@ if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the expor
 pytest.importorskip("ompl")
 
 from factory.config import DemosConfig
-from factory.demos.execute import STATE_SPEC, RecordConfig
-from factory.demos.pick_place import EpisodePlan, EpisodePlanner, setup_scene
+from factory.demos.execute.cpu import STATE_SPEC, RecordConfig
 from factory.demos.stage import check_config, resolve_executor
 from factory.errors import ConfigError
+from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner, setup_scene
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +37,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory, make_kitchen):
 
 
 def test_state_layout_matches_mj_getState(setup) -> None:
-    from factory.demos.execute_warp import state_layout
+    from factory.demos.execute.warp import state_layout
 
     model = setup.model
     data = mujoco.MjData(model)
@@ -93,7 +93,7 @@ def test_cpu_retries_continue_from_the_gpu_attempts(make_kitchen, tmp_path: Path
     ``first_attempts``): a slot starts at its next seed, a slot out of attempts is not tried,
     and the episode says which executor recorded it."""
     from factory.demos.cpu_items import run_item
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.demos.slots import StageEnv, WorkItem, episode_id, episode_seed
     from factory.schema import scene_to_json
 
@@ -129,7 +129,7 @@ DEPTH_TOLERANCE_MM = 5.0
 
 @pytest.mark.gpu
 def test_gpu_executor_agrees_with_cpu(setup) -> None:
-    from factory.demos.agreement import compare_executors
+    from factory.demos.execute.agreement import compare_executors
 
     planner = EpisodePlanner(setup)
     plans = []
@@ -157,8 +157,8 @@ def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     """The GPU pipeline end to end on Warp's CPU device (kernels compile in about 2-3 min):
     four slots: the longest left to the CPU executor (``demos.gpu_tail``), three packed onto
     two worlds of one call, stored by the writer processes, replayable."""
-    from factory.demos.episodes import EpisodeStore
     from factory.demos.gpu_pipeline import run_gpu
+    from factory.demos.record.episodes import EpisodeStore
     from factory.demos.slots import StageEnv, WorkItem
     from factory.schema import scene_to_json
 
@@ -192,7 +192,7 @@ def test_gpu_demos_stage_cli(cli, make_kitchen, tmp_path: Path) -> None:
     GPU, stored like the CPU executor's episodes; a re-run resumes (nothing left to do)."""
     import json
 
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.schema import scene_to_json
 
     run = tmp_path / "run"
@@ -216,7 +216,7 @@ def test_gpu_demos_stage_cli(cli, make_kitchen, tmp_path: Path) -> None:
 
 def test_quat_from_mat_is_mujocos() -> None:
     """The vectorized rotation-to-quaternion of the GPU recording equals mju_mat2Quat."""
-    from factory.demos.execute_warp import quat_from_mat
+    from factory.demos.execute.warp import quat_from_mat
 
     rng = np.random.default_rng(1)
     q = rng.normal(size=(500, 4))
@@ -237,8 +237,8 @@ def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPa
     from types import SimpleNamespace
 
     from factory.demos import gpu_pipeline
-    from factory.demos.execute import RecordConfig
-    from factory.demos.world_schedule import packed_schedule
+    from factory.demos.execute.cpu import RecordConfig
+    from factory.demos.execute.world_schedule import packed_schedule
 
     rng = np.random.default_rng(0)
     steps = rng.integers(3000, 9000, 1100)
@@ -281,7 +281,7 @@ def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> N
     """Three episodes packed onto two worlds (the third starts in the world of the shortest
     as soon as it ends, through ``mujoco_warp.reset_data``; on CUDA inside the captured
     graph) record the states and images that three worlds starting together record."""
-    from factory.demos.execute_warp import WarpExecutor
+    from factory.demos.execute.warp import WarpExecutor
 
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
@@ -312,8 +312,8 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
     """The pipeline's modes (images stored on the device and copied to a shared arena at the
     end, or every frame copied into an arena) record the same images and states as copying
     every frame into ordinary arrays (Warp's CPU device: deterministic)."""
-    from factory.demos.execute_warp import WarpExecutor
-    from factory.demos.shared_frames import ArenaPool, supported
+    from factory.demos.execute.shared_frames import ArenaPool, supported
+    from factory.demos.execute.warp import WarpExecutor
 
     if not supported():
         pytest.skip("shared arenas are Linux only")

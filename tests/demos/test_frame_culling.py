@@ -17,7 +17,7 @@ from factory.schema import Scene
 def setup(tmp_path_factory: pytest.TempPathFactory, make_kitchen):
     pytest.importorskip("robosuite")
     pytest.importorskip("ompl")
-    from factory.demos.pick_place import setup_scene
+    from factory.tasks.pick_place.plan import setup_scene
 
     assets = tmp_path_factory.mktemp("assets")
     scene: Scene = make_kitchen(assets)
@@ -25,7 +25,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory, make_kitchen):
 
 
 def test_culled_frames_match_and_show_patches(setup) -> None:
-    from factory.demos.execute import FrameRenderer, RecordConfig
+    from factory.demos.execute.cpu import FrameRenderer, RecordConfig
 
     cfg = RecordConfig(width=64, height=64)
     model = setup.model

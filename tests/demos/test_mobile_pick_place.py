@@ -15,8 +15,9 @@ pytest.importorskip("mink")
 
 from living_room import can, desk, living_room
 
-from factory.demos.grasps import Grasp
-from factory.demos.mobile_pick_place import (
+from factory.demos.plan.grasps import Grasp
+from factory.schema import Physics, Scene, SceneObject, Size3, Vec3
+from factory.tasks.mobile_pick_place import (
     ALL_CAMERAS,
     PLAN_TIMEOUT,
     SUBTASKS,
@@ -32,7 +33,6 @@ from factory.demos.mobile_pick_place import (
     mobile_task_objects,
     replay,
 )
-from factory.schema import Physics, Scene, SceneObject, Size3, Vec3
 
 ROOM_W, ROOM_L = 6.0, 5.0
 TABLE = (1.6, 2.5)
@@ -213,7 +213,7 @@ def test_enclosed_place_support_fails_with_nav_failed() -> None:
 @pytest.mark.slow
 def test_mobile_stage_cli(cli, tmp_path) -> None:
     """``stage=demos task=mobile_pick_place`` stores a mobile episode in the episode store."""
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.schema import scene_to_json
 
     scene = _living_room()

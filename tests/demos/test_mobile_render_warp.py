@@ -23,7 +23,8 @@ if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the expor
 pytest.importorskip("ompl")
 pytest.importorskip("mujoco_warp")
 
-from factory.demos.mobile_pick_place import (
+from factory.sim.fisheye import FisheyeSpec
+from factory.tasks.mobile_pick_place import (
     ALL_CAMERAS,
     FISHEYE_CAMERAS,
     MobileEpisodePlan,
@@ -34,7 +35,6 @@ from factory.demos.mobile_pick_place import (
     mobile_setup,
     render_frames,
 )
-from factory.sim.fisheye import FisheyeSpec
 
 HERE = Path(__file__).resolve().parent
 DEVICES = ["cpu", pytest.param("cuda:0", marks=pytest.mark.gpu)]
@@ -101,7 +101,7 @@ def test_warp_renderer_agrees_with_opengl(episode: dict[str, Any], device: str) 
     images alike within the stated tolerances; the frames of two recordings filling calls of
     3 worlds (one episode split over two calls, the last call padded) are drawn as one
     ``render`` of all their states draws them."""
-    from factory.demos.mobile_render_warp import WarpMobileRenderer
+    from factory.demos.execute.mobile_render_warp import WarpMobileRenderer
 
     setup, states = episode["setup"], episode["states"]
     cfg = MobileRecordConfig(fps=5.0, width=64, height=64)
@@ -192,7 +192,7 @@ def test_fisheye_markers_land_on_their_predicted_pixels_on_warp(device: str) -> 
     each pixel's ray length."""
     import mujoco
 
-    from factory.demos.mobile_render_warp import WarpMobileRenderer
+    from factory.demos.execute.mobile_render_warp import WarpMobileRenderer
 
     model = _marker_model()
     data = mujoco.MjData(model)
@@ -246,7 +246,7 @@ def test_fisheye_markers_land_on_their_predicted_pixels_on_warp(device: str) -> 
 def _state(model: Any, data: Any) -> np.ndarray:
     import mujoco
 
-    from factory.demos.mobile_pick_place import STATE_SPEC
+    from factory.tasks.mobile_pick_place import STATE_SPEC
 
     out = np.zeros(mujoco.mj_stateSize(model, STATE_SPEC))
     mujoco.mj_getState(model, data, out, STATE_SPEC)
@@ -261,7 +261,7 @@ def test_mobile_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
     planned and simulated in a worker process, rendered by MuJoCo Warp (CUDA where present,
     else Warp's CPU device), stored as the CPU path stores it."""
     from factory.assets import AssetLibrary
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.scenes.brain import AgentConfig, generate_scene
     from factory.schema import scene_to_json
 

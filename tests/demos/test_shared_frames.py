@@ -8,7 +8,14 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pytest
 
-from factory.demos.shared_frames import Arena, ArenaPool, SharedView, opened, share, supported
+from factory.demos.execute.shared_frames import (
+    Arena,
+    ArenaPool,
+    SharedView,
+    opened,
+    share,
+    supported,
+)
 
 pytestmark = pytest.mark.skipif(not supported(), reason="memfd_create is Linux only")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from factory.demos.world_schedule import (
+from factory.demos.execute.world_schedule import (
     WorldSchedule,
     packed_schedule,
     padded_schedule,

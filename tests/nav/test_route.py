@@ -228,9 +228,9 @@ def test_robot_numbers_are_the_mobile_robots() -> None:
     """:mod:`factory.nav.task_poses` keeps the robot's footprint and arm position as numbers
     (nav does not import the robot): they stay equal to the robot's."""
     pytest.importorskip("robosuite")
-    from factory.demos.mobile_robot import ARM_MOUNT, BASE_FOOTPRINT
-    from factory.demos.mobile_scene import CARRY_TOOL
     from factory.nav.task_poses import ARM_X, CARRY_X, MOBILE_FOOTPRINT
+    from factory.robots.mobile_panda import ARM_MOUNT, BASE_FOOTPRINT
+    from factory.tasks.mobile_pick_place.scene import CARRY_TOOL
 
     assert MOBILE_FOOTPRINT == BASE_FOOTPRINT
     assert (ARM_MOUNT[0], CARRY_TOOL[0]) == (ARM_X, CARRY_X)

@@ -12,7 +12,7 @@ pytest.importorskip("robosuite")
 pytest.importorskip("gymnasium")
 
 from factory.config import DemosConfig
-from factory.demos.episodes import EpisodeStore
+from factory.demos.record.episodes import EpisodeStore
 from factory.demos.stage import episode_seed
 from factory.policy.env import (
     EVAL_SEED_OFFSET,

@@ -17,7 +17,8 @@ import pytest
 for _mod in ("robosuite", "ruckig", "ompl", "mink"):
     pytest.importorskip(_mod)
 
-from factory.demos.mobile_pick_place import (  # noqa: E402
+from factory.policy.mobile_env import MobileObsSpec, MobileVecEnv  # noqa: E402
+from factory.tasks.mobile_pick_place import (  # noqa: E402
     ALL_CAMERAS,
     MobileEpisodePlan,
     MobilePlanner,
@@ -26,7 +27,6 @@ from factory.demos.mobile_pick_place import (  # noqa: E402
     mobile_setup,
     render_frames,
 )
-from factory.policy.mobile_env import MobileObsSpec, MobileVecEnv  # noqa: E402
 
 FPS = 10.0
 HERE = Path(__file__).resolve().parent

@@ -52,7 +52,7 @@ def _scene(root: Path, sid: str, source: str, description: str, renders: bool = 
 
 
 def _episode_store(root: Path, scene_id: str, n: int = 2) -> None:
-    from factory.demos.episodes import EpisodeStore
+    from factory.demos.record.episodes import EpisodeStore
     from factory.schema.episode import EpisodeInfo, RobotBase
 
     store = EpisodeStore(root / "episodes" / "shard-0.zarr")
