@@ -78,7 +78,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-MOBILE_TASK = "mobile_pick_place"
 """``Task.kind`` of a scene made for the mobile task."""
 MIN_SUPPORT_SEPARATION = 1.5
 """Least horizontal distance (m) between the centres of the pick's support and the place
@@ -158,11 +157,12 @@ class RouteCheck:
 
 
 def is_mobile_task(scene: Scene) -> bool:
-    """Whether a scene is made for the mobile task: its task's kind says so, or an object is
-    its place support."""
-    if scene.task is not None and scene.task.kind == MOBILE_TASK:
-        return True
-    return any(o.task_role == "place_support" for o in scene.objects)
+    """Whether a scene is made for a task whose robot drives between supports (a registered
+    task with :attr:`~factory.tasks.base.Task.drives_base` that claims the scene: its
+    ``task.kind``, or an object in its place-support role), so that it needs a route."""
+    from factory.tasks import tasks
+
+    return any(task.drives_base and task.claims(scene) for task in tasks())
 
 
 def support_separation(objects: MobileTaskObjects) -> float:
@@ -694,7 +694,6 @@ __all__ = [
     "BLOCKED",
     "HEADINGS",
     "MIN_SUPPORT_SEPARATION",
-    "MOBILE_TASK",
     "NO_PICK_POSE",
     "NO_PLACE_POSE",
     "NO_ROUTE",

@@ -395,9 +395,12 @@ TABLES = (
 
 
 def task_kind(spec: dict[str, Any]) -> str:
-    """The scene's ``Task.kind`` for a parsed task (``TaskSpec`` fields): ``mobile_pick_place``
-    for "move X from A to B" (two supports apart), else ``pick_place``."""
-    return "mobile_pick_place" if spec.get("source") else "pick_place"
+    """The scene's ``Task.kind`` for a parsed task (``TaskSpec`` fields): the registered task
+    whose :meth:`~factory.tasks.base.Task.matches_request` takes it ("move X from A to B", two
+    supports apart: the mobile task), else the default task."""
+    from factory.tasks import DEFAULT_TASK, tasks
+
+    return next((t.name for t in tasks() if t.matches_request(spec)), DEFAULT_TASK)
 
 
 def brief(result: dict[str, Any]) -> dict[str, Any]:
