@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from factory.tasks import DEFAULT_TASK
+
 
 @dataclass
 class ShardConfig:
@@ -594,7 +596,7 @@ class FactoryConfig:
     seed: int = 0
     force: bool = False
     log_level: str = "INFO"
-    task: str = "pick_place"
+    task: str = DEFAULT_TASK
     shard: ShardConfig = field(default_factory=ShardConfig)
     ingest: IngestConfig = field(default_factory=IngestConfig)
     assets: AssetsConfig = field(default_factory=AssetsConfig)

@@ -8,7 +8,9 @@ Convention for stage functions: the result dict (JSON-ready, recorded in the man
 * ``what``: a plural noun phrase, e.g. ``"episodes"``, ``"scenes generated"``; with
   ``count == 1`` its first word is made singular (``"1 episode"``). With ``count`` None the
   phrase stands alone (``"policy checkpoint"``).
-* ``path``: the file or folder to look at, absolute or relative to ``run_dir``.
+* ``path``: the file or folder to look at, absolute or relative to ``run_dir`` (a path built
+  from the run directory, such as ``store.root / "policy"``, is given absolute: with a relative
+  ``run_dir`` it would otherwise be read as relative to the run directory twice).
 * ``detail``: a few more words after a comma (``"479 frames"``, ``"success 90 %"``).
 
 Example: ``{"what": "episodes", "count": 2, "path": "dataset/merged", "detail": "479 frames"}``

@@ -109,7 +109,7 @@ def main() -> None:
         help=(
             "mobile_pick_place: living rooms; CPU executor: one episode at a time per worker; "
             "--executor warp: --workers processes plan and simulate, the GPU renders "
-            "(factory.demos.mobile_gpu_pipeline)"
+            "(factory.demos.gpu_pipeline, factory.demos.episode_execution)"
         ),
     )
     p.add_argument(

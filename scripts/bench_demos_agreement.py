@@ -25,9 +25,10 @@ def main() -> None:
     from factory.config import DemosConfig
     from factory.demos.execute.agreement import compare_executors
     from factory.demos.execute.cpu import RecordConfig
-    from factory.demos.stage import episode_seed, scene_planner
+    from factory.demos.record.slots import episode_seed
     from factory.errors import FactoryError
     from factory.store import RunStore
+    from factory.tasks.pick_place.demos import scene_planner
     from factory.tasks.pick_place.plan import EpisodePlan
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -339,3 +339,24 @@ def test_free_form_keys_take_new_keys_from_the_command_line(cli) -> None:
     out = cli("stage=list", "--cfg", "job", args[0])
     assert out.returncode == 0, out.stderr
     assert "chunk_size: 4" in out.stdout
+
+
+@pytest.mark.slow
+def test_summary_paths_with_relative_run_dir(small_run, cli, tmp_path: Path, monkeypatch) -> None:
+    """With a relative ``run_dir``, the summary table's paths are the files' own (no
+    ``runs/small/runs/small/...``): the report stage through the CLI on a copy of the README
+    run, and the row of the train stage."""
+    from factory.policy.train_stage import _produced
+    from factory.store import RunStore, Shard
+    from factory.summary import stage_rows
+
+    shutil.copytree(small_run.run_dir, tmp_path / "runs" / "small")
+    out = cli("stage=report", "run_dir=runs/small", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    rows = [ln.split() for ln in out.stderr.splitlines() if ln.startswith("  report ")]
+    assert rows and rows[-1][-1] == "runs/small/report.html", out.stderr[-1000:]
+    monkeypatch.chdir(tmp_path)
+    store = RunStore(Path("runs/small"))
+    result = {"produced": [_produced(store.root / "policy" / "diffusion_state")]}
+    (train,) = stage_rows("train", result, store, Shard(0, 1), log=False)
+    assert train.path == "runs/small/policy/diffusion_state/checkpoints/"

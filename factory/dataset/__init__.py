@@ -4,14 +4,14 @@ Importing this package imports numpy only; lerobot is imported by the functions 
 """
 
 from factory.dataset.card import write_card
+from factory.dataset.features import features_for
 from factory.dataset.lerobot_export import (
     export_store,
-    features_for,
     merge_datasets,
     pack_depth_mm,
     unpack_depth_mm,
 )
-from factory.dataset.mobile_features import episode_routes
+from factory.dataset.routes import episode_routes
 from factory.dataset.video import VideoCodec, lossless_codec, rgb_codec
 
 __all__ = [

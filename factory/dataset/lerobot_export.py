@@ -1,13 +1,9 @@
 """Episode stores -> LeRobot v3 datasets, with lerobot's own writer and aggregator.
 
-Features of every frame:
+One path writes every task's episodes. Features of every frame (:mod:`factory.dataset.features`):
 
-* ``observation.state`` (8,) float32: arm joints (rad) and the gripper opening (m);
-* ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
-* ``observation.environment_state`` (14,) float32: the pick object's position (m) and
-  quaternion wxyz, then the target's (the place container or support), world frame (body
-  frames of the two objects); datasets exported before it lack the feature and still load;
-* ``action`` (8,) float32: desired arm joints (rad) and the gripper command (m);
+* the task's (:meth:`~factory.tasks.base.Task.dataset_features`, e.g. the state, tool pose and
+  action: :mod:`factory.tasks.pick_place.dataset`, :mod:`factory.tasks.mobile_pick_place.dataset`);
 * ``observation.images.<camera>`` video (H, W, 3), h264;
 * ``observation.depth.<camera>`` video (H, W, 3), lossless RGB h264 packing uint16 millimetres
   as (high byte, low byte, 0); :func:`unpack_depth_mm` turns lerobot's (3, H, W) float tensor
@@ -22,13 +18,10 @@ with a codec per feature), so no frame is written as a PNG on the way.
 ``model.xml`` (with the meshes it uses under ``extras/assets/``), ``robot.json`` (base
 placement, cameras, objects cleared) and ``states.npz`` (MuJoCo integration states, exact
 replay); ``meta/factory.json`` names the scenes, seeds, episode ids (by dataset episode index)
-and the factory version.
-
-Mobile episodes (``task=mobile_pick_place``) get the features of
-:mod:`factory.dataset.mobile_features` instead (base pose in the state, 11 action columns,
-sub-task labels), and their entries in ``meta/factory.json`` the episode's navigation
-``route`` (:func:`~factory.dataset.mobile_features.episode_routes` reads them by dataset
-episode index); one dataset holds one layout.
+and the factory version, with the keys the task adds
+(:meth:`~factory.tasks.base.Task.dataset_meta`) and each episode's navigation ``route`` where it
+drove one (:mod:`factory.dataset.routes`). One dataset holds one layout
+(:mod:`factory.dataset.layout`).
 """
 
 from __future__ import annotations
@@ -43,22 +36,15 @@ from typing import Any
 
 import numpy as np
 
-from factory.dataset.mobile_features import (
-    MOBILE,
-    MOBILE_ROBOT_TYPE,
-    MOBILE_SUBTASKS,
-    ROUTE_KEY,
-    check_mobile_shapes,
+from factory.dataset.features import DEPTH_ENCODING, check_arrays, features_for, scalar_buffer
+from factory.dataset.layout import (
+    episode_task,
     layout_of,
-    mobile_columns,
-    mobile_features,
-    mobile_meta,
-    mobile_meta_of,
     one_layout,
     one_meta_layout,
-    route_entry,
-    scalar_buffer,
+    task_meta_of,
 )
+from factory.dataset.routes import ROUTE_KEY, route_entry
 from factory.dataset.video import VideoCodec, frame_encoder, lossless_codec, rgb_codec
 from factory.errors import StoreError
 
@@ -69,65 +55,6 @@ EXPORT_SCHEMA_VERSION = 4
 """Format of ``meta/factory.json`` and the features (3: ``observation.environment_state``;
 4: a mobile episode's entry in ``meta/factory.json`` holds its ``route``)."""
 VIDEO_FILE_MB = 4
-DEPTH_ENCODING = "mm = 256 * R + G (uint8 channels of a lossless RGB video)"
-ENV_STATE_NAMES = [
-    f"{obj}_{c}" for obj in ("pick", "target") for c in ("x", "y", "z", "qw", "qx", "qy", "qz")
-]
-"""Names of ``observation.environment_state`` (world frame; m and unit quaternions)."""
-
-
-def features_for(info: Any, depth: bool = True) -> dict[str, dict[str, Any]]:
-    """The LeRobot feature spec of episodes shaped like ``info`` (an ``EpisodeInfo``)."""
-    h, w = info.image_size
-    feats: dict[str, dict[str, Any]] = {
-        "observation.state": {
-            "dtype": "float32",
-            "shape": (8,),
-            "names": [f"joint{i}" for i in range(1, 8)] + ["gripper"],
-        },
-        "observation.ee_pose": {
-            "dtype": "float32",
-            "shape": (7,),
-            "names": ["x", "y", "z", "qw", "qx", "qy", "qz"],
-        },
-        "observation.environment_state": {
-            "dtype": "float32",
-            "shape": (14,),
-            "names": ENV_STATE_NAMES,
-        },
-        "action": {
-            "dtype": "float32",
-            "shape": (8,),
-            "names": [f"joint{i}" for i in range(1, 8)] + ["gripper"],
-        },
-    }
-    for cam in info.cameras:
-        feats[f"observation.images.{cam}"] = {
-            "dtype": "video",
-            "shape": (h, w, 3),
-            "names": ["height", "width", "channels"],
-        }
-        if depth:
-            # Millimetres packed into a lossless RGB video (high byte, low byte, 0): exact, and
-            # as cheap to write and to decode as the camera streams. unpack_depth_mm() reads it.
-            # lerobot cannot describe a gbrp stream itself, so the video info is given here.
-            feats[f"observation.depth.{cam}"] = {
-                "dtype": "video",
-                "shape": (h, w, 3),
-                "names": ["height", "width", "channels"],
-                "info": {
-                    "video.height": h,
-                    "video.width": w,
-                    "video.codec": "h264",
-                    "video.pix_fmt": "gbrp",
-                    "video.is_depth_map": True,
-                    "video.fps": round(info.fps),
-                    "video.channels": 3,
-                    "has_audio": False,
-                    "depth_encoding": DEPTH_ENCODING,
-                },
-            }
-    return feats
 
 
 def depth_mm(depth: np.ndarray) -> np.ndarray:
@@ -156,44 +83,6 @@ def unpack_depth_mm(image: Any) -> np.ndarray:
     if arr.dtype != np.uint8:
         arr = np.round(np.moveaxis(arr, 0, -1) * 255.0).astype(np.uint8)
     return (arr[..., 0].astype(np.uint16) << 8) | arr[..., 1].astype(np.uint16)
-
-
-def environment_state(info: Any, group: Any, scene_json: bytes) -> np.ndarray:
-    """``observation.environment_state`` of an episode, (F, 14) float32.
-
-    The recorded ``env_state`` array when the store has it; stores recorded before it get it
-    from the MuJoCo states: a free body's qpos is its world position and quaternion, and the
-    compiled model gives every movable object of the scene (without the cleared ones) a free
-    joint in scene order, ahead of the robot's joints.
-
-    Raises:
-        StoreError: neither the array nor usable states (re-record the episode).
-    """
-    if "env_state" in group:
-        out = np.asarray(group["env_state"][:], np.float32)
-        if out.shape != (info.n_frames, 14):
-            raise StoreError(
-                f"episode {info.episode_id!r}: env_state has shape {out.shape}, expected "
-                f"({info.n_frames}, 14) (re-record the episode)"
-            )
-        return out
-    from factory.schema.scene import scene_from_json
-
-    scene = scene_from_json(scene_json.decode(), f"scene of episode {info.episode_id}")
-    movable = [o.id for o in scene.objects if not o.is_static and o.id not in info.cleared]
-    state = np.asarray(group["state"][:], np.float64)
-    parts = []
-    for oid in (info.pick_id, info.target_id):
-        if oid not in movable or 1 + 7 * (movable.index(oid) + 1) > state.shape[1]:
-            raise StoreError(
-                f"episode {info.episode_id!r} has no env_state and its states do not hold "
-                f"{oid!r} as a free body: re-record it with this factory (stage=demos)"
-            )
-        adr = 1 + 7 * movable.index(oid)  # the state starts with time, then qpos
-        pose = state[:, adr : adr + 7].copy()
-        pose[:, 3:] /= np.linalg.norm(pose[:, 3:], axis=1, keepdims=True)
-        parts.append(pose)
-    return np.concatenate(parts, axis=1).astype(np.float32)
 
 
 def _link_or_copy(src: str, dst: str) -> None:
@@ -261,27 +150,6 @@ def _factory_meta(
         "state_spec": state_spec,
         **(extra or {}),
     }
-
-
-def _check_shapes(info: Any, group: Any) -> None:
-    h, w = info.image_size
-    n = info.n_frames
-    expect: dict[str, tuple[int, ...]] = {
-        "joint_pos": (n, 7),
-        "gripper": (n, 1),
-        "ee_pose": (n, 7),
-        "action": (n, 8),
-    }
-    for cam in info.cameras:
-        expect[f"rgb/{cam}"] = (n, h, w, 3)
-        expect[f"depth/{cam}"] = (n, h, w)
-    for name, shape in expect.items():
-        got = tuple(group[name].shape) if name in group else None
-        if got != shape:
-            raise StoreError(
-                f"episode {info.episode_id!r}: array {name!r} has shape {got}, expected {shape} "
-                "(re-record the episode)"
-            )
 
 
 class _ExtrasWriter:
@@ -370,8 +238,7 @@ class _ExtrasWriter:
 
 def _episode_entry(index: int, info: Any) -> dict[str, Any]:
     """An episode's entry in ``meta/factory.json``: its dataset index, id, scene, seed and
-    length; a mobile episode adds its ``route`` (``EpisodeInfo.route``:
-    :func:`~factory.dataset.mobile_features.route_entry`)."""
+    length; an episode that drove a route adds it (:func:`~factory.dataset.routes.route_entry`)."""
     entry: dict[str, Any] = {
         "episode_index": index,
         "episode_id": info.episode_id,
@@ -379,7 +246,7 @@ def _episode_entry(index: int, info: Any) -> dict[str, Any]:
         "seed": info.seed,
         "n_frames": info.n_frames,
     }
-    if getattr(info, "route", None):
+    if info.route:
         entry[ROUTE_KEY] = route_entry(info)
     return entry
 
@@ -413,7 +280,7 @@ def export_store(
 
     Raises:
         StoreError: an episode has wrong shapes, a scene is missing, or the store is empty.
-        MixedLayoutError: the episodes mix fixed-base and mobile ones.
+        MixedLayoutError: the episodes mix layouts (fixed-base and mobile ones).
     """
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
@@ -429,12 +296,10 @@ def export_store(
                 f"episode {info.episode_id!r} differs from {first.episode_id!r} in image size, "
                 "cameras or fps: one dataset needs one shape"
             )
-    layout = one_layout(layout_of(i, store.arrays(i.episode_id)) for i in infos)
-    mobile = layout == MOBILE
-    features = features_for(first)
-    if mobile:
-        features = mobile_features(first, store.arrays(first.episode_id), features)
-        log.info("dataset %s: mobile episodes (%s)", dest.name, ", ".join(MOBILE_SUBTASKS))
+    one_layout(layout_of(i) for i in infos)
+    task = episode_task(first)
+    features = features_for(task, first, store.arrays(first.episode_id))
+    log.info("dataset %s: %s episodes", dest.name, task.name)
     tmp = _fresh_tmp(dest)
     rgb = rgb or rgb_codec()
     codecs = {
@@ -447,7 +312,7 @@ def export_store(
         fps=round(first.fps),
         features=features,
         root=tmp,
-        robot_type=MOBILE_ROBOT_TYPE if mobile else "franka_panda",
+        robot_type=task.robot_type(),
         use_videos=True,
         vcodec="h264",
         streaming_encoding=True,
@@ -469,48 +334,18 @@ def export_store(
         )
         for index, info in enumerate(bar):
             group = store.arrays(info.episode_id)
-            if mobile:
-                check_mobile_shapes(info, group, features)
-                columns = mobile_columns(info, group)
-                rgb_frames = {c: group[f"rgb/{c}"][:] for c in info.cameras}
-                depth = {c: pack_depth_mm(depth_mm(group[f"depth/{c}"][:])) for c in info.cameras}
-                for f in range(info.n_frames):
-                    row: dict[str, Any] = {key: col[f] for key, col in columns.items()}
-                    row["task"] = info.instruction
-                    for c in info.cameras:
-                        row[f"observation.images.{c}"] = rgb_frames[c][f]
-                        row[f"observation.depth.{c}"] = depth[c][f]
-                    ds.add_frame(row)
-                scalar_buffer(ds.episode_buffer)
-                ds.save_episode()
-                extras.write(info, group)
-                episodes.append(_episode_entry(index, info))
-                continue
-            _check_shapes(info, group)
-            state = np.concatenate(
-                [
-                    np.asarray(group["joint_pos"][:], np.float32),
-                    np.asarray(group["gripper"][:], np.float32),
-                ],
-                axis=1,
-            )
-            ee = np.asarray(group["ee_pose"][:], np.float32)
-            env_state = environment_state(info, group, extras.scene_bytes(info))
-            act = np.asarray(group["action"][:], np.float32)
+            check_arrays(task, info, group, features)
+            columns = task.episode_columns(info, group, extras.scene_bytes(info))
             rgb_frames = {c: group[f"rgb/{c}"][:] for c in info.cameras}
             depth = {c: pack_depth_mm(depth_mm(group[f"depth/{c}"][:])) for c in info.cameras}
             for f in range(info.n_frames):
-                frame: dict[str, Any] = {
-                    "observation.state": state[f],
-                    "observation.ee_pose": ee[f],
-                    "observation.environment_state": env_state[f],
-                    "action": act[f],
-                    "task": info.instruction,
-                }
+                frame: dict[str, Any] = {key: col[f] for key, col in columns.items()}
+                frame["task"] = info.instruction
                 for c in info.cameras:
                     frame[f"observation.images.{c}"] = rgb_frames[c][f]
                     frame[f"observation.depth.{c}"] = depth[c][f]
                 ds.add_frame(frame)
+            scalar_buffer(ds.episode_buffer, features)
             ds.save_episode()
             extras.write(info, group)
             episodes.append(_episode_entry(index, info))
@@ -522,7 +357,7 @@ def export_store(
             episodes,
             {key: codec.__dict__ for key, codec in codecs.items()},
             first.state_spec,
-            {**mobile_meta(), **(extra_meta or {})} if mobile else extra_meta,
+            {**task.dataset_meta(), **(extra_meta or {})},
         )
         (tmp / FACTORY_META).write_text(json.dumps(meta, indent=1))
     except BaseException:
@@ -555,7 +390,7 @@ def merge_datasets(
 
     Raises:
         StoreError: two shards hold the same episode, or a shard is not a finished export.
-        MixedLayoutError: fixed-base and mobile shards are mixed.
+        MixedLayoutError: shards of different layouts (fixed-base and mobile) are mixed.
     """
     from lerobot.datasets.aggregate import aggregate_datasets
     from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
@@ -611,7 +446,7 @@ def merge_datasets(
             metas[0].get("video", {}),
             metas[0]["state_spec"],
             {
-                **mobile_meta_of(metas[0]),
+                **task_meta_of(metas[0]),
                 "shards": [d.name for d in shard_dirs],
                 **(extra_meta or {}),
             },

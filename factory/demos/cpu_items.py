@@ -1,8 +1,14 @@
 """``stage=demos`` on the CPU executor: one work item (a scene and some of its episode slots)
-planned, executed, recorded and stored in one process (:func:`run_item`).
+planned, executed, recorded and stored in one process (:func:`run_item`), for every task.
 
-The stage runs items in worker processes (:func:`run_item_logged`); the GPU pipeline hands the
-episodes that failed in its execution to the same function, with the attempts they have left.
+The item's scene comes from the task (:func:`~factory.demos.execution.cached_scene`); in
+rounds, the open slots of a round (:attr:`~factory.demos.execution.Execution.round_slots`:
+all of them for a batch of worlds, one for a task that simulates an episode at a time) are
+planned with their slot's next seed, executed and recorded together by the task's
+:class:`~factory.demos.execution.CpuRecorder`, and the successes stored; a failed slot is
+tried again with its next seed up to ``demos.attempts`` times. The stage runs items in worker
+processes (:func:`run_item_logged`); the GPU pipeline hands the episodes that failed in its
+execution to the same function, with the attempts they have left.
 """
 
 from __future__ import annotations
@@ -10,18 +16,11 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from factory.demos.slots import (
-    StageEnv,
-    WorkItem,
-    cached_setup,
-    episode_id,
-    episode_instruction,
-    episode_payload,
-    episode_seed,
-    item_stats,
-    record_config,
-)
+from factory.demos.execution import cached_scene, execution_of
+from factory.demos.record.slots import StageEnv, WorkItem, episode_id, episode_seed, item_stats
 from factory.errors import FactoryError
+
+__all__ = ["run_item", "run_item_logged"]
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +28,8 @@ log = logging.getLogger(__name__)
 def run_item(
     env: StageEnv, item: WorkItem, first_attempts: dict[int, int] | None = None
 ) -> dict[str, Any]:
-    """Fills the item's slots (in a worker process or inline); returns its statistics.
+    """Fills the item's slots (in a worker process or inline); returns its statistics
+    (:func:`~factory.demos.record.slots.item_stats`, and the scene's summary keys).
 
     Args:
         env: the stage's settings.
@@ -37,74 +37,72 @@ def run_item(
         first_attempts: slot -> the attempt (seed) to start from (default 0): the GPU
             executor's retries continue where its own attempts stopped.
     """
-    from factory.demos.execute.cpu import FrameRenderer, execute
-    from factory.demos.record.appearance import episode_looks, setup_index
     from factory.demos.record.episodes import EpisodeStore
-    from factory.tasks.pick_place.plan import EpisodePlan
+    from factory.tasks import get_task
 
-    if env.task == "mobile_pick_place":  # CPU path, one episode at a time
-        from factory.demos.mobile_items import run_mobile_item
-
-        return run_mobile_item(env, item)
     dc = env.demos
-    out: dict[str, Any] = item_stats(item.scene_id)
-    try:
-        setup, planner = cached_setup(env, item.scene_id)
-    except FactoryError as e:
-        out["error"] = str(e)
-        out["failures"]["scene_unusable"] += len(item.slots)
-        return out
-    out["robot_base"] = [setup.placement.x, setup.placement.y, setup.placement.yaw]
-    out["cleared"] = list(setup.cleared)
-    rec_cfg = record_config(dc)
+    sid = item.scene_id
+    out: dict[str, Any] = item_stats(sid)
     store = EpisodeStore(env.store_path)
-    renderer = FrameRenderer(setup.model, rec_cfg) if rec_cfg.render else None
-    look_index = setup_index(setup, rec_cfg.cameras) if rec_cfg.render else None
-    instruction = episode_instruction(setup)
     attempt = {k: (first_attempts or {}).get(k, 0) for k in item.slots}
     open_slots = [
-        k
-        for k in item.slots
-        if episode_id(item.scene_id, k) not in store and attempt[k] < dc.attempts
+        k for k in item.slots if episode_id(sid, k) not in store and attempt[k] < dc.attempts
     ]
+    if not open_slots:
+        return out
     try:
-        while open_slots:
-            planned: list[tuple[int, int, EpisodePlan]] = []
-            for k in open_slots:
-                seed = episode_seed(env.seed, item.scene_id, k, attempt[k])
-                res = planner.plan_episode(seed, dc.randomize)
-                if isinstance(res, EpisodePlan):
-                    planned.append((k, seed, res))
-                    out["plan"].append(res.seconds)
-                    out["segments"].extend(res.plan_seconds.values())
-                else:
+        scene = cached_scene(env, sid)
+    except FactoryError as e:
+        out["error"] = str(e)
+        out["failures"]["scene_unusable"] += len(open_slots)
+        return out
+    out.update(scene.summary())
+    execution = execution_of(get_task(env.task))
+    size = execution.round_slots or len(open_slots)
+    recorder = execution.cpu_recorder(scene, env)
+    try:
+        for start in range(0, len(open_slots), size):
+            slots = open_slots[start : start + size]
+            while slots:
+                planned: list[tuple[int, int, Any]] = []
+                for k in slots:
+                    seed = episode_seed(env.seed, sid, k, attempt[k])
+                    res = scene.plan(seed)
+                    if isinstance(res, scene.plan_type):
+                        planned.append((k, seed, res))
+                        out["plan"].append(res.seconds)
+                        out["segments"].extend(res.plan_seconds.values())
+                        continue
                     out["failures"][res.reason] += 1
-                    log.info("scene %s slot %d: plan failed: %s", item.scene_id, k, res.detail)
-            looks = None
-            if look_index is not None:
-                seeds = [seed for _, seed, _ in planned]
-                looks = episode_looks(setup.model, look_index, dc.appearance, seeds)
-            plans = [p for _, _, p in planned]
-            recs = execute(setup, plans, rec_cfg, env.nthread, renderer, looks)
-            done: set[int] = set()
-            for (k, seed, plan), rec in zip(planned, recs, strict=True):
-                out["simulate"] += rec.sim_seconds
-                out["render"] += rec.render_seconds
-                assert rec.outcome is not None
-                if not rec.outcome.success:
-                    out["failures"][rec.outcome.reason] += 1
-                    continue
-                store.write(*episode_payload(env, setup, k, seed, plan, rec, rec_cfg, instruction))
-                out["frames"] += len(rec.time)
-                done.add(k)
-                out["new"] += 1
-            for k in open_slots:
-                if k not in done:
-                    attempt[k] += 1
-            open_slots = [k for k in open_slots if k not in done and attempt[k] < dc.attempts]
+                    log.info(
+                        "scene %s slot %d attempt %d: %s after %.1f s of planning: %s",
+                        sid,
+                        k,
+                        attempt[k],
+                        res.reason,
+                        res.seconds,
+                        res.detail,
+                    )
+                done: set[int] = set()
+                recs = recorder.execute(planned, attempt) if planned else []
+                for (k, seed, plan), rec in zip(planned, recs, strict=True):
+                    out["simulate"] += rec.sim_seconds
+                    out["render"] += rec.render_seconds
+                    assert rec.outcome is not None
+                    if not rec.outcome.success:
+                        out["failures"][rec.outcome.reason] += 1
+                        log.debug("scene %s slot %d: %s", sid, k, rec.outcome.details)
+                        continue
+                    store.write(*scene.payload(k, seed, plan, rec, recorder.rec_cfg))
+                    out["frames"] += len(rec.time)
+                    out["new"] += 1
+                    done.add(k)
+                for k in slots:
+                    if k not in done:
+                        attempt[k] += 1
+                slots = [k for k in slots if k not in done and attempt[k] < dc.attempts]
     finally:
-        if renderer is not None:
-            renderer.close()
+        recorder.close()
     return out
 
 

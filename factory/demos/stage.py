@@ -1,14 +1,16 @@
-"""``stage=demos``: planned, executed and recorded demonstrations in every scene of a run.
+"""``stage=demos``: planned, executed and recorded demonstrations in every scene of a run, for
+the task ``task=<name>`` (:func:`factory.tasks.get_task`).
 
 Work is split into items: a scene and a chunk of up to ``demos.batch`` of its episode slots
-that are not stored yet. An item chooses the robot's base spot (deterministic per scene), then
-in rounds plans every open slot (new object poses and seeds), executes the plans together in
-one batched simulation, checks success and stores the successful episodes in
-``episodes/shard-<k>.zarr``; failed slots are tried again up to ``demos.attempts`` times.
-Items run in ``demos.workers`` processes (each with its own simulation and GL context), or in
-this process. A scene that cannot host the task (objects missing, no base spot) is reported
-with its reason and the run goes on. Re-running skips stored episodes, so an interrupted run
-resumes.
+that are not stored yet. An item sets up the task's scene (the robot's base spot is
+deterministic per scene), then in rounds plans its open slots (seeds per slot and attempt),
+executes and records the plans the way the task's execution model says, checks success and
+stores the successful episodes in ``episodes/shard-<k>.zarr``; failed slots are tried again
+up to ``demos.attempts`` times (:mod:`factory.demos.cpu_items`). Items run in
+``demos.workers`` processes (each with its own simulation and GL context), or in this process;
+with ``demos.executor=warp`` the GPU pipeline takes them (:mod:`factory.demos.gpu_pipeline`).
+A scene that cannot host the task (objects missing, no base spot) is reported with its reason
+and the run goes on. Re-running skips stored episodes, so an interrupted run resumes.
 """
 
 from __future__ import annotations
@@ -26,39 +28,22 @@ import numpy as np
 from factory.config import DemosConfig
 from factory.context import StageContext
 from factory.demos.cpu_items import run_item, run_item_logged
-from factory.demos.slots import (
-    StageEnv,
-    WorkItem,
-    episode_id,
-    episode_seed,
-    scene_planner,
-)
+from factory.demos.record.slots import StageEnv, WorkItem, episode_id
 from factory.errors import ConfigError, StoreError
 from factory.store import atomic_write_json
+from factory.tasks import get_task
 
-__all__ = [
-    "EXECUTORS",
-    "TASKS",
-    "check_config",
-    "episode_seed",
-    "resolve_executor",
-    "run",
-    "scene_planner",
-]
+__all__ = ["EXECUTORS", "check_config", "resolve_executor", "run"]
 
 log = logging.getLogger(__name__)
 
-TASKS: dict[str, str] = {
-    "pick_place": "pick up an object and put it in or on a target",
-    "mobile_pick_place": "drive to an object, pick it, carry it to another support, place it",
-}
-"""Robot tasks ``stage=demos`` can record (``task=<name>``)."""
-
 EXECUTORS: dict[str, str] = {
     "auto": "warp when CUDA is present, else cpu",
-    "cpu": "mujoco.batch threads + EGL/OSMesa rendering (factory.demos.execute.cpu)",
-    "warp": "MuJoCo Warp worlds + its batch renderer (factory.demos.execute.warp; the mobile "
-    "task: CPU simulation, Warp rendering, factory.demos.mobile_gpu_pipeline)",
+    "cpu": "the CPU: mujoco.batch threads + EGL/OSMesa rendering (factory.demos.execute.cpu), "
+    "or the task's own simulation an episode at a time",
+    "warp": "the GPU pipeline (factory.demos.gpu_pipeline): MuJoCo Warp worlds + its batch "
+    "renderer (factory.demos.execute.warp), or the task's simulation on the CPU and Warp "
+    "rendering (factory.demos.execute.mobile_render_warp)",
 }
 """``demos.executor`` values."""
 
@@ -80,9 +65,9 @@ def resolve_executor(name: str) -> str:
 
 
 def check_config(dc: DemosConfig, task: str) -> None:
-    """Raises :class:`ConfigError` naming a bad ``demos.*`` value or task."""
-    if task not in TASKS:
-        raise ConfigError(f"unknown task {task!r}: choose one of {', '.join(TASKS)}")
+    """Raises :class:`ConfigError` naming a bad ``demos.*`` value or task (the registry's
+    error, listing the tasks)."""
+    get_task(task)
     if dc.executor not in EXECUTORS:
         raise ConfigError(
             f"demos.executor={dc.executor!r} is unknown: choose one of {', '.join(EXECUTORS)}"
@@ -152,7 +137,6 @@ def run(ctx: StageContext) -> dict[str, Any]:
             items.append(WorkItem(sid, tuple(todo[start : start + dc.batch])))
     cores = os.cpu_count() or 1
     executor = resolve_executor(dc.executor)
-    mobile = cfg.task == "mobile_pick_place"
     if executor == "warp":
         workers = dc.workers or max(1, cores - 1)
     else:
@@ -165,11 +149,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     desc = "demos (gpu)" if executor == "warp" else "demos"
     with tqdm(total=total, desc=desc, unit="episode", disable=None, file=terminal()) as bar:
         try:
-            if executor == "warp" and items and mobile:
-                from factory.demos.mobile_gpu_pipeline import run_mobile_gpu
-
-                results = run_mobile_gpu(env, items, workers, bar)
-            elif executor == "warp" and items:
+            if executor == "warp" and items:
                 from factory.demos.gpu_pipeline import run_gpu
 
                 results = run_gpu(env, items, workers, bar)

@@ -15,7 +15,7 @@ _LAZY: dict[str, str] = {
     "PickPlaceVectorEnv": "factory.policy.env",
     "make_vec_env": "factory.policy.env",
     "eval_seed": "factory.policy.env",
-    "ObsSpec": "factory.policy.vector_env",
+    "ObsSpec": "factory.policy.obs_spec",
     "PickPlaceVecEnv": "factory.policy.vector_env",
 }
 """Public name -> the module that defines it."""

@@ -405,8 +405,8 @@ def _check_mobile_layout(info: TrainInfo, cfg: Any, path: Path) -> None:
     Raises:
         PolicyError: names the retraining.
     """
-    from factory.dataset.mobile_features import SUBTASK_KEY
     from factory.policy.inputs import MOBILE_ROBOT_DIM
+    from factory.tasks.mobile_pick_place.dataset import SUBTASK_KEY
 
     if SUBTASK_KEY not in info.features:
         return

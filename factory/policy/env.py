@@ -1,12 +1,15 @@
-"""The gymnasium env of ``task=pick_place`` in a scene of a run, and how it is made.
+"""The gymnasium envs of a task in a scene of a run, and how they are made.
 
 :class:`PickPlaceEnv` is one episode at a time (``gymnasium.Env``) over the batched
-:class:`~factory.policy.vector_env.PickPlaceVecEnv` with one simulation; ``stage=eval`` uses the
-batched form directly. Both load a scene of a run exactly as ``stage=demos`` records it
-(:func:`factory.demos.stage.scene_planner`): composed model, robot base spot, cleared objects,
-cameras, island sleeping.
+:class:`~factory.policy.vector_env.PickPlaceVecEnv` with one simulation, and
+:class:`PickPlaceVectorEnv` a ``gymnasium.vector.VectorEnv`` over it; ``stage=eval`` uses the
+batched form directly. They run any registered task (``task``, default the default task's;
+:mod:`factory.tasks`), its scene loaded exactly as ``stage=demos`` records it
+(:meth:`~factory.tasks.base.Task.env_scene`: composed model, robot base spot, cleared objects,
+cameras, island sleeping).
 
-Observation (dict, keyed like the dataset's features; numpy, no batch axis here):
+Observation (dict, keyed like the dataset's features; numpy, no batch axis here;
+:class:`~factory.policy.obs_spec.ObsSpec`), e.g. of ``task=pick_place``:
 
 * ``observation.state`` float32 (8,): arm joints (rad) + gripper opening (m);
 * ``observation.ee_pose`` float32 (7,): tool site position (m) + quaternion wxyz, world frame;
@@ -15,21 +18,24 @@ Observation (dict, keyed like the dataset's features; numpy, no batch axis here)
 * ``observation.images.<cam>`` uint8 (H, W, 3) and ``observation.depth.<cam>`` uint16 (H, W)
   millimetres for the cameras asked for.
 
+``task=mobile_pick_place`` observes an 11-D state (+ base x, y, yaw) and ``subtask_index``,
+and acts with 11-D actions (+ the base target; :mod:`factory.tasks.mobile_pick_place.env`).
+
 Action: float32 (8,): desired arm joints (rad) at the end of the frame + gripper command (m;
 0.08 open, negative squeezes), as the dataset's ``action``. ``info`` carries ``is_success``,
 ``reason`` (the success check's failure reason, empty on success or while running), ``seed``
 and ``steps``.
 
 Seeds: ``reset(seed=s)`` places the objects with the demos' sampler and
-``np.random.default_rng(s)``, so seed ``s`` gives the configuration the demos would record
-with that seed. The demos draw 32-bit seeds (below ``2**32``); evaluation seeds start at
-:data:`EVAL_SEED_OFFSET` = ``2**32`` (:func:`eval_seed`), so the two never meet.
+``np.random.default_rng(s)`` (the mobile task: the planner's spawn of seed ``s``), so seed
+``s`` gives the configuration the demos would record with that seed. The demos draw 32-bit
+seeds (below ``2**32``); evaluation seeds start at :data:`EVAL_SEED_OFFSET` = ``2**32``
+(:func:`eval_seed`), so the two never meet.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import logging
 from dataclasses import replace
 from pathlib import Path
@@ -40,7 +46,9 @@ import numpy as np
 
 from factory.config import DemosConfig
 from factory.errors import StoreError, TaskError
-from factory.policy.vector_env import ObsSpec, PickPlaceVecEnv
+from factory.policy.obs_spec import ObsSpec, obs_spec_of_dataset, obs_spec_of_demos
+from factory.policy.vector_env import PickPlaceVecEnv
+from factory.tasks import DEFAULT_TASK, get_task
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +56,6 @@ EVAL_SEED_OFFSET = 2**32
 """Evaluation seeds are >= this; the demos' seeds are 32-bit (< this)."""
 RESEED_STRIDE = 2**40
 """A seed whose configuration cannot be placed is replaced by ``seed + k * RESEED_STRIDE``."""
-CAMERAS = ("left", "right", "wrist")
 
 
 def eval_seed(root: int, scene_id: str, index: int) -> int:
@@ -69,105 +76,45 @@ def demos_config_of(run_dir: str | Path) -> DemosConfig:
     return DemosConfig(**values)
 
 
-def dataset_features(root: str | Path) -> dict[str, Any]:
-    """``features`` and ``fps`` of a LeRobot dataset (``meta/info.json``), without lerobot.
-
-    Raises:
-        StoreError: the folder holds no LeRobot dataset.
-    """
-    path = Path(root) / "meta" / "info.json"
-    if not path.is_file():
-        raise StoreError(f"{root} is not a LeRobot dataset (no meta/info.json): run stage=dataset")
-    info = json.loads(path.read_text())
-    return {"fps": info["fps"], "features": info["features"]}
-
-
-def obs_spec_of_dataset(root: str | Path, env_state: bool | None = None) -> ObsSpec:
-    """The observation spec matching a dataset's features (fps, cameras, image size, depth).
-
-    Args:
-        root: the dataset folder (``dataset/merged``).
-        env_state: observe ``observation.environment_state``; None: when the dataset has it.
-    """
-    meta = dataset_features(root)
-    feats = meta["features"]
-    cams = tuple(c for c in CAMERAS if f"observation.images.{c}" in feats)
-    h, w = (feats[f"observation.images.{cams[0]}"]["shape"][:2]) if cams else (128, 128)
-    depth = any(f"observation.depth.{c}" in feats for c in cams)
-    has_env = "observation.environment_state" in feats
-    return ObsSpec(
-        fps=float(meta["fps"]),
-        cameras=cams,
-        width=int(w),
-        height=int(h),
-        depth=depth,
-        env_state=has_env if env_state is None else env_state,
-    )
-
-
-def obs_spec_of_demos(dc: DemosConfig, env_state: bool = False) -> ObsSpec:
-    """The observation spec of what ``stage=demos`` records with ``dc``."""
-    return ObsSpec(
-        fps=dc.fps,
-        cameras=tuple(dc.cameras) if dc.render else (),
-        width=dc.width,
-        height=dc.height,
-        depth=dc.render,
-        env_state=env_state,
-    )
-
-
-def instruction_of(setup: Any) -> str:
-    """The task instruction the demos record for a scene's setup."""
-    scene, objects = setup.scene, setup.objects
-    if scene.task and scene.task.instruction:
-        return str(scene.task.instruction)
-    pick = objects.pick.category.replace("_", " ")
-    target = objects.target.category.replace("_", " ")
-    return f"put the {pick} {objects.relation} the {target}"
-
-
 def make_vec_env(
     run_dir: str | Path,
     scene_id: str,
     num_envs: int = 1,
     spec: ObsSpec | None = None,
-    max_steps: int = 400,
+    max_steps: int | None = None,
     nthread: int = 0,
     interpolate: bool = True,
     dc: DemosConfig | None = None,
+    task: str | None = None,
 ) -> tuple[PickPlaceVecEnv, Any]:
-    """A batched env of a scene of a run, and the scene's planner (the privileged agent).
+    """A batched env of a scene of a run, and the scene's planner (the privileged agent), set
+    up exactly as ``stage=demos task=<task>`` sets the scene up.
 
     Args:
         run_dir: the run directory; scene_id: a scene under ``scenes/``.
         num_envs: episodes run at once; spec: what to observe (default: the demos' cameras).
-        max_steps: frames per episode before truncation.
-        nthread: simulation threads (0: one per core).
-        interpolate: the controller's first-order hold (see :mod:`factory.policy.vector_env`).
+        max_steps: frames per episode before truncation (default: the task's,
+            :attr:`~factory.tasks.base.Task.env_max_steps`).
+        nthread: simulation threads (0: one per core) of a task stepped on one batch.
+        interpolate: the controller's first-order hold (see the task's env module).
         dc: the demos' settings (default: the run's, :func:`demos_config_of`).
+        task: the task (default: ``spec``'s, else the default task).
 
     Raises:
         StoreError: no such scene; TaskError: the scene cannot host the task.
     """
-    from factory.demos.stage import scene_planner
+    from factory.policy.vector_env import task_sim
 
+    name = task or (spec.task if spec is not None else DEFAULT_TASK)
+    t = get_task(name)
     run_dir = Path(run_dir)
     if not (run_dir / "scenes" / scene_id / "scene.json").is_file():
         raise StoreError(f"no scene {scene_id!r} in {run_dir / 'scenes'}: check the scene id")
     dc = dc or demos_config_of(run_dir)
-    setup, planner = scene_planner(run_dir, scene_id, dc)
-    env = PickPlaceVecEnv(
-        setup,
-        num_envs,
-        spec or obs_spec_of_demos(dc),
-        max_steps=max_steps,
-        nthread=nthread,
-        interpolate=interpolate,
-        ws=planner.ws,
-        instruction=instruction_of(setup),
-    )
-    return env, planner
+    setup, planner = t.env_scene(run_dir, scene_id, dc)
+    spec = spec or obs_spec_of_demos(dc, task=name)
+    sim = task_sim(t, setup, planner, num_envs, spec, nthread, interpolate)
+    return PickPlaceVecEnv(sim, max_steps, t.env_instruction(setup)), planner
 
 
 def _box(shape: tuple[int, ...], dtype: str) -> gym.spaces.Box:
@@ -178,28 +125,27 @@ def _box(shape: tuple[int, ...], dtype: str) -> gym.spaces.Box:
     return gym.spaces.Box(-np.inf, np.inf, shape, np.float32)
 
 
-def action_space() -> gym.spaces.Box:
-    """The 8-D action: arm joint targets within the Panda's limits (rad), gripper command
-    from squeezing shut to open (m)."""
-    from factory.robots.panda import GRIP_CLOSED, GRIP_OPEN, PANDA
-
-    low = np.array([*PANDA.q_min, GRIP_CLOSED], np.float32)
-    high = np.array([*PANDA.q_max, GRIP_OPEN], np.float32)
-    return gym.spaces.Box(low, high, (8,), np.float32)
+def action_space(task: str = DEFAULT_TASK) -> gym.spaces.Box:
+    """The task's action (:meth:`~factory.tasks.base.Task.env_action_bounds`): of
+    ``task=pick_place``, arm joint targets within the Panda's limits (rad) and the gripper
+    command from squeezing shut to open (m)."""
+    low, high = get_task(task).env_action_bounds()
+    return gym.spaces.Box(low, high, low.shape, np.float32)
 
 
 class PickPlaceEnv(gym.Env):
-    """Pick-and-place in a scene of a run, one episode at a time (see the module docstring).
+    """A task in a scene of a run, one episode at a time (see the module docstring).
 
     Args:
         run_dir: the run directory.
         scene: a scene id of the run (default: its first scene).
         cameras: cameras to observe (default: the demos' cameras); ``()`` for none.
         depth: also observe depth; env_state: also observe the environment state.
-        max_steps: frames per episode (truncation).
+        max_steps: frames per episode (truncation; default: the task's).
         interpolate: the controller's first-order hold.
         dataset: take fps, cameras, image size and depth from this LeRobot dataset instead.
         vec: an existing one-simulation batched env to wrap (the other arguments are ignored).
+        task: the task (default: the dataset's when one is given, else the default task).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 (gymnasium's)
@@ -211,11 +157,12 @@ class PickPlaceEnv(gym.Env):
         cameras: tuple[str, ...] | list[str] | None = None,
         depth: bool = True,
         env_state: bool = False,
-        max_steps: int = 400,
+        max_steps: int | None = None,
         interpolate: bool = True,
         dataset: str | Path | None = None,
         render_mode: str | None = "rgb_array",
         vec: PickPlaceVecEnv | None = None,
+        task: str | None = None,
     ) -> None:
         if vec is None:
             if run_dir is None:
@@ -228,9 +175,9 @@ class PickPlaceEnv(gym.Env):
             scene = scene or ids[0]
             dc = demos_config_of(run_dir)
             if dataset is not None:
-                spec = obs_spec_of_dataset(dataset, env_state)
+                spec = obs_spec_of_dataset(dataset, env_state, task)
             else:
-                spec = obs_spec_of_demos(dc, env_state)
+                spec = obs_spec_of_demos(dc, env_state, task or DEFAULT_TASK)
             cams = spec.cameras if cameras is None else tuple(cameras)
             spec = replace(spec, cameras=cams, depth=spec.depth and depth and bool(cams))
             vec, _ = make_vec_env(run_dir, scene, 1, spec, max_steps, 1, interpolate, dc)
@@ -243,7 +190,7 @@ class PickPlaceEnv(gym.Env):
         self.observation_space = gym.spaces.Dict(
             {k: _box(s, d) for k, (s, d) in vec.spec.shapes().items()}
         )
-        self.action_space = action_space()
+        self.action_space = action_space(vec.spec.task)
         self.task = vec.instruction
         self.task_description = vec.instruction
         self._max_episode_steps = vec.max_steps
@@ -302,7 +249,8 @@ class PickPlaceEnv(gym.Env):
         )
 
     def render(self) -> np.ndarray:
-        """The three cameras side by side (H, 3 W, 3) uint8 at the observation's size."""
+        """The task's video cameras side by side (H, k W, 3) uint8 at the observation's size
+        (``task=pick_place``: left, right, wrist)."""
         return self.vec.render(0)
 
     def close(self) -> None:
@@ -332,7 +280,7 @@ class PickPlaceVectorEnv(gym.vector.VectorEnv):
         self.single_observation_space = gym.spaces.Dict(
             {k: _box(s, d) for k, (s, d) in vec.spec.shapes().items()}
         )
-        self.single_action_space = action_space()
+        self.single_action_space = action_space(vec.spec.task)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.metadata = {**self.metadata, "render_fps": vec.spec.fps}

@@ -2,7 +2,8 @@
 
 An evaluation is a list of :class:`Job` (a scene and an initial configuration: an evaluation
 seed, or a recorded episode's initial MuJoCo state for replay) run in batches of one scene
-through :class:`~factory.policy.vector_env.PickPlaceVecEnv`. Three kinds of agent:
+through :class:`~factory.policy.vector_env.PickPlaceVecEnv` (of the evaluated task). Three
+kinds of agent:
 
 * ``replay``: the dataset's recorded actions of each episode, from its recorded initial state;
 * ``planner``: the demos' planner on the evaluation configuration (the privileged agent); an
@@ -243,9 +244,11 @@ def summarize(
     training_data: dict[str, Any] | None,
     seconds: float,
     extra: dict[str, Any] | None = None,
+    subtasks: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """The content of ``results.json``: success rate with its Wilson 95 % interval, per scene,
-    failure reasons, seeds and the policy's training data."""
+    failure reasons, seeds and the policy's training data; per sub-task (``subtasks``: the
+    task's, in order) when the records count them."""
     n = len(records)
     k = sum(1 for r in records if r["success"])
     per_scene: dict[str, dict[str, Any]] = {}
@@ -258,8 +261,8 @@ def summarize(
         s["ci95"] = list(wilson(s["successes"], s["episodes"]))
     failures = Counter(r["reason"] for r in records if not r["success"])
     extra = dict(extra or {})
-    if any("subtasks_done" in r for r in records):
-        extra["per_subtask"] = per_subtask(records)
+    if subtasks and any("subtasks_done" in r for r in records):
+        extra["per_subtask"] = per_subtask(records, subtasks)
     seeds: dict[str, list[int]] = {}
     for r in records:
         seeds.setdefault(r["scene"], []).append(int(r["seed"]))
@@ -280,18 +283,18 @@ def summarize(
     }
 
 
-def per_subtask(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Per sub-task of the mobile task (in order): episodes that began it (``started``), that
+def per_subtask(
+    records: list[dict[str, Any]], subtasks: tuple[str, ...]
+) -> dict[str, dict[str, Any]]:
+    """Per sub-task (``subtasks``, in order): episodes that began it (``started``), that
     completed it (``completed``), its success rate among those that began it with the Wilson
     95 % interval, and the share of all episodes that completed it (``of_all``). A record's
-    ``subtasks_done`` counts the sub-tasks it completed (4 on success; failed planner
+    ``subtasks_done`` counts the sub-tasks it completed (all on success; failed planner
     episodes count 0)."""
-    from factory.dataset.mobile_features import MOBILE_SUBTASKS
-
     n = len(records)
     done = [int(r.get("subtasks_done", 0)) for r in records]
     out: dict[str, dict[str, Any]] = {}
-    for k, name in enumerate(MOBILE_SUBTASKS):
+    for k, name in enumerate(subtasks):
         started = sum(1 for d in done if d >= k)
         completed = sum(1 for d in done if d >= k + 1)
         out[name] = {

@@ -7,10 +7,12 @@ drawn by the demos' sampler from evaluation seeds (:func:`factory.policy.env.eva
 disjoint from the demos' seeds). ``replay`` instead runs every recorded episode of the dataset
 from its recorded initial MuJoCo state with its recorded actions.
 
-The mobile task (``task=mobile_pick_place``, a mobile dataset or a policy trained on one) runs
-in :class:`~factory.policy.mobile_env.MobileVecEnv` instead: the demos' planner's spawn per
-seed, 11-D actions (arm, gripper, base target), sub-tasks advanced by the env's own checks,
-and ``per_subtask`` results besides the rest.
+The evaluated task is ``task=`` or the one the dataset or the policy is of
+(:func:`~factory.policy.eval_task.evaluated_task`); its env
+(:class:`~factory.policy.vector_env.PickPlaceVecEnv`) runs it as the demos do. The mobile task
+(:mod:`factory.tasks.mobile_pick_place.env`): the demos' planner's spawn per seed, 11-D actions
+(arm, gripper, base target), sub-tasks advanced by the env's own checks, and ``per_subtask``
+results besides the rest.
 
 Writes ``eval/<policy>/``: ``episodes.jsonl`` (one line per finished episode; a re-run skips
 them, so a killed evaluation resumes), ``results.json`` and ``videos/*.mp4``. Bad input (an
@@ -59,45 +61,6 @@ def check_config(ec: Any) -> None:
             )
     elif not (isinstance(scenes, list | tuple) or hasattr(scenes, "__iter__")) or not list(scenes):
         raise ConfigError("eval.scenes must be heldout, train or a non-empty list of scene ids")
-
-
-MOBILE_TASK = "mobile_pick_place"
-SUBTASK_RULE = (
-    "the env's own check (factory.policy.mobile_env.SubtaskRule): a drive ends when the base "
-    "has rested 0.2 s within reach of the object / of the place support's top, or when the "
-    "next sub-task begins there with the base slow (the hand opens / the arm moves); the pick "
-    "when the object is held, lifted >= 3 cm and the tool is in the carry posture with the "
-    "arm's command still or the arm settled"
-)
-
-
-def mobile_evaluation(task: str, meta: dict[str, Any] | None, features: Any = None) -> bool:
-    """Whether an evaluation is of the mobile task: ``task=mobile_pick_place``, a mobile
-    dataset (``meta/factory.json`` layout) or a policy trained on one (it reads
-    ``subtask_index``).
-
-    Raises:
-        PolicyError: a fixed-base policy or dataset with a mobile one (the envs differ).
-    """
-    from factory.dataset.mobile_features import MOBILE, SUBTASK_KEY, meta_layout
-
-    data = None if meta is None else meta_layout(meta) == MOBILE
-    policy = None if features is None else SUBTASK_KEY in features
-    if data is not None and policy is not None and data != policy:
-        which = "a mobile" if policy else "a fixed-base"
-        raise PolicyError(
-            f"the policy was trained on {which} dataset, but the evaluation's dataset is "
-            f"{'mobile' if data else 'fixed-base'}: pass eval.dataset=<the dataset it was "
-            "trained on>, or evaluate a policy trained on this run's dataset"
-        )
-    mobile = task == MOBILE_TASK or bool(data) or bool(policy)
-    if mobile and (data is False or policy is False):
-        raise PolicyError(
-            f"task={task} is the mobile task, but the "
-            f"{'dataset' if data is False else 'policy'} is of the fixed-base robot: evaluate "
-            "it with task=pick_place, or train a policy on a mobile dataset"
-        )
-    return mobile
 
 
 # ---- the dataset
@@ -319,12 +282,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     from tqdm import tqdm
 
     from factory.console import terminal
-    from factory.policy.env import (
-        RESEED_STRIDE,
-        eval_seed,
-        obs_spec_of_dataset,
-        obs_spec_of_demos,
-    )
+    from factory.policy.env import RESEED_STRIDE, eval_seed
     from factory.policy.eval import (
         Job,
         append_records,
@@ -334,7 +292,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
         slug,
         summarize,
     )
+    from factory.policy.eval_task import evaluated_task
     from factory.policy.eval_units import UnitSettings, make_units, run_units
+    from factory.policy.obs_spec import obs_spec_of_dataset, obs_spec_of_demos
 
     t0 = time.perf_counter()
     cfg = ctx.cfg
@@ -373,9 +333,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     if ec.name:
         name = slug(str(ec.name))
     meta = _dataset_meta(dataset)
-    mobile = mobile_evaluation(
-        str(cfg.task), meta, policy.info.features if policy is not None else None
-    )
+    task = evaluated_task(str(cfg.task), meta, policy.info.features if policy is not None else None)
     run_scenes = store.scene_ids()
     listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]
     if listed is not None:
@@ -415,27 +373,17 @@ def run(ctx: StageContext) -> dict[str, Any]:
     longest = max((e["n_frames"] for e in meta["episodes"]), default=0) if meta else 0
     max_steps = ec.max_steps or (int(1.5 * longest) if longest else DEFAULT_MAX_STEPS)
     # what the env observes
-    run_spec: Any
-    if mobile:
-        from factory.policy.mobile_env import obs_spec_of_mobile_dataset, obs_spec_of_mobile_demos
-
-        if meta is not None:
-            run_spec = obs_spec_of_mobile_dataset(dataset)
-        else:
-            run_spec = obs_spec_of_mobile_demos(cfg.demos)
-    elif meta is not None:
-        run_spec = obs_spec_of_dataset(dataset, env_state=True)
+    if meta is not None:
+        run_spec = obs_spec_of_dataset(dataset, env_state=True, task=task.name)
     else:
-        run_spec = obs_spec_of_demos(cfg.demos, env_state=True)
+        run_spec = obs_spec_of_demos(cfg.demos, env_state=True, task=task.name)
     if policy is not None:
         spec = _spec_for_policy(policy.info, run_spec, ec.env_state)
     else:
         spec = replace(run_spec, cameras=(), depth=False, env_state=ec.env_state)
     # resume
     out = run_dir / "eval" / name
-    identity = _identity(kind, name, ref, ec, dataset, policy)
-    if mobile:
-        identity["task"] = MOBILE_TASK
+    identity = {**_identity(kind, name, ref, ec, dataset, policy), **task.eval_identity()}
     _prepare_out(out, identity, cfg.force)
     episodes_path = out / "episodes.jsonl"
     drop_torn_records(episodes_path)
@@ -472,7 +420,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         demos=cfg.demos,
         videos_dir=videos_dir,
         reseed_stride=RESEED_STRIDE,
-        mobile=mobile,
+        task=task.name,
     )
     with tqdm(
         total=len(jobs),
@@ -505,12 +453,13 @@ def run(ctx: StageContext) -> dict[str, Any]:
             "max_steps": max_steps,
             "controller": "interpolate" if ec.interpolate else "hold",
             "seed_root": ec.seed,
-            **({"task": MOBILE_TASK, "subtask_rule": SUBTASK_RULE} if mobile else {}),
+            **task.eval_notes(),
             "seed_rule": "replay: the recorded episodes' seeds"
             if kind == "replay"
             else "factory.policy.env.eval_seed(root, scene, k) = 2**32 + sha256 "
             "(demos' seeds are < 2**32)",
         },
+        task.subtasks(),
     )
     atomic_write_json(out / "results.json", results)
     if not records and skipped:
@@ -535,7 +484,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         "episodes": results["episodes"],
         "failures": results["failures"],
         "produced": [
-            {"what": "eval episodes", "count": results["episodes"], "path": str(out)},
-            {"what": "eval videos", "count": n_videos, "path": str(videos_dir)},
+            {"what": "eval episodes", "count": results["episodes"], "path": str(out.absolute())},
+            {"what": "eval videos", "count": n_videos, "path": str(videos_dir.absolute())},
         ],
     }

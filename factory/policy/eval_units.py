@@ -2,12 +2,13 @@
 worker processes (``eval.workers``).
 
 A :class:`Unit` is up to ``eval.batch`` episodes of one scene stepped together in one
-:class:`~factory.policy.vector_env.PickPlaceVecEnv`; :func:`run_units` runs a list of them and
-yields each unit's records as it finishes, so that the stage appends them to ``episodes.jsonl``
-at once (a killed evaluation resumes after the last finished unit). With one worker the units
-run here, one after the other; with more, in ``spawn`` processes (CUDA and EGL both want a fresh
-process), each with its own simulation, renderer and copy of the policy: an image policy's
-evaluation is bound by rendering on the CPU, and workers spread it over the cores.
+:class:`~factory.policy.vector_env.PickPlaceVecEnv` of the evaluated task; :func:`run_units`
+runs a list of them and yields each unit's records as it finishes, so that the stage appends
+them to ``episodes.jsonl`` at once (a killed evaluation resumes after the last finished unit).
+With one worker the units run here, one after the other; with more, in ``spawn`` processes
+(CUDA and EGL both want a fresh process), each with its own simulation, renderer and copy of
+the policy: an image policy's evaluation is bound by rendering on the CPU, and workers spread
+it over the cores.
 """
 
 from __future__ import annotations
@@ -36,15 +37,14 @@ class UnitSettings:
         kind: ``replay``, ``planner`` or ``trained``.
         policy_ref: a trained policy's reference (``eval.policy``), else empty.
         device: torch device of a trained policy.
-        spec: the env's observations (:class:`~factory.policy.vector_env.ObsSpec`).
+        spec: the env's observations (:class:`~factory.policy.obs_spec.ObsSpec`).
         max_steps: frames per episode before truncation (policy episodes).
         nthread: simulation threads per process.
-        interpolate: the env's controller (see :mod:`factory.policy.vector_env`).
+        interpolate: the env's controller (the first-order hold of the task's targets).
         demos: the run's demos settings (``cfg.demos``).
         videos_dir: where rollout videos go.
         reseed_stride: stride of :func:`usable_seed`'s retries.
-        mobile: the mobile task (:class:`~factory.policy.mobile_env.MobileVecEnv`), else the
-            fixed-base pick-and-place env.
+        task: the evaluated task (a registered name).
     """
 
     run_dir: Path
@@ -58,7 +58,7 @@ class UnitSettings:
     demos: Any
     videos_dir: Path
     reseed_stride: int
-    mobile: bool = False
+    task: str
 
 
 @dataclass
@@ -162,28 +162,30 @@ class UnitRunner:
         if self._key != (scene, size):
             self.close()
             s = self.s
-            if s.mobile:
-                from factory.policy.mobile_env import make_mobile_vec_env
-
-                self._env, self._planner = make_mobile_vec_env(
-                    s.run_dir, scene, size, s.spec, s.max_steps, s.interpolate, s.demos
-                )
-            else:
-                self._env, self._planner = make_vec_env(
-                    s.run_dir, scene, size, s.spec, s.max_steps, s.nthread, s.interpolate, s.demos
-                )
+            self._env, self._planner = make_vec_env(
+                s.run_dir,
+                scene,
+                size,
+                s.spec,
+                s.max_steps,
+                s.nthread,
+                s.interpolate,
+                s.demos,
+                s.task,
+            )
             self._key = (scene, size)
         return self._env, self._planner
 
     def run(self, unit: Unit) -> UnitResult:
         """Runs one unit; a scene that cannot host the task gives ``skipped``."""
         from factory.policy.eval import plan_actions, run_batch, scripted_actor, slug, write_video
+        from factory.tasks import get_task
 
         s = self.s
         try:
             env, planner = self._env_for(unit.scene, unit.size)
             if s.kind == "replay":
-                if not s.mobile:  # a mobile episode's recorded state holds the base pose
+                if not get_task(s.task).drives_base:  # else the recorded state holds the base
                     check_base(unit.scene, unit.base, env.setup.placement)
             else:
                 for j in unit.jobs:

@@ -85,8 +85,9 @@ from typing import Any
 
 import numpy as np
 
-from factory.dataset.mobile_features import MOBILE_SUBTASKS, SUBTASK_KEY
 from factory.errors import PolicyError
+from factory.tasks.mobile_pick_place import SUBTASKS as MOBILE_SUBTASKS
+from factory.tasks.mobile_pick_place.dataset import SUBTASK_KEY
 
 INPUTS = ("state", "rgb", "rgbd")
 """The ``train.inputs`` settings."""

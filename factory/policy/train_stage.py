@@ -248,4 +248,4 @@ def run(ctx: StageContext) -> dict[str, Any]:
 def _produced(out: Path) -> dict[str, Any]:
     root = out / CHECKPOINTS
     n = len([p for p in root.iterdir() if p.is_dir() and p.name.isdigit()]) if root.is_dir() else 0
-    return {"what": "policy checkpoints", "count": n, "path": str(root)}
+    return {"what": "policy checkpoints", "count": n, "path": str(root.absolute())}

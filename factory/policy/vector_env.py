@@ -1,191 +1,208 @@
-"""Batched closed-loop pick-and-place episodes of one scene: the simulation behind the env.
+"""Batched closed-loop episodes of one scene of a task: the env behind ``stage=eval`` and the
+gymnasium envs, one class for every registered task.
 
-:class:`PickPlaceVecEnv` runs ``n`` episodes of one scene together in one persistent
-``mujoco.batch.Batch`` (a thread pool over simulations, as ``stage=demos`` executes its
-plans), with the demos' own composed model (robot base spot, cleared chairs, cameras), the same
-controller, the same renderer and the same success check:
+:class:`PickPlaceVecEnv` keeps what does not depend on the task: one episode record per env
+(:class:`Episode`: seed, step limit, frames, outcome), the latest observations in one buffer
+per key with a leading batch axis (:class:`~factory.policy.obs_spec.ObsSpec`), resets by seed,
+recorded MuJoCo integration state (replay) or qpos, one action per env and frame, the step
+outcome (rewards, termination, truncation, info), the results, and the renderers of the
+observed cameras and of videos. The task's simulation (:class:`TaskSim`, :func:`task_sim`)
+does the rest as ``stage=demos`` does it for the task: the worlds stepped together on one batch
+(:class:`~factory.policy.batch_sim.BatchSim` with the task's rules, the fixed-base task) or the
+task's own simulation (:class:`~factory.tasks.mobile_pick_place.env.MobileSim`): the initial
+configurations, the controller, the observations other than the images, and when an episode
+ends and why.
 
-* reset: the demos' sampler (:func:`~factory.tasks.pick_place.plan.initial_configuration`) from a
-  seed, or a recorded MuJoCo integration state (replay);
-* step: one action per env (8,) = desired arm joints (rad) + gripper command (m), held for one
-  frame (``1 / fps`` s = ``per_frame`` physics steps). With ``interpolate`` (default) the arm
-  target moves linearly from the previous action to this one over the frame and the
-  controller adds the velocity lead the demos use (``kv/kp * (a - a_prev) * fps``); the
-  recorded action of frame ``f`` is the demo's target at the end of frame ``f``, so this
-  reproduces the demos' control closely. Without it the target jumps to the action at once;
-* observations keyed like the dataset's features, with a leading batch axis;
-* termination: success (the object in/on the target, released, at rest for 0.5 s, by
-  :func:`~factory.tasks.pick_place.objects.check_success`), or a robot collision deeper than 2 cm;
-  truncation
-  after ``max_steps`` frames, with the success check's failure reason.
+Termination: success, or a failure the task ends an episode with (a deep collision, a drop);
+truncation after the step limit, with the task's failure reason.
 """
 
 from __future__ import annotations
 
-import logging
-from collections import deque
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Protocol
 
 from factory.sim.gl import configure_gl
 
-configure_gl("auto")  # before mujoco is imported: the env renders offscreen
+configure_gl("auto")  # before the tasks' simulations import mujoco: the env renders offscreen
 
-import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from factory.demos.execute.cpu import (  # noqa: E402
-    STATE_SPEC,
-    FrameRenderer,
-    RecordConfig,
-    object_poses,
-    robot_penetration,
-    robot_signals,
-)
-from factory.policy.env_common import Episode, EpisodeEnv  # noqa: E402
-from factory.tasks.pick_place.objects import Outcome, Workspace, check_success  # noqa: E402
-from factory.tasks.pick_place.plan import (  # noqa: E402
-    SceneSetup,
-    initial_configuration,
-    targets_to_ctrl,
-)
+from factory.policy.obs_spec import ObsSpec  # noqa: E402
 
-log = logging.getLogger(__name__)
+if TYPE_CHECKING:
+    import mujoco
 
-ENV_STATE_DIM = 14
-"""``observation.environment_state``: pick object xyz (m) + quat wxyz, target xyz + quat wxyz."""
-COLLISION_DEPTH = 0.02
-"""A robot contact with the scene deeper than this (m) ends the episode (as the demos' check)."""
-LIFT_MIN = 0.03
-"""The object must have been lifted this high (m) before it can count as placed."""
-
-
-@dataclass(frozen=True)
-class ObsSpec:
-    """What the env observes and how fast it steps.
-
-    Attributes:
-        fps: frames (actions) per second (Hz); the dataset's fps.
-        cameras: cameras rendered as ``observation.images.<cam>`` (``left``, ``right``,
-            ``wrist``); empty for no images.
-        width, height: image size (px).
-        depth: also ``observation.depth.<cam>`` (uint16 mm).
-        env_state: also ``observation.environment_state``.
-    """
-
-    fps: float = 20.0
-    cameras: tuple[str, ...] = ("left", "right", "wrist")
-    width: int = 128
-    height: int = 128
-    depth: bool = True
-    env_state: bool = False
-
-    def keys(self) -> list[str]:
-        """Observation keys, as the dataset's feature names."""
-        out = ["observation.state", "observation.ee_pose"]
-        if self.env_state:
-            out.append("observation.environment_state")
-        out += [f"observation.images.{c}" for c in self.cameras]
-        if self.depth:
-            out += [f"observation.depth.{c}" for c in self.cameras]
-        return out
-
-    def shapes(self) -> dict[str, tuple[tuple[int, ...], str]]:
-        """Key -> (shape, dtype) of one env's observation."""
-        out: dict[str, tuple[tuple[int, ...], str]] = {
-            "observation.state": ((8,), "float32"),
-            "observation.ee_pose": ((7,), "float32"),
-        }
-        if self.env_state:
-            out["observation.environment_state"] = ((ENV_STATE_DIM,), "float32")
-        for c in self.cameras:
-            out[f"observation.images.{c}"] = ((self.height, self.width, 3), "uint8")
-        if self.depth:
-            for c in self.cameras:
-                out[f"observation.depth.{c}"] = ((self.height, self.width), "uint16")
-        return out
+    from factory.tasks.base import Task
+    from factory.tasks.pick_place.objects import Outcome
 
 
 @dataclass
-class _Episode(Episode):
-    """Book-keeping of one env's running episode: the deepest robot contact (m) too."""
+class Episode:
+    """Book-keeping of one env's running episode.
 
-    worst: float = 0.0
+    Attributes:
+        seed: the seed it was reset from (None for a state or qpos reset).
+        limit: frames before it is truncated; steps: frames stepped so far.
+        done: whether it has ended; success: whether it ended in success.
+        reason: the failure reason (empty on success or while running).
+        details: the success check's numbers.
+    """
+
+    seed: int | None = None
+    limit: int = 0
+    steps: int = 0
+    done: bool = False
+    success: bool = False
+    reason: str = ""
+    details: dict[str, float] = field(default_factory=dict)
 
 
-class PickPlaceVecEnv(EpisodeEnv[_Episode, FrameRenderer]):
-    """``num_envs`` pick-and-place episodes of one scene, stepped together.
+class Renderer(Protocol):
+    """A renderer of some cameras of a scene (the demos' recording renderers)."""
+
+    @property
+    def cfg(self) -> Any: ...
+
+    def close(self) -> None: ...
+
+
+class TaskSim(Protocol):
+    """The simulation of ``num_envs`` episodes of one scene of a task (what the env asks it).
+
+    Attributes:
+        setup: the scene set up as the demos record it (``scene``, ``model``, ``robot``).
+        spec: what is observed; num_envs: its simulations; action_dim: the action's size.
+        per_frame: physics steps per frame.
+        terminal: failure reasons that end an episode as terminated even on its last frame.
+        video_cameras: the cameras a video shows side by side by default.
+        last_actions: (n, action_dim) each env's last action (at a reset: the targets it
+            rests at).
+    """
+
+    setup: Any
+    spec: ObsSpec
+    num_envs: int
+    action_dim: int
+    per_frame: int
+    terminal: tuple[str, ...]
+    video_cameras: tuple[str, ...]
+
+    @property
+    def last_actions(self) -> np.ndarray: ...
+
+    def sample_qpos(self, seed: int) -> np.ndarray:
+        """The initial qpos of seed ``seed``; raises TaskError when there is none."""
+        ...
+
+    def reset(
+        self, ids: list[int], states: np.ndarray | None, qpos: np.ndarray | None, spawned: bool
+    ) -> None:
+        """Sets envs ``ids`` to recorded integration states or to ``qpos`` (``spawned``: drawn
+        by :meth:`sample_qpos`)."""
+        ...
+
+    def load(self, i: int) -> mujoco.MjData:
+        """Env ``i``'s current state with kinematics and contacts (a scratch ``MjData``)."""
+        ...
+
+    def advance(self, ids: list[int], actions: np.ndarray) -> None:
+        """Simulates one frame of envs ``ids`` under their actions (len(ids), A)."""
+        ...
+
+    def end_frame(self, ids: list[int], actions: np.ndarray) -> None:
+        """The frame's actions become the targets the next frame starts from."""
+        ...
+
+    def observe(
+        self,
+        i: int,
+        data: mujoco.MjData,
+        obs: dict[str, np.ndarray],
+        ep: Episode,
+        action: np.ndarray | None,
+    ) -> Outcome | None:
+        """Writes env ``i``'s observations but the images into ``obs`` (after the frame's
+        ``action``; None: the episode's first observation); the outcome once it ends."""
+        ...
+
+    def renderer(self, cameras: tuple[str, ...]) -> Renderer: ...
+
+    def draw(self, renderer: Any, data: mujoco.MjData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Camera -> (RGB, depth) of the state in ``data``."""
+        ...
+
+    def step_info(self) -> dict[str, np.ndarray]:
+        """What the task adds to a step's info, (n,) per key."""
+        ...
+
+    def result(self, i: int) -> dict[str, Any]:
+        """What the task adds to env ``i``'s result."""
+        ...
+
+
+def task_sim(
+    task: Task,
+    setup: Any,
+    planner: Any,
+    num_envs: int,
+    spec: ObsSpec,
+    nthread: int = 0,
+    interpolate: bool = True,
+) -> TaskSim:
+    """The simulation of ``num_envs`` episodes of a scene of ``task``: the task's own
+    (:meth:`~factory.tasks.base.Task.env_sim`), else its worlds stepped together on one batch
+    by its rules (:meth:`~factory.tasks.base.Task.env_rules`; ``nthread`` simulation threads,
+    0: one per core)."""
+    sim: TaskSim | None = task.env_sim(setup, planner, num_envs, spec, interpolate)
+    if sim is None:
+        from factory.policy.batch_sim import BatchSim
+
+        rules = task.env_rules(setup, planner, num_envs, spec, interpolate)
+        sim = BatchSim(rules, num_envs, spec, nthread)
+    return sim
+
+
+class PickPlaceVecEnv:
+    """``num_envs`` episodes of one scene of a task, stepped together (module docstring).
 
     Args:
-        setup: the scene with the robot (:func:`factory.demos.stage.scene_planner`).
-        num_envs: episodes run at once.
-        spec: what to observe.
-        max_steps: frames before an episode is truncated.
-        nthread: simulation threads (0: one per core).
-        interpolate: first-order hold of the arm target over a frame with velocity lead
-            (see the module docstring); False holds the action as it is.
-        ws: where the sampler puts the task objects (the demos' default).
+        sim: the task's simulation of the scene (:func:`task_sim`).
+        max_steps: frames before an episode is truncated (default: the task's,
+            :attr:`~factory.tasks.base.Task.env_max_steps`).
         instruction: the task's language instruction (``task`` of the dataset).
     """
 
-    def __init__(
-        self,
-        setup: SceneSetup,
-        num_envs: int = 1,
-        spec: ObsSpec | None = None,
-        max_steps: int = 400,
-        nthread: int = 0,
-        interpolate: bool = True,
-        ws: Workspace | None = None,
-        instruction: str = "",
-    ) -> None:
-        from mujoco.batch import Batch
+    def __init__(self, sim: TaskSim, max_steps: int | None = None, instruction: str = "") -> None:
+        from factory.tasks import get_task
 
-        self.setup = setup
-        self.model = setup.model
-        self.robot = setup.robot
-        self.spec = spec or ObsSpec()
-        self.num_envs = num_envs
-        self.max_steps = max_steps
-        self.interpolate = interpolate
-        self.ws = ws or Workspace()
+        self.sim = sim
+        self.setup = sim.setup
+        self.model = sim.setup.model
+        self.spec = sim.spec
+        self.num_envs = sim.num_envs
+        self.action_dim = sim.action_dim
+        self.per_frame = sim.per_frame
+        self.max_steps = get_task(sim.spec.task).env_max_steps if max_steps is None else max_steps
         self.instruction = instruction
-        m = self.model
-        self.dt = float(m.opt.timestep)
-        self.per_frame = max(1, round(1.0 / (self.spec.fps * self.dt)))
-        self.hold_frames = max(1, round(0.5 * self.spec.fps))
-        self.batch = Batch(m, num_envs, nthread, persistent=True)
-        self._data = mujoco.MjData(m)
-        robot_geom = np.zeros(m.ngeom, bool)
-        robot_geom[self.robot.geoms] = True
-        self._robot_geom = robot_geom
-        objs = setup.objects
-        self.pick = m.body(objs.pick.id).id
-        self.target = m.body(objs.target.id).id
-        support = m.body(objs.support.id).id
-        self._allowed = np.isin(m.geom_bodyid, [self.pick, self.target, support])
-        self._inside_r = 0.5 * min(objs.target.dimensions.width, objs.target.dimensions.length)
-        self.renderer: FrameRenderer | None = None
+        self.renderer: Renderer | None = None
         if self.spec.cameras:
-            self.renderer = FrameRenderer(m, self._record_cfg(self.spec.cameras))
-        self._video: FrameRenderer | None = None
-        self._episodes = [_Episode(done=True) for _ in range(num_envs)]  # none started
-        self._prev = np.zeros((num_envs, 8))
-        self._obs = self._empty_obs(self.spec.shapes())
-
-    # ---- set-up helpers
-    def _record_cfg(self, cameras: tuple[str, ...]) -> RecordConfig:
-        s = self.spec
-        return RecordConfig(s.fps, s.width, s.height, cameras, "uint16_mm", True)
+            self.renderer = sim.renderer(self.spec.cameras)
+        self._video: Renderer | None = None
+        self._episodes = [Episode(done=True) for _ in range(self.num_envs)]  # none started
+        self._obs = {
+            k: np.zeros((self.num_envs, *shape), dtype)
+            for k, (shape, dtype) in self.spec.shapes().items()
+        }
 
     def sample_qpos(self, seed: int) -> np.ndarray:
-        """The initial qpos (nq,) of seed ``seed``: the demos' sampler with
-        ``np.random.default_rng(seed)``, as :meth:`EpisodePlanner.plan_episode` draws it.
+        """The initial qpos (nq,) of seed ``seed``: the demos' sampler or spawn (seed ``s``
+        starts where the demos' planner starts episode ``s``).
 
         Raises:
-            TaskError: the sampler finds no free spot for the objects with this seed.
+            TaskError: no initial configuration with this seed.
         """
-        return initial_configuration(self.setup, np.random.default_rng(seed), self.ws)
+        return self.sim.sample_qpos(seed)
 
     # ---- episodes
     def reset(
@@ -198,159 +215,140 @@ class PickPlaceVecEnv(EpisodeEnv[_Episode, FrameRenderer]):
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Starts new episodes in envs ``ids`` (default all).
 
-        Exactly one of ``seeds`` (the demos' sampler), ``states`` (recorded MuJoCo integration
-        states, (len(ids), nstate): replay) or ``qpos`` ((len(ids), nq)) gives the initial
-        configurations; ``max_steps`` (per env) overrides the env's step limit.
+        Exactly one of ``seeds`` (:meth:`sample_qpos`), ``states`` (recorded MuJoCo
+        integration states, (len(ids), nstate): replay) or ``qpos`` ((len(ids), nq): the robot
+        at rest there) gives the initial configurations; ``max_steps`` (per env) overrides the
+        env's step limit.
 
         Returns:
             observations of every env (n, ...) and ``{"seed": [...]}``.
 
         Raises:
-            TaskError: a seed the sampler cannot place the objects with.
+            ValueError: none or more than one of seeds, states and qpos.
+            TaskError: a seed without an initial configuration.
         """
-        ids = self._reset_ids(ids, seeds, states, qpos)
+        ids = list(range(self.num_envs)) if ids is None else list(ids)
+        if sum(x is not None for x in (seeds, states, qpos)) != 1:
+            raise ValueError("reset needs exactly one of seeds, states or qpos")
         if seeds is not None:
             qpos = np.stack([self.sample_qpos(int(s)) for s in seeds])
-        b = self.batch
-        b.reset(ids=ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
-        robot = self.robot
+        self.sim.reset(ids, states, qpos, seeds is not None)
         for k, i in enumerate(ids):
-            if states is not None:
-                b.state[i] = states[k]
-            else:
-                assert qpos is not None
-                b.bind("qpos")[i] = qpos[k]
-                q = qpos[k][robot.qpos]
-                width = float(np.sum(np.abs(qpos[k][robot.finger_qpos])))
-                a = np.concatenate([q, [width]])
-                b.bind("ctrl")[i] = targets_to_ctrl(
-                    self.model, robot, a[None, :7], np.zeros((1, 7)), a[7:]
-                )[0]
-        b.forward(ids=ids)
-        for k, i in enumerate(ids):
-            seed, limit = self._episode_start(k, seeds, max_steps, self.max_steps)
-            self._episodes[i] = _Episode(seed=seed, limit=limit)
-            self._observe(i, first=True)
-        return self.observations(), self._reset_info()
+            seed = None if seeds is None else int(seeds[k])
+            limit = self.max_steps if max_steps is None else int(max_steps[k])
+            self._episodes[i] = Episode(seed=seed, limit=limit)
+            self._observe(i, None)
+        return self.observations(), {"seed": [e.seed for e in self._episodes]}
 
-    def _load(self, i: int) -> mujoco.MjData:
-        """Env ``i``'s current state in the scratch data, with kinematics and contacts."""
-        d = self._data
-        mujoco.mj_setState(self.model, d, self.batch.state[i], STATE_SPEC)
-        mujoco.mj_forward(self.model, d)
-        return d
-
-    def _observe(self, i: int, first: bool = False) -> None:
-        """Observes env ``i`` and updates its episode's book-keeping."""
-        m, d = self.model, self._load(i)
-        q, width, ee = robot_signals(m, d, self.robot)
-        obs = self._obs
-        obs["observation.state"][i, :7] = q
-        obs["observation.state"][i, 7] = width
-        obs["observation.ee_pose"][i] = ee
-        if self.spec.env_state:
-            obs["observation.environment_state"][i] = object_poses(d, (self.pick, self.target))
+    def _observe(self, i: int, action: np.ndarray | None) -> None:
+        """Observes env ``i`` (after the frame's ``action``; None: its first observation) and
+        ends its episode when the task says so."""
+        data = self.sim.load(i)
         if self.renderer is not None:
-            rgbs, depths = self.renderer.render(d)
-            for c, im, dp in zip(self.spec.cameras, rgbs, depths, strict=True):
-                obs[f"observation.images.{c}"][i] = im
+            for c, (im, dp) in self.sim.draw(self.renderer, data).items():
+                self._obs[f"observation.images.{c}"][i] = im
                 if self.spec.depth:
-                    obs[f"observation.depth.{c}"][i] = dp
+                    self._obs[f"observation.depth.{c}"][i] = dp
         ep = self._episodes[i]
-        z = float(d.xpos[self.pick][2])
-        if first:
-            self._prev[i, :7] = q
-            self._prev[i, 7] = width
-            ep.start_z = ep.max_z = z
-            ep.history = deque(maxlen=self.hold_frames + 1)
-        ep.max_z = max(ep.max_z, z)
-        ep.worst = max(ep.worst, robot_penetration(m, d, self._robot_geom, self._allowed))
-        ep.history.append(np.array(d.qpos))
-        if not first:
-            self._judge(i, d)
-
-    def _outcome(self, i: int, qpos: np.ndarray) -> Outcome:
-        ep = self._episodes[i]
-        return check_success(
-            self.model,
-            qpos,
-            ep.history[0],
-            ep.max_z,
-            ep.start_z,
-            self.setup.objects,
-            self.robot,
-            ep.worst,
-        )
-
-    def _judge(self, i: int, d: mujoco.MjData) -> None:
-        """Ends env ``i``'s episode on success, collision or the step limit."""
-        ep = self._episodes[i]
-        if ep.worst > COLLISION_DEPTH:
-            out = self._outcome(i, np.array(d.qpos))
-            ep.done, ep.success, ep.reason, ep.details = True, False, "collision", out.details
-            return
-        horiz = float(np.linalg.norm(d.xpos[self.pick][:2] - d.xpos[self.target][:2]))
-        settled = len(ep.history) > self.hold_frames
-        if settled and ep.max_z - ep.start_z >= LIFT_MIN and horiz < self._inside_r:
-            out = self._outcome(i, np.array(d.qpos))
-            if out.success:
-                ep.done, ep.success, ep.reason, ep.details = True, True, "", out.details
-                return
-        if ep.steps >= ep.limit:
-            out = self._outcome(i, np.array(d.qpos))
-            ep.done, ep.success, ep.details = True, out.success, out.details
-            ep.reason = out.reason if not out.success else ""
-
-    def _controls(self, actions: np.ndarray, ids: list[int]) -> np.ndarray:
-        """Per-substep controls (len(ids), per_frame, nu) for one frame of actions."""
-        pf, n = self.per_frame, len(ids)
-        a = np.asarray(actions, np.float64)
-        prev = self._prev[ids]
-        if self.interpolate:
-            alpha = (np.arange(1, pf + 1) / pf)[None, :, None]
-            arm = prev[:, None, :7] + (a[:, None, :7] - prev[:, None, :7]) * alpha
-            vel = np.broadcast_to(((a[:, :7] - prev[:, :7]) * self.spec.fps)[:, None], arm.shape)
-        else:
-            arm = np.broadcast_to(a[:, None, :7], (n, pf, 7))
-            vel = np.zeros_like(arm)
-        grip = np.repeat(a[:, 7], pf)
-        ctrl = targets_to_ctrl(self.model, self.robot, arm.reshape(-1, 7), vel.reshape(-1, 7), grip)
-        return ctrl.reshape(n, pf, -1)
+        out = self.sim.observe(i, data, self._obs, ep, action)
+        if out is not None:
+            ep.done, ep.success, ep.reason, ep.details = True, out.success, out.reason, out.details
 
     def step(
         self, actions: np.ndarray
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Applies one action per env (n, 8) for one frame; finished envs do not move.
+        """Applies one action per env (n, A) for one frame; finished envs do not move.
 
         Returns:
             observations (n, ...), rewards (n,) (1 on the step of success), terminated (n,)
-            (success or collision), truncated (n,) (step limit), info with ``success`` (n,)
-            bool, ``reason`` (n,) str (empty on success or while running), ``steps`` (n,).
+            (success or a failure that ends the episode), truncated (n,) (step limit), info
+            with ``success`` (n,) bool, ``reason`` (n,) str (empty on success or while
+            running), ``steps`` (n,) and what the task adds (the mobile task's ``subtask``).
+
+        Raises:
+            ValueError: actions of another shape.
         """
         actions = np.asarray(actions)
-        if actions.shape != (self.num_envs, 8):
-            raise ValueError(f"actions must be ({self.num_envs}, 8), got {actions.shape}")
+        n, a = self.num_envs, self.action_dim
+        if actions.shape != (n, a):
+            raise ValueError(f"actions must be ({n}, {a}), got {actions.shape}")
+        actions = actions.astype(np.float64)
         ids = [i for i, e in enumerate(self._episodes) if not e.done]
         was_done = self.done
         if ids:
-            ctrl = self._controls(actions[ids], ids)
-            self.batch.rollout(self.per_frame, control=ctrl, ids=ids, record=())
-            self._prev[ids] = actions[ids]
+            self.sim.advance(ids, actions[ids])
             for i in ids:
                 self._episodes[i].steps += 1
-                self._observe(i)
-        reward, terminated, truncated, info = self._step_outcome(was_done)
+                self._observe(i, actions[i])
+            self.sim.end_frame(ids, actions[ids])
+        eps = self._episodes
+        success = np.array([e.success for e in eps])
+        new = self.done & ~was_done
+        truncated = new & np.array([e.steps >= e.limit and not e.success for e in eps])
+        if self.sim.terminal:
+            truncated &= np.array([e.reason not in self.sim.terminal for e in eps])
+        terminated = new & ~truncated
+        info = {
+            "success": success,
+            "reason": np.array([e.reason for e in eps], dtype=object),
+            "steps": self.steps,
+            **self.sim.step_info(),
+        }
+        reward = (new & success).astype(np.float32)
         return self.observations(), reward, terminated, truncated, info
 
-    def result(self, i: int) -> dict[str, Any]:
-        """Env ``i``'s episode so far: success, reason, steps, seed and the check's numbers."""
-        return self._result(i)
+    def observations(self) -> dict[str, np.ndarray]:
+        """The latest observation of every env (copies), (n, ...) per key."""
+        return {k: v.copy() for k, v in self._obs.items()}
 
-    def render(self, i: int, cameras: tuple[str, ...] = ("left", "right", "wrist")) -> np.ndarray:
-        """RGB frame (H, len(cameras) * W, 3) of env ``i``'s current state, cameras side by
-        side (for videos)."""
-        video = self._video_renderer(
-            cameras, lambda: FrameRenderer(self.model, self._record_cfg(cameras))
-        )
-        rgbs, _ = video.render(self._load(i))
-        return np.concatenate(rgbs, axis=1)
+    @property
+    def steps(self) -> np.ndarray:
+        """(n,) int: frames stepped in each env's episode."""
+        return np.array([e.steps for e in self._episodes])
+
+    @property
+    def done(self) -> np.ndarray:
+        """(n,) bool: which envs' episodes have ended."""
+        return np.array([e.done for e in self._episodes])
+
+    @property
+    def last_actions(self) -> np.ndarray:
+        """(n, A): each env's last action (at a reset: the targets it rests at), a copy."""
+        return self.sim.last_actions
+
+    def result(self, i: int) -> dict[str, Any]:
+        """Env ``i``'s episode so far: success, reason, steps, seed, the check's numbers and
+        what the task adds (the mobile task: the sub-task it is in, how many it completed,
+        the frames it switched at)."""
+        e = self._episodes[i]
+        return {
+            "success": e.success,
+            "reason": e.reason,
+            "steps": e.steps,
+            "seed": e.seed,
+            "details": dict(e.details),
+            **self.sim.result(i),
+        }
+
+    # ---- rendering
+    def render(self, i: int, cameras: tuple[str, ...] | None = None) -> np.ndarray:
+        """RGB frame of env ``i``'s current state, ``cameras`` (default: the task's video
+        cameras) side by side at the spec's size (shorter views padded with black), for
+        videos."""
+        cameras = self.sim.video_cameras if cameras is None else tuple(cameras)
+        if self._video is None or self._video.cfg.cameras != cameras:
+            if self._video is not None:
+                self._video.close()
+            self._video = self.sim.renderer(cameras)
+        views = self.sim.draw(self._video, self.sim.load(i))
+        ims = [views[c][0] for c in cameras]
+        h = max(im.shape[0] for im in ims)
+        ims = [np.pad(im, ((0, h - im.shape[0]), (0, 0), (0, 0))) for im in ims]
+        return np.concatenate(ims, axis=1)
+
+    def close(self) -> None:
+        """Closes the renderers (their GL contexts)."""
+        for r in (self.renderer, self._video):
+            if r is not None:
+                r.close()
+        self.renderer = self._video = None

@@ -67,5 +67,5 @@ def run(ctx: StageContext) -> dict[str, Any]:
         "images": built.images,
         "notes": len(built.notes),
         "bytes": size,
-        "produced": [{"what": "report", "count": 1, "path": str(path)}],
+        "produced": [{"what": "report", "count": 1, "path": str(path.absolute())}],
     }

@@ -21,8 +21,8 @@ def main() -> None:
     from factory.config import DemosConfig
     from factory.demos.execute.cpu import RecordConfig
     from factory.demos.execute.warp import WarpExecutor
-    from factory.demos.stage import scene_planner
     from factory.store import RunStore
+    from factory.tasks.pick_place.demos import scene_planner
     from factory.tasks.pick_place.plan import EpisodePlan
 
     p = argparse.ArgumentParser()

@@ -14,15 +14,11 @@ import pytest
 
 pytest.importorskip("lerobot")
 
-from factory.dataset.mobile_features import (
-    MOBILE_ACTION_NAMES,
-    MOBILE_STATE_NAMES,
-    MOBILE_SUBTASKS,
-    one_meta_layout,
-)
+from factory.dataset.layout import one_meta_layout
 from factory.demos.record.episodes import EpisodeStore
 from factory.errors import MixedLayoutError
 from factory.store import Shard
+from factory.tasks.mobile_pick_place.dataset import ACTION_NAMES, STATE_NAMES
 
 CAMERAS = ["left", "right", "wrist", "fisheye_front", "fisheye_back"]
 HERE = Path(__file__).resolve().parent
@@ -50,7 +46,6 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     from factory.schema import scene_to_json
     from factory.tasks.mobile_pick_place import SUBTASKS
 
-    assert tuple(MOBILE_SUBTASKS) == tuple(SUBTASKS)  # the export's copy of the names
     helpers = _module(HERE.parent / "demos" / "test_mobile_pick_place.py", "_mobile_helpers")
     scene = helpers._living_room()
     run = tmp_path / "run"
@@ -77,13 +72,13 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     merged = run / "dataset" / "merged"
     meta = json.loads((merged / "meta" / "factory.json").read_text())
     assert meta["layout"] == "mobile" and meta["subtasks"] == list(SUBTASKS)
-    assert meta["state_names"] == MOBILE_STATE_NAMES and meta["action_names"] == MOBILE_ACTION_NAMES
+    assert meta["state_names"] == STATE_NAMES and meta["action_names"] == ACTION_NAMES
     info = json.loads((merged / "meta" / "info.json").read_text())
     assert info["robot_type"] == "franka_panda_omron"
     feats = info["features"]
     assert "observation.environment_state" not in feats
-    assert feats["observation.state"]["names"] == MOBILE_STATE_NAMES
-    assert feats["action"]["names"] == MOBILE_ACTION_NAMES
+    assert feats["observation.state"]["names"] == STATE_NAMES
+    assert feats["action"]["names"] == ACTION_NAMES
     assert feats["subtask_index"]["dtype"] == "int64" and feats["subtask_done"]["dtype"] == "bool"
 
     ds = LeRobotDataset("factory/demos", root=merged, video_backend="pyav")

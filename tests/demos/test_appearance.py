@@ -141,7 +141,8 @@ def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) 
     from factory.demos.execute.cpu import STATE_SPEC, FrameRenderer, RecordConfig, execute
     from factory.demos.record.appearance import apply_patch, episode_looks, setup_index
     from factory.demos.record.episodes import EpisodeStore
-    from factory.demos.slots import StageEnv, episode_payload, episode_seed
+    from factory.demos.record.slots import StageEnv, episode_seed
+    from factory.tasks.pick_place.demos import PickPlaceScene
     from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner
 
     planner = EpisodePlanner(setup)
@@ -178,7 +179,7 @@ def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) 
     # stored and read back with the episode
     env = StageEnv(str(tmp_path), str(tmp_path / "s.zarr"), DemosConfig(), "pick_place", 0, 1)
     seed = episode_seed(0, setup.scene.id, 0, 0)
-    meta, arrays = episode_payload(env, setup, 0, seed, plan, recs[1], cfg, "put it")
+    meta, arrays = PickPlaceScene(env, setup, None).payload(0, seed, plan, recs[1], cfg)
     store = EpisodeStore(tmp_path / "s.zarr")
     store.write(meta, arrays)
     info = store.info(meta.episode_id)

@@ -74,7 +74,8 @@ def test_the_longest_plans_go_to_the_cpu_in_parallel_items() -> None:
     CPU; ``spread`` deals slots over at most ``workers`` items."""
     from types import SimpleNamespace
 
-    from factory.demos.gpu_pipeline import split_tail, spread
+    from factory.demos.execute.gpu_calls import split_tail
+    from factory.demos.gpu_pipeline import spread
 
     lengths = [50, 400, 90, 400, 120, 70, 300, 60, 80, 100]
     planned = [(k, 100 + k, SimpleNamespace(ctrl=np.zeros((t, 2)))) for k, t in enumerate(lengths)]
@@ -94,7 +95,7 @@ def test_cpu_retries_continue_from_the_gpu_attempts(make_kitchen, tmp_path: Path
     and the episode says which executor recorded it."""
     from factory.demos.cpu_items import run_item
     from factory.demos.record.episodes import EpisodeStore
-    from factory.demos.slots import StageEnv, WorkItem, episode_id, episode_seed
+    from factory.demos.record.slots import StageEnv, WorkItem, episode_id, episode_seed
     from factory.schema import scene_to_json
 
     run = tmp_path / "run"
@@ -159,7 +160,7 @@ def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     two worlds of one call, stored by the writer processes, replayable."""
     from factory.demos.gpu_pipeline import run_gpu
     from factory.demos.record.episodes import EpisodeStore
-    from factory.demos.slots import StageEnv, WorkItem
+    from factory.demos.record.slots import StageEnv, WorkItem
     from factory.schema import scene_to_json
 
     run = tmp_path / "run"
@@ -236,7 +237,7 @@ def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPa
     import os
     from types import SimpleNamespace
 
-    from factory.demos import gpu_pipeline
+    from factory.demos.execute import gpu_calls
     from factory.demos.execute.cpu import RecordConfig
     from factory.demos.execute.world_schedule import packed_schedule
 
@@ -246,28 +247,28 @@ def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPa
     cfg = RecordConfig(fps=20.0, width=64, height=64, cameras=("left", "right", "wrist"))
     page = os.sysconf("SC_PAGE_SIZE")
     monkeypatch.setattr(os, "sysconf", lambda k: 2**40 // page if "PAGES" in k else page)
-    calls = gpu_pipeline.gpu_calls(planned, 1024, cfg, 0.002)
+    calls = gpu_calls.gpu_calls(planned, 1024, cfg, 0.002)
     frames = [int(np.ceil(len(p.ctrl) / 25)) + 1 for _, _, p in calls[0][0]]
     worlds = -(-sum(frames) // max(frames))  # the call lasts about its longest episode
     assert [(len(c), w) for c, w in calls] == [(1100, worlds)]  # one call
     assert 700 < worlds < 800
     # Packed: under 15 % idle; one world per episode would idle a third of the time.
     assert packed_schedule(frames, worlds).busy() > 0.85 > 0.7 > np.mean(frames) / max(frames)
-    assert gpu_pipeline.gpu_calls(planned, 512, cfg, 0.002)[0][1] == 512  # gpu_batch caps
+    assert gpu_calls.gpu_calls(planned, 512, cfg, 0.002)[0][1] == 512  # gpu_batch caps
     # 4 GiB of host memory, 128 px images: several calls, each within the budget.
     monkeypatch.setattr(os, "sysconf", lambda k: 4 * 2**30 // page if "PAGES" in k else page)
     big = RecordConfig(fps=20.0, width=128, height=128, cameras=("left", "right", "wrist"))
-    budget = gpu_pipeline.memory_budget()
+    budget = gpu_calls.memory_budget()
     assert budget is not None
-    calls = gpu_pipeline.gpu_calls(planned, 512, big, 0.002)
+    calls = gpu_calls.gpu_calls(planned, 512, big, 0.002)
     assert len(calls) > 3
     assert sorted(k for c, _ in calls for k, _, _ in c) == list(range(1100))
     for c, w in calls:
-        assert sum(gpu_pipeline.episode_bytes(p, big, 0.002) for _, _, p in c) <= budget
+        assert sum(gpu_calls.episode_bytes(p, big, 0.002) for _, _, p in c) <= budget
         assert w <= min(512, len(c))
     means = [np.mean([len(p.ctrl) for _, _, p in c]) for c, _ in calls]
     assert max(means) - min(means) < 0.1 * np.mean(means)  # the same mix of lengths
-    assert gpu_pipeline.gpu_calls([], 512, cfg, 0.002) == []
+    assert gpu_calls.gpu_calls([], 512, cfg, 0.002) == []
 
 
 @pytest.mark.parametrize(

@@ -13,16 +13,10 @@ pytest.importorskip("gymnasium")
 
 from factory.config import DemosConfig
 from factory.demos.record.episodes import EpisodeStore
-from factory.demos.stage import episode_seed
-from factory.policy.env import (
-    EVAL_SEED_OFFSET,
-    PickPlaceEnv,
-    eval_seed,
-    make_vec_env,
-    obs_spec_of_dataset,
-)
+from factory.demos.record.slots import episode_seed
+from factory.policy.env import EVAL_SEED_OFFSET, PickPlaceEnv, eval_seed, make_vec_env
 from factory.policy.eval import Job, plan_actions, run_batch, scripted_actor
-from factory.policy.vector_env import ObsSpec
+from factory.policy.obs_spec import ObsSpec, obs_spec_of_dataset
 
 
 def _store(run: Path) -> EpisodeStore:

@@ -180,8 +180,8 @@ def test_policy_features_the_env_cannot_give(policy_run: Path) -> None:
     before any rollout."""
     checkpoint = pytest.importorskip("factory.policy.checkpoint")
     from factory.errors import PolicyError
-    from factory.policy.env import obs_spec_of_dataset
     from factory.policy.eval_stage import _spec_for_policy
+    from factory.policy.obs_spec import obs_spec_of_dataset
 
     spec = obs_spec_of_dataset(policy_run / "dataset" / "merged")
     info = checkpoint.TrainInfo(

@@ -100,6 +100,28 @@ def test_lerobot_make_env_and_eval_policy(policy_run: Path, tmp_path: Path) -> N
     assert list((tmp_path / "videos").glob("*.mp4"))
 
 
+def test_one_gym_id_per_task() -> None:
+    """Every registered task has its gym id (today's ``factory/PickPlace-v0`` the default
+    task's), picked by ``--env.task``; the features follow the task's env."""
+    import gymnasium as gym
+
+    import factory.policy.lerobot_plugin as plugin
+    from factory.tasks import DEFAULT_TASK, TASKS
+
+    assert sorted(plugin.GYM_IDS.values()) == sorted(TASKS)
+    assert plugin.GYM_IDS[plugin.GYM_ID] == DEFAULT_TASK == "pick_place"
+    assert plugin.GYM_ID == "factory/PickPlace-v0"
+    assert all(i in gym.registry for i in plugin.GYM_IDS)
+    cfg = plugin.FactoryEnv(task="MobilePickPlace-v0", observation_width=16)
+    assert cfg.gym_id == "factory/MobilePickPlace-v0"
+    assert cfg.gym_kwargs["task"] == "mobile_pick_place"
+    assert cfg.features["agent_pos"].shape == (11,) and cfg.features["action"].shape == (11,)
+    assert cfg.features["pixels/fisheye_front"].shape == (16, 16, 3)
+    assert "environment_state" not in cfg.features
+    with pytest.raises(ValueError, match="choose one of PickPlace-v0, MobilePickPlace-v0"):
+        plugin.FactoryEnv(task="Push-v0")
+
+
 @pytest.mark.slow
 def test_lerobot_eval_command(policy_run: Path, tmp_path: Path) -> None:
     """The documented ``lerobot-eval --env.type=factory`` command with a saved LeRobot policy

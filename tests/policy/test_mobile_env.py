@@ -1,7 +1,7 @@
-"""The closed-loop mobile env (``factory.policy.mobile_env``) against a recorded mobile demo of
-the hand-built living room: it starts where the demos' planner starts, observes what the
-recording recorded (state, tool pose, the five cameras' images), replays the recorded actions
-to success with the recorded sub-task switches, and names its failures."""
+"""The env of the mobile task (``factory.tasks.mobile_pick_place.env.MobileSim``) against a
+recorded mobile demo of the hand-built living room: it starts where the demos' planner starts,
+observes what the recording recorded (state, tool pose, the five cameras' images), replays the
+recorded actions to success with the recorded sub-task switches, and names its failures."""
 
 from __future__ import annotations
 
@@ -17,7 +17,8 @@ import pytest
 for _mod in ("robosuite", "ruckig", "ompl", "mink"):
     pytest.importorskip(_mod)
 
-from factory.policy.mobile_env import MobileObsSpec, MobileVecEnv  # noqa: E402
+from factory.policy.obs_spec import ObsSpec  # noqa: E402
+from factory.policy.vector_env import PickPlaceVecEnv  # noqa: E402
 from factory.tasks.mobile_pick_place import (  # noqa: E402
     ALL_CAMERAS,
     MobileEpisodePlan,
@@ -27,8 +28,10 @@ from factory.tasks.mobile_pick_place import (  # noqa: E402
     mobile_setup,
     render_frames,
 )
+from factory.tasks.mobile_pick_place.env import MobileSim  # noqa: E402
 
 FPS = 10.0
+TASK = "mobile_pick_place"
 HERE = Path(__file__).resolve().parent
 
 
@@ -56,9 +59,9 @@ def demo() -> dict[str, Any]:
     return {"setup": setup, "planner": planner, "plan": plan, "rec": rec}
 
 
-def _env(demo: dict[str, Any], **kw: Any) -> MobileVecEnv:
-    spec = kw.pop("spec", MobileObsSpec(fps=FPS, cameras=()))
-    return MobileVecEnv(demo["setup"], demo["planner"], 1, spec, **kw)
+def _env(demo: dict[str, Any], spec: ObsSpec | None = None) -> PickPlaceVecEnv:
+    spec = spec or ObsSpec(fps=FPS, cameras=(), task=TASK)
+    return PickPlaceVecEnv(MobileSim(demo["setup"], demo["planner"], 1, spec))
 
 
 def _recorded_state(rec: Any, f: int) -> np.ndarray:
@@ -82,7 +85,7 @@ def test_reset_is_the_demos_spawn_and_observes_as_recorded(demo: dict[str, Any])
 def test_images_are_the_recordings(demo: dict[str, Any]) -> None:
     """The five cameras (two fisheye) through the recording's renderer: the same images and
     depth as ``render_frames`` draws for the same state."""
-    spec = MobileObsSpec(fps=FPS, cameras=ALL_CAMERAS, width=16, height=12)
+    spec = ObsSpec(fps=FPS, cameras=ALL_CAMERAS, width=16, height=12, task=TASK)
     env = _env(demo, spec=spec)
     rec = demo["rec"]
     obs, _ = env.reset(states=rec.state[:1])

@@ -1,7 +1,7 @@
 """``stage=train`` on mobile pick-and-place datasets: the features map to the policy inputs
 (base pose in the state, the sub-task one-hot, the base target in the action), a training
 step runs and its samples equal lerobot's own; ``stage=eval`` rolls a mobile policy out in the
-closed-loop mobile env (``factory.policy.mobile_env``)."""
+closed-loop mobile env (``factory.tasks.mobile_pick_place.env``)."""
 
 from __future__ import annotations
 
@@ -17,15 +17,12 @@ pytest.importorskip("robosuite")
 
 from factory.config import FactoryConfig, TrainConfig
 from factory.context import StageContext
-from factory.dataset.mobile_features import (
-    DONE_KEY,
-    MOBILE_ACTION_NAMES,
-    MOBILE_STATE_NAMES,
-    SUBTASK_KEY,
-    mobile_meta,
-)
 from factory.errors import PolicyError
 from factory.store import RunStore, Shard
+from factory.tasks.mobile_pick_place.dataset import ACTION_NAMES as MOBILE_ACTION_NAMES
+from factory.tasks.mobile_pick_place.dataset import DONE_KEY, SUBTASK_KEY
+from factory.tasks.mobile_pick_place.dataset import STATE_NAMES as MOBILE_STATE_NAMES
+from factory.tasks.mobile_pick_place.dataset import meta as mobile_meta
 
 TINY = {
     "diffusion": {
@@ -59,11 +56,11 @@ def _episode(k: int) -> dict[str, np.ndarray]:
 @pytest.fixture(scope="module")
 def mobile_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A merged mobile dataset of 2 episodes x 40 frames, written by lerobot with the
-    features of ``factory.dataset.mobile_features`` (no cameras) and a mobile
+    features of ``factory.tasks.mobile_pick_place.dataset`` (no cameras) and a mobile
     ``meta/factory.json``."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from factory.dataset.mobile_features import scalar_buffer
+    from factory.dataset.features import scalar_buffer
 
     root = tmp_path_factory.mktemp("mobile") / "merged"
     feats: dict[str, Any] = {
@@ -89,7 +86,7 @@ def mobile_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
                     "task": "move the can to the desk",
                 }
             )
-        scalar_buffer(ds.episode_buffer)
+        scalar_buffer(ds.episode_buffer, feats)
         ds.save_episode()
     ds.finalize()
     meta = {
@@ -386,15 +383,28 @@ def test_mobile_eval_stage_end_to_end(tmp_path: Path) -> None:
 def test_mobile_and_fixed_do_not_mix() -> None:
     """An evaluation is mobile by its task, dataset or policy; a fixed-base policy on a mobile
     dataset (or the reverse) is refused in one line."""
-    from factory.policy.eval_stage import mobile_evaluation
+    from factory.policy.eval_task import evaluated_task
+
+    def task(*args: Any) -> str:
+        return evaluated_task(*args).name
 
     mobile = {"layout": "mobile"}
-    assert mobile_evaluation("mobile_pick_place", None)
-    assert mobile_evaluation("pick_place", mobile, {SUBTASK_KEY: [1]})
-    assert not mobile_evaluation("pick_place", {"schema_version": 3}, {"observation.state": [8]})
-    with pytest.raises(PolicyError, match="trained on a fixed-base dataset"):
-        mobile_evaluation("pick_place", mobile, {"observation.state": [8]})
-    with pytest.raises(PolicyError, match="trained on a mobile dataset"):
-        mobile_evaluation("pick_place", {"schema_version": 3}, {SUBTASK_KEY: [1]})
-    with pytest.raises(PolicyError, match="mobile task, but the policy"):
-        mobile_evaluation("mobile_pick_place", None, {"observation.state": [8]})
+    fixed = {"schema_version": 3}
+    assert task("mobile_pick_place", None) == "mobile_pick_place"
+    assert task("pick_place", mobile) == "mobile_pick_place"
+    assert task("pick_place", mobile, {SUBTASK_KEY: [1]}) == "mobile_pick_place"
+    assert task("pick_place", None, {SUBTASK_KEY: [1]}) == "mobile_pick_place"
+    assert task("pick_place", fixed, {"observation.state": [8]}) == "pick_place"
+    assert task("pick_place", None) == "pick_place"
+    with pytest.raises(PolicyError, match="trained on a fixed-base dataset, but the evalu"):
+        evaluated_task("pick_place", mobile, {"observation.state": [8]})
+    with pytest.raises(PolicyError, match="trained on a mobile dataset, but the evaluation's "):
+        evaluated_task("pick_place", fixed, {SUBTASK_KEY: [1]})
+    with pytest.raises(
+        PolicyError,
+        match=r"^task=mobile_pick_place is the mobile task, but the policy is of the fixed-base "
+        r"robot: evaluate it with task=pick_place, or train a policy on a mobile dataset$",
+    ):
+        evaluated_task("mobile_pick_place", None, {"observation.state": [8]})
+    with pytest.raises(PolicyError, match="mobile task, but the dataset is of the fixed-base"):
+        evaluated_task("mobile_pick_place", fixed, None)

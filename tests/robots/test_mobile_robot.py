@@ -12,7 +12,6 @@ import pytest
 pytest.importorskip("robosuite")
 pytest.importorskip("ruckig")
 
-from factory.robots import mobile_panda as mr
 from factory.nav import (
     BASE_COLLISION,
     OccupancyGrid,
@@ -21,6 +20,7 @@ from factory.nav import (
     time_base_path,
 )
 from factory.nav.grid import geom_points
+from factory.robots import mobile_panda as mr
 from factory.robots.mobile_panda import (
     BASE_FOOTPRINT,
     BASE_JOINTS,

@@ -19,14 +19,12 @@ import mujoco
 import numpy as np
 
 from factory.demos.record.frame_render import CameraStrip, size_offscreen
+from factory.demos.record.payload import STATE_SPEC
 from factory.robots.panda import CAMERAS, RobotIndex
 from factory.tasks.pick_place.objects import Outcome, check_success
 from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup
 
 log = logging.getLogger(__name__)
-
-STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
-"""The recorded MuJoCo state (``mj_setState`` with it reproduces the simulation exactly)."""
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,10 @@
 """LeRobot plugin: factory scenes as a LeRobot env (``--env.type=factory``).
 
 Importing this package registers :class:`FactoryEnv` with LeRobot's ``EnvConfig`` choices
-(``factory``) and the gymnasium id :data:`GYM_ID`, so LeRobot's own evaluation entry point
-runs any LeRobot policy in a scene of a factory run::
+(``factory``) and one gymnasium id per registered task (:data:`GYM_IDS`:
+``factory/PickPlace-v0``, ``factory/MobilePickPlace-v0``; ``--env.task=MobilePickPlace-v0``
+picks one, the default task's by default), so LeRobot's own evaluation entry point runs any
+LeRobot policy in a scene of a factory run::
 
     lerobot-eval --env.discover_packages_path=factory.policy.lerobot_plugin \\
         --env.type=factory --env.run_dir=runs/small --env.scene=<scene_id> \\
@@ -13,10 +15,12 @@ runs any LeRobot policy in a scene of a factory run::
 the command line is parsed.) Observations follow LeRobot's raw env convention, which
 ``lerobot.envs.utils.preprocess_observation`` turns into the dataset's keys: ``agent_pos`` ->
 ``observation.state``, ``environment_state`` -> ``observation.environment_state``,
-``pixels/<cam>`` -> ``observation.images.<cam>``. LeRobot's env pipeline has no depth input,
-so depth policies are evaluated with ``stage=eval`` instead. ``info["is_success"]`` is the
-demos' success check. LeRobot's seed ``s`` (``--seed`` plus the episode number) becomes the
-evaluation seed ``2**32 + s`` of the demos' sampler, disjoint from the demos' own seeds.
+``pixels/<cam>`` -> ``observation.images.<cam>`` (a task's other observations, such as the
+mobile task's ``subtask_index``, have no LeRobot key and are left out). LeRobot's env pipeline
+has no depth input, so depth policies are evaluated with ``stage=eval`` instead.
+``info["is_success"]`` is the demos' success check. LeRobot's seed ``s`` (``--seed`` plus the
+episode number) becomes the evaluation seed ``2**32 + s`` of the demos' sampler, disjoint from
+the demos' own seeds.
 """
 
 from __future__ import annotations
@@ -30,16 +34,32 @@ import numpy as np
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 
-GYM_ID = "factory/PickPlace-v0"
-CAMERAS = ("left", "right", "wrist")
+from factory.tasks import DEFAULT_TASK, get_task, task_names
+
+STATE = "observation.state"
+ENV_STATE = "observation.environment_state"
+GYM_NAMESPACE = "factory"
+
+
+def gym_name(task: str) -> str:
+    """The gymnasium name of a registered task: ``pick_place`` -> ``PickPlace-v0``."""
+    return "".join(part.capitalize() for part in task.split("_")) + "-v0"
+
+
+GYM_IDS: dict[str, str] = {f"{GYM_NAMESPACE}/{gym_name(t)}": t for t in task_names()}
+"""Gymnasium id -> registered task."""
+GYM_ID = f"{GYM_NAMESPACE}/{gym_name(DEFAULT_TASK)}"
+"""The default task's id (``factory/PickPlace-v0``)."""
 
 
 @EnvConfig.register_subclass("factory")
 @dataclass
 class FactoryEnv(EnvConfig):
-    """``--env.type=factory``: pick-and-place in a scene of a factory run.
+    """``--env.type=factory``: a task in a scene of a factory run.
 
     Attributes:
+        task: the gymnasium name of the task (``PickPlace-v0``, ``MobilePickPlace-v0``: one per
+            registered task, :data:`GYM_IDS`).
         run_dir: the run directory (``scenes/``, ``dataset/merged``).
         scene: a scene id of the run (default: the run's first scene).
         dataset: the dataset whose fps, cameras and image size the env matches (default:
@@ -50,7 +70,7 @@ class FactoryEnv(EnvConfig):
         episode_length: frames before an episode times out.
     """
 
-    task: str | None = "PickPlace-v0"
+    task: str | None = gym_name(DEFAULT_TASK)
     fps: int = 20
     run_dir: str = ""
     scene: str | None = None
@@ -65,23 +85,41 @@ class FactoryEnv(EnvConfig):
     features_map: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        from factory.policy.env import action_space
+
         spec = self.obs_spec()
+        shapes = spec.shapes()
         self.fps = round(spec.fps)
         self.observation_height, self.observation_width = spec.height, spec.width
+        action = action_space(spec.task).shape
         self.features = {
-            "action": PolicyFeature(type=FeatureType.ACTION, shape=(8,)),
-            "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
+            "action": PolicyFeature(type=FeatureType.ACTION, shape=action),
+            "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=shapes[STATE][0]),
         }
-        self.features_map = {"action": "action", "agent_pos": "observation.state"}
-        if spec.env_state:
-            self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(14,))
-            self.features_map["environment_state"] = "observation.environment_state"
+        self.features_map = {"action": "action", "agent_pos": STATE}
+        if ENV_STATE in shapes:
+            self.features["environment_state"] = PolicyFeature(
+                type=FeatureType.ENV, shape=shapes[ENV_STATE][0]
+            )
+            self.features_map["environment_state"] = ENV_STATE
         for cam in spec.cameras:
             key = f"pixels/{cam}"
             self.features[key] = PolicyFeature(
-                type=FeatureType.VISUAL, shape=(spec.height, spec.width, 3)
+                type=FeatureType.VISUAL, shape=shapes[f"observation.images.{cam}"][0]
             )
             self.features_map[key] = f"observation.images.{cam}"
+
+    def task_name(self) -> str:
+        """The registered task of :attr:`task`.
+
+        Raises:
+            ValueError: no registered task has that gymnasium name (lists them).
+        """
+        gym_id = f"{GYM_NAMESPACE}/{self.task}"
+        if gym_id not in GYM_IDS:
+            names = ", ".join(i.partition("/")[2] for i in GYM_IDS)
+            raise ValueError(f"env.task={self.task!r} is not a factory task: choose one of {names}")
+        return GYM_IDS[gym_id]
 
     def _dataset(self) -> Path | None:
         if self.dataset:
@@ -90,23 +128,25 @@ class FactoryEnv(EnvConfig):
         return merged if self.run_dir and (merged / "meta" / "info.json").is_file() else None
 
     def obs_spec(self) -> Any:
-        """The :class:`~factory.policy.vector_env.ObsSpec` these settings ask for."""
+        """The :class:`~factory.policy.obs_spec.ObsSpec` these settings ask for."""
         from dataclasses import replace
 
-        from factory.policy.env import demos_config_of, obs_spec_of_dataset, obs_spec_of_demos
-        from factory.policy.vector_env import ObsSpec
+        from factory.policy.env import demos_config_of
+        from factory.policy.obs_spec import ObsSpec, obs_spec_of_dataset, obs_spec_of_demos
 
+        task = self.task_name()
         dataset = self._dataset()
         if dataset is not None:
-            spec = obs_spec_of_dataset(dataset, self.env_state)
+            spec = obs_spec_of_dataset(dataset, self.env_state, task)
         elif self.run_dir and Path(self.run_dir).is_dir():
-            spec = obs_spec_of_demos(demos_config_of(self.run_dir), self.env_state)
+            spec = obs_spec_of_demos(demos_config_of(self.run_dir), self.env_state, task)
         else:
             spec = ObsSpec(
-                cameras=CAMERAS,
+                cameras=get_task(task).env_cameras(),
                 width=self.observation_width,
                 height=self.observation_height,
                 env_state=self.env_state,
+                task=task,
             )
         cams = spec.cameras if self.cameras is None else tuple(self.cameras.split(","))
         if self.obs_type == "agent_pos":
@@ -121,11 +161,12 @@ class FactoryEnv(EnvConfig):
 
     @property
     def gym_id(self) -> str:
-        return GYM_ID
+        return f"{GYM_NAMESPACE}/{self.task}"
 
     @property
     def gym_kwargs(self) -> dict[str, Any]:
         return {
+            "task": self.task_name(),
             "run_dir": self.run_dir,
             "scene": self.scene,
             "dataset": None if self._dataset() is None else str(self._dataset()),
@@ -136,8 +177,9 @@ class FactoryEnv(EnvConfig):
 
 
 class LeRobotPickPlaceEnv(gym.Env):
-    """:class:`~factory.policy.env.PickPlaceEnv` with LeRobot's raw observation keys
-    (``agent_pos``, ``environment_state``, ``pixels``: {camera: image})."""
+    """:class:`~factory.policy.env.PickPlaceEnv` of a task with LeRobot's raw observation keys
+    (``agent_pos``, ``environment_state``, ``pixels``: {camera: image}); the gymnasium ids of
+    :data:`GYM_IDS` make it with their task."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 (gymnasium's)
 
@@ -150,6 +192,7 @@ class LeRobotPickPlaceEnv(gym.Env):
         env_state: bool = False,
         max_steps: int = 400,
         render_mode: str | None = "rgb_array",
+        task: str = DEFAULT_TASK,
     ) -> None:
         from factory.policy.env import PickPlaceEnv
 
@@ -163,16 +206,17 @@ class LeRobotPickPlaceEnv(gym.Env):
             max_steps=max_steps,
             dataset=dataset,
             render_mode=render_mode,
+            task=task,
         )
         self.cameras = cams
-        self.env_state = env_state
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": self.env.metadata["render_fps"]}
         inner = self.env.observation_space
         assert isinstance(inner, gym.spaces.Dict)
-        spaces: dict[str, gym.Space[Any]] = {"agent_pos": inner["observation.state"]}
-        if env_state:
-            spaces["environment_state"] = inner["observation.environment_state"]
+        self.env_state = ENV_STATE in inner.spaces
+        spaces: dict[str, gym.Space[Any]] = {"agent_pos": inner[STATE]}
+        if self.env_state:
+            spaces["environment_state"] = inner[ENV_STATE]
         if cams:
             spaces["pixels"] = gym.spaces.Dict({c: inner[f"observation.images.{c}"] for c in cams})
         self.observation_space = gym.spaces.Dict(spaces)
@@ -182,9 +226,9 @@ class LeRobotPickPlaceEnv(gym.Env):
         self._max_episode_steps = max_steps
 
     def _convert(self, obs: dict[str, np.ndarray]) -> dict[str, Any]:
-        out: dict[str, Any] = {"agent_pos": obs["observation.state"]}
+        out: dict[str, Any] = {"agent_pos": obs[STATE]}
         if self.env_state:
-            out["environment_state"] = obs["observation.environment_state"]
+            out["environment_state"] = obs[ENV_STATE]
         if self.cameras:
             out["pixels"] = {c: obs[f"observation.images.{c}"] for c in self.cameras}
         return out
@@ -203,8 +247,9 @@ class LeRobotPickPlaceEnv(gym.Env):
         return self._convert(obs), info
 
     def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        shape = self.action_space.shape
         obs, reward, terminated, truncated, info = self.env.step(
-            np.asarray(action, np.float32).reshape(8)
+            np.asarray(action, np.float32).reshape(shape)
         )
         return self._convert(obs), reward, terminated, truncated, info
 
@@ -215,10 +260,12 @@ class LeRobotPickPlaceEnv(gym.Env):
         self.env.close()
 
 
-if GYM_ID not in gym.registry:
-    gym.register(
-        id=GYM_ID,
-        entry_point=f"{__name__}:LeRobotPickPlaceEnv",
-        order_enforce=False,
-        disable_env_checker=True,
-    )
+for _id, _task in GYM_IDS.items():
+    if _id not in gym.registry:
+        gym.register(
+            id=_id,
+            entry_point=f"{__name__}:LeRobotPickPlaceEnv",
+            kwargs={"task": _task},
+            order_enforce=False,
+            disable_env_checker=True,
+        )

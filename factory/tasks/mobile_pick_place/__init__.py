@@ -17,7 +17,9 @@ success
   with :func:`check_mobile_success`, then render the successful episodes' images),
   :func:`replay`, :class:`MobileRenderer`.
 
-:mod:`factory.demos.mobile_items` runs them for ``stage=demos task=mobile_pick_place``.
+:mod:`factory.tasks.mobile_pick_place.demos` is what ``stage=demos task=mobile_pick_place``
+records with (:func:`~factory.tasks.mobile_pick_place.demos.mobile_scene_planner`, the scene
+and its planner; :class:`~factory.tasks.mobile_pick_place.demos.MobilePickPlaceScene`).
 
 Frames: world frame for poses (m, rad); the base pose is the footprint centre's (x, y) and the
 unwrapped yaw (the base joints' values); tool site +z is the approach, +x the closing axis.

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from factory.demos.record.frame_render import CameraStrip, encode_depth, size_offscreen
+from factory.demos.record.payload import STATE_SPEC
 from factory.nav import BASE_COLLISION
 from factory.robots.mobile_panda import CAMERAS
 from factory.tasks.mobile_pick_place.scene import (
@@ -177,9 +178,6 @@ class MobileRenderer:
             self.strip.close()
         if self.fish is not None:
             self.fish.close()
-
-
-STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 def penetrations(
@@ -411,7 +409,7 @@ def mobile_outcome(
     data: mujoco.MjData | None = None,
 ) -> Outcome:
     """The mobile task's success check on an episode's last state (shared by the demos and the
-    closed-loop env, :mod:`factory.policy.mobile_env`).
+    closed-loop env, :mod:`factory.tasks.mobile_pick_place.env`).
 
     The object rose with the hand (``lifted`` >= 3 cm, else ``slip``), its bottom ends within
     ``above_tol`` (m) above the place support's top and its centre inside the support's

@@ -25,6 +25,7 @@ class MobilePickPlaceTask(Task):
     # -- scenes ---------------------------------------------------------------------------------
 
     drives_base: ClassVar[bool] = True
+    example_scene: ClassVar[str | None] = "tasks/mobile_pick_place/living_can_to_desk"
 
     def claims(self, scene: Scene) -> bool:
         """Its ``task.kind`` names the task, or an object is its place support."""
@@ -35,7 +36,147 @@ class MobilePickPlaceTask(Task):
         return bool(spec.get("source"))
 
     # -- demos ----------------------------------------------------------------------------------
+    # set-up, planner, simulation and stored episode: factory.tasks.mobile_pick_place.demos
+
+    demo_execution: ClassVar[str] = "episode"
+
+    def demo_scene(self, env: Any, scene_id: str, plan: bool = True) -> Any:
+        """The scene composed with the mobile robot (:class:`~factory.tasks.mobile_pick_place.
+        demos.MobilePickPlaceScene`); with its planner, a scene where the base cannot work at
+        both supports raises."""
+        from factory.tasks.mobile_pick_place.demos import demo_scene
+
+        return demo_scene(env, scene_id, plan)
 
     # -- dataset --------------------------------------------------------------------------------
+    # the features and card lines: factory.tasks.mobile_pick_place.dataset
+
+    def dataset_layout(self) -> str:
+        """``mobile``."""
+        from factory.tasks.mobile_pick_place.dataset import LAYOUT
+
+        return LAYOUT
+
+    def robot_type(self) -> str:
+        """``franka_panda_omron``."""
+        from factory.tasks.mobile_pick_place.dataset import ROBOT_TYPE
+
+        return ROBOT_TYPE
+
+    def dataset_features(self) -> dict[str, dict[str, Any]]:
+        """The arm's and the base's state, tool pose, action; the sub-task and its end."""
+        from factory.tasks.mobile_pick_place.dataset import features
+
+        return features()
+
+    def episode_arrays(self, n_frames: int) -> dict[str, tuple[int, ...]]:
+        """The arm's arrays (11 action columns), the base pose, the sub-task labels."""
+        from factory.tasks.mobile_pick_place.dataset import arrays_of
+
+        return arrays_of(n_frames)
+
+    def episode_columns(self, info: Any, arrays: Any, scene_json: bytes) -> dict[str, Any]:
+        """The arrays (the scene is not read)."""
+        from factory.tasks.mobile_pick_place.dataset import columns
+
+        return columns(info, arrays)
+
+    def dataset_meta(self) -> dict[str, Any]:
+        """``layout``, the sub-task names, the state's and action's column names."""
+        from factory.tasks.mobile_pick_place.dataset import meta
+
+        return meta()
+
+    def dataset_card(
+        self, meta: dict[str, Any], cameras: list[str], rgb: dict[str, Any]
+    ) -> tuple[str, list[str]]:
+        """Mobile manipulation demonstrations; the features, the route and extras."""
+        from factory.tasks.mobile_pick_place.dataset import card
+
+        return card(meta, cameras, rgb)
+
+    def card_tags(self) -> tuple[str, ...]:
+        """``mobile-manipulation``."""
+        from factory.tasks.mobile_pick_place.dataset import TAGS
+
+        return TAGS
 
     # -- policy ---------------------------------------------------------------------------------
+
+    # the env's simulation: factory.tasks.mobile_pick_place.env
+
+    env_max_steps: ClassVar[int] = 1500
+    robot_kind: ClassVar[str] = "mobile"
+
+    def fisheye_cameras(self) -> tuple[str, ...]:
+        """``fisheye_front``, ``fisheye_back``."""
+        from factory.tasks.mobile_pick_place.scene import FISHEYE_CAMERAS
+
+        return tuple(FISHEYE_CAMERAS)
+
+    def env_cameras(self) -> tuple[str, ...]:
+        """``left``, ``right``, ``wrist``, then the fisheye cameras."""
+        from factory.tasks.mobile_pick_place.scene import ALL_CAMERAS
+
+        return ALL_CAMERAS
+
+    def env_observations(self) -> dict[str, tuple[tuple[int, ...], str]]:
+        """The arm's and the base's state (11), the tool pose (7), the sub-task (1)."""
+        from factory.tasks.mobile_pick_place.env import OBSERVATIONS
+
+        return dict(OBSERVATIONS)
+
+    def env_action_bounds(self) -> tuple[Any, Any]:
+        """The arm's and the gripper's (as the fixed task's), the base target unbounded."""
+        from factory.tasks.mobile_pick_place.env import action_bounds
+
+        return action_bounds()
+
+    def env_scene(self, run_dir: Any, scene_id: str, dc: Any) -> tuple[Any, Any]:
+        """The demos' set-up and planner (:func:`factory.tasks.mobile_pick_place.demos.
+        mobile_scene_planner`); a scene where the base cannot reach both supports raises
+        TaskError."""
+        from factory.errors import TaskError
+        from factory.tasks.mobile_pick_place.demos import mobile_scene_planner
+
+        setup, planner = mobile_scene_planner(run_dir, scene_id, dc)
+        if planner.unusable:
+            raise TaskError(f"the robot's base cannot work in {scene_id!r}: {planner.unusable}")
+        return setup, planner
+
+    def env_instruction(self, setup: Any) -> str:
+        """The scene's instruction, else "pick up the <pick> and put it on the <support>"."""
+        from factory.tasks.mobile_pick_place.env import instruction
+
+        return instruction(setup)
+
+    def env_sim(
+        self, setup: Any, planner: Any, num_envs: int, spec: Any, interpolate: bool
+    ) -> Any | None:
+        """:class:`~factory.tasks.mobile_pick_place.env.MobileSim` (episodes stepped one
+        physics step at a time, as the demos simulate them)."""
+        from factory.tasks.mobile_pick_place.env import MobileSim
+
+        return MobileSim(setup, planner, num_envs, spec, interpolate)
+
+    def claims_features(self, features: Any) -> bool:
+        """A policy that reads ``subtask_index``."""
+        from factory.tasks.mobile_pick_place.env import SUBTASK_KEY
+
+        return SUBTASK_KEY in features
+
+    def subtasks(self) -> tuple[str, ...]:
+        """``navigate_to_pick``, ``pick``, ``navigate_to_place``, ``place``."""
+        from factory.tasks.mobile_pick_place.scene import SUBTASKS
+
+        return SUBTASKS
+
+    def eval_identity(self) -> dict[str, Any]:
+        """The task's name."""
+        return {"task": self.name}
+
+    def eval_notes(self) -> dict[str, Any]:
+        """The task's name and how the env ends sub-tasks."""
+        from factory.tasks.mobile_pick_place.env import SUBTASK_RULE
+
+        return {"task": self.name, "subtask_rule": SUBTASK_RULE}

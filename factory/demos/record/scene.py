@@ -1,0 +1,88 @@
+"""A scene set up to record one task's episodes: the object a task's
+:meth:`~factory.tasks.base.Task.demo_scene` hook returns and ``stage=demos`` records with.
+
+The demos machinery (:mod:`factory.demos.cpu_items`, :mod:`factory.demos.gpu_pipeline`) is
+written once; per scene it asks the task's :class:`DemoScene` to plan an episode from a seed
+(:meth:`DemoScene.plan`) and what a successful recording is stored as
+(:meth:`DemoScene.payload`), and it executes the plans the way the task's
+:attr:`~factory.tasks.base.Task.demo_execution` says: together on a batch of worlds by the
+executors of :mod:`factory.demos.execute`, or, for a :class:`SimulatingScene`, one episode at
+a time by the task's own simulation (:meth:`SimulatingScene.simulate`).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from factory.demos.record.slots import StageEnv
+from factory.schema.episode import EpisodeInfo
+
+__all__ = ["DemoScene", "SimulatingScene"]
+
+
+class DemoScene(ABC):
+    """One scene of a run composed with the task's robot, and its planner.
+
+    Args:
+        env: the stage's settings (run, ``demos.*``, task, root seed).
+        setup: the composed scene (``scene``, ``model``, ``cleared``; the task's set-up type).
+        planner: its episode planner; None in a process that only records (the GPU
+            pipeline's main process), where :meth:`plan` is not called.
+    """
+
+    plan_type: ClassVar[type[Any]]
+    """The task's episode plan: what :meth:`plan` returns when the episode planned."""
+
+    def __init__(self, env: StageEnv, setup: Any, planner: Any | None) -> None:
+        self.env = env
+        self.setup = setup
+        self.planner = planner
+
+    @property
+    def scene_id(self) -> str:
+        return str(self.setup.scene.id)
+
+    def summary(self) -> dict[str, Any]:
+        """What the stage's summary keeps of the scene (``scenes.<id>``): ``cleared``, the
+        objects taken out for the robot; a task with a fixed base spot adds ``robot_base``
+        (x, y m, yaw rad)."""
+        return {"cleared": list(self.setup.cleared)}
+
+    @abstractmethod
+    def plan(self, seed: int) -> Any:
+        """Plans the episode of ``seed`` (deterministic): a :attr:`plan_type`, else a failure
+        with ``reason`` (a failure key), ``detail`` (a sentence for the log) and ``seconds``
+        (planning time, s). A plan has ``seconds`` and ``plan_seconds`` (segment -> s)."""
+
+    @abstractmethod
+    def payload(
+        self, slot: int, seed: int, plan: Any, rec: Any, rec_cfg: Any, recorder: str = "cpu"
+    ) -> tuple[EpisodeInfo, dict[str, np.ndarray]]:
+        """The metadata and arrays a successful recording of ``plan`` is stored as (episode
+        ``slot`` of the scene, planned from ``seed``), recorded with the settings ``rec_cfg``
+        by the ``recorder`` executor (``cpu`` or ``warp``): :func:`~factory.demos.record.
+        payload.episode_meta` and :func:`~factory.demos.record.payload.episode_arrays` with
+        the task's fields and arrays."""
+
+
+class SimulatingScene(DemoScene):
+    """A :class:`DemoScene` whose task simulates each episode itself (``demo_execution =
+    "episode"``): the CPU path simulates and draws an episode at a time, the GPU pipeline's
+    workers simulate without images and the GPU draws the recorded states."""
+
+    @abstractmethod
+    def record_config(self, render: bool | None = None) -> Any:
+        """The recording settings of ``demos.*`` (``render``: overrides ``demos.render``)."""
+
+    @abstractmethod
+    def renderer(self, rec_cfg: Any) -> Any:
+        """A CPU renderer of the scene's cameras for :meth:`simulate` (has ``close()``)."""
+
+    @abstractmethod
+    def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:
+        """Executes ``plan`` on the CPU and records it: a recording with ``outcome`` (its
+        success check), ``time`` (F,) s, ``sim_seconds`` and ``render_seconds``; images drawn
+        by ``renderer`` for a successful episode when ``rec_cfg.render``."""
