@@ -80,13 +80,20 @@ def resolve(name: str) -> StageFn:
 
 
 def stage_table() -> str:
-    width = max(map(len, STAGES))
+    """The stages, profiles and tasks (``task=<name>``), one per line with what it does."""
+    from factory.tasks import tasks
+
+    task_list = tasks()
+    width = max(map(len, [*STAGES, *PROFILES, *(t.name for t in task_list)]))
     lines = ["stages:"] + [f"  {n:<{width}}  {DESCRIPTIONS[n]}" for n in STAGES]
     lines += ["profiles:"] + [f"  {n:<{width}}  {d}" for n, d in PROFILES.items()]
+    lines += ["tasks (task=<name>):"] + [f"  {t.name:<{width}}  {t.description}" for t in task_list]
     return "\n".join(lines)
 
 
 def list_stages(ctx: StageContext) -> dict[str, Any]:
-    """``stage=list``: prints the stages and profiles."""
+    """``stage=list``: prints the stages, profiles and tasks."""
+    from factory.tasks import task_names
+
     print(stage_table())
-    return {"stages": list(STAGES), "profiles": list(PROFILES)}
+    return {"stages": list(STAGES), "profiles": list(PROFILES), "tasks": task_names()}

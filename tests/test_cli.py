@@ -31,6 +31,10 @@ def test_help_and_list(cli) -> None:
         assert stage in out.stdout
     out = cli("stage=list")
     assert out.returncode == 0 and "ingest" in out.stdout and "small" in out.stdout
+    from factory.tasks import tasks
+
+    for task in tasks():  # every registered task, with what it does
+        assert f"{task.name}  " in out.stdout and task.description in out.stdout
 
 
 def test_small_profile_end_to_end(cli, tmp_path: Path) -> None:

@@ -3,18 +3,18 @@ executed and recorded together on a batch of worlds (the fixed-base task).
 
 * CPU (:class:`BatchCpu`): one ``mujoco.batch`` of an item's planned episodes per round,
   images drawn with OpenGL (:func:`factory.demos.execute.cpu.execute`).
-* GPU pipeline: the planner processes plan a slot from its next seeds and draw the planned
-  episode's appearance (:func:`plan_slot`); the main process (:class:`BatchGpu`) takes a
-  scene's plans together, leaves the longest share to the CPU executor (``demos.gpu_tail``),
-  executes the rest on the worlds of one MuJoCo Warp model in as few calls as memory allows
-  (:class:`~factory.demos.execute.warp.WarpExecutor`, :func:`~factory.demos.execute.
-  gpu_calls.gpu_calls`), and hands the successes to the writers, which read the images in
-  place from the call's shared memory (:mod:`factory.demos.execute.shared_frames`). Slots
-  whose plan failed in execution go on with their next seed: on the CPU executor
-  (``demos.gpu_retries=cpu``, while the GPU goes on to the next scene: a GPU call of a dozen
-  worlds would take as long per frame as one of a thousand) or planned again for the GPU.
-  The same seeds give the same plans, so the CPU and GPU executors record the same episodes
-  up to float32 physics.
+* GPU pipeline: the planner processes plan a slot from its next seeds and draw the planned episode's
+  appearance (:func:`plan_slot`); the main process (:class:`BatchGpu`) takes a scene's plans
+  together, leaves the longest share to the CPU executor (``demos.gpu_tail``), executes the rest on
+  the worlds of one MuJoCo Warp model in as few calls as memory allows
+  (:class:`~factory.demos.execute.warp.WarpExecutor`,
+  :func:`~factory.demos.execute.gpu_calls.gpu_calls`), and hands the successes to the writers, which
+  read the images in place from the call's shared memory
+  (:mod:`factory.demos.execute.shared_frames`). Slots whose plan failed in execution go on with
+  their next seed: on the CPU executor (``demos.gpu_retries=cpu``, while the GPU goes on to the next
+  scene: a GPU call of a dozen worlds would take as long per frame as one of a thousand) or planned
+  again for the GPU. The same seeds give the same plans, so the CPU and GPU executors record the
+  same episodes up to float32 physics.
 """
 
 from __future__ import annotations

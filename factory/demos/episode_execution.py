@@ -2,20 +2,20 @@
 a time on one ``MjData`` (a :class:`~factory.demos.record.scene.SimulatingScene`: the mobile
 task, whose base drives between supports).
 
-* CPU (:class:`EpisodeCpu`): a slot at a time, its attempts one after another; each episode
-  is simulated, checked and drawn by the task (:meth:`~factory.demos.record.scene.
-  SimulatingScene.simulate`) and logs one INFO line (slot, attempt, outcome, seconds of planning,
-  simulation and rendering).
-* GPU pipeline: a mobile episode's cost on a CPU is its cameras (about 34 of its 40 s at
-  128 px), so the images alone move to the GPU. The planner processes plan and simulate a
-  slot without images, trying its seeds until an episode succeeds (:func:`plan_and_simulate`,
-  the CPU path's seeds and attempts), and return the recording's states and signals; the
-  main process (:class:`EpisodeGpu`) renders the successful recordings of a scene on MuJoCo
-  Warp (:class:`~factory.demos.execute.mobile_render_warp.WarpMobileRenderer`): their frames
-  fill the worlds of each render call back to back (:class:`~factory.demos.execute.
-  mobile_render_warp.RecordingStream`), and each episode, once its last frame is drawn, goes
-  to a writer process (images as numpy arrays). The scene's ``render`` seconds are the GPU's,
-  ``warp_seconds`` its upload, draw, copy, frames and calls.
+* CPU (:class:`EpisodeCpu`): a slot at a time, its attempts one after another; each episode is
+  simulated, checked and drawn by the task
+  (:meth:`~factory.demos.record.scene.SimulatingScene.simulate`) and logs one INFO line (slot,
+  attempt, outcome, seconds of planning, simulation and rendering).
+* GPU pipeline: a mobile episode's cost on a CPU is its cameras (about 34 of its 40 s at 128 px), so
+  the images alone move to the GPU. The planner processes plan and simulate a slot without images,
+  trying its seeds until an episode succeeds (:func:`plan_and_simulate`, the CPU path's seeds and
+  attempts), and return the recording's states and signals; the main process (:class:`EpisodeGpu`)
+  renders the successful recordings of a scene on MuJoCo Warp
+  (:class:`~factory.demos.execute.mobile_render_warp.WarpMobileRenderer`): their frames fill the
+  worlds of each render call back to back
+  (:class:`~factory.demos.execute.mobile_render_warp.RecordingStream`), and each episode, once its
+  last frame is drawn, goes to a writer process (images as numpy arrays). The scene's ``render``
+  seconds are the GPU's, ``warp_seconds`` its upload, draw, copy, frames and calls.
 """
 
 from __future__ import annotations

@@ -30,13 +30,12 @@ failure a reason:
 
 Work poses, footprints and the grid (:func:`factory.nav.task_poses.task_grid`) are
 :mod:`factory.nav.task_poses`'s. :func:`task_route` is the check's core and its result, a
-:class:`TaskRoute`, holds the base poses it verified: the pick and place poses that share a
-region of the carrying base's free poses. The demos (``factory.tasks.mobile_pick_place.scene``)
-compute
-the same :class:`TaskRoute` on the same grid and drive only to those poses, so a scene that
-passes here is not failed by the demos' navigation for another reason.
-:func:`clear_for_base` names the fewest light floor objects whose removal opens the way (the
-demos take them out; generation removes them as a last resort). Frames: world, metres.
+:class:`TaskRoute`, holds the base poses it verified: the pick and place poses that share a region
+of the carrying base's free poses. The demos (``factory.tasks.mobile_pick_place.scene``) compute the
+same :class:`TaskRoute` on the same grid and drive only to those poses, so a scene that passes here
+is not failed by the demos' navigation for another reason. :func:`clear_for_base` names the fewest
+light floor objects whose removal opens the way (the demos take them out; generation removes them as
+a last resort). Frames: world, metres.
 """
 
 from __future__ import annotations

@@ -37,8 +37,8 @@ if TYPE_CHECKING:
 
 
 class BatchRules(Protocol):
-    """What :class:`BatchSim` asks a task (see :class:`~factory.tasks.pick_place.env.
-    PickPlaceRules`)."""
+    """What :class:`BatchSim` asks a task (see
+    :class:`~factory.tasks.pick_place.env.PickPlaceRules`)."""
 
     setup: Any
     action_dim: int

@@ -41,17 +41,17 @@ The model predicts (``train.action``):
   LeRobot's own evaluation (``lerobot-eval`` on the ``factory`` env) can run unchanged.
 
 Mobile datasets (``task=mobile_pick_place``, recognised by their ``subtask_index`` feature;
-:mod:`factory.dataset.mobile_features`) read ``observation.state`` (11,): arm joints, gripper,
-base x, y (m, world) and yaw (rad), ``observation.ee_pose`` and ``subtask_index``, plus the
+:mod:`factory.tasks.mobile_pick_place.dataset`) read ``observation.state`` (11,): arm joints,
+gripper, base x, y (m, world) and yaw (rad), ``observation.ee_pose`` and ``subtask_index``, plus the
 images of the five cameras (left, right, wrist, fisheye_front, fisheye_back) for ``rgb`` and
-``rgbd``. The model then sees ``observation.state`` (21,): the 17 above (the tool pose by
-forward kinematics of the arm, in the robot's base frame) then the base pose x, y (m, world)
-and its heading as cos(yaw), sin(yaw); ``observation.environment_state`` (4,): the
-sub-task as a one-hot vector (navigate_to_pick, pick, navigate_to_place, place); and predicts
-the arm action above followed by the base target relative to the base pose at the frame the
-action chunk is predicted from: dx, dy (m, in that pose's base frame) and dyaw (rad): 13
-values for ``tool``/``tool_rel``, 11 for ``joint`` (:func:`base_relative`; at execution
-:func:`base_absolute` turns them back into the env's world targets).
+``rgbd``. The model then sees ``observation.state`` (21,): the 17 above (the tool pose by forward
+kinematics of the arm, in the robot's base frame) then the base pose x, y (m, world) and its heading
+as cos(yaw), sin(yaw); ``observation.environment_state`` (4,): the sub-task as a one-hot vector
+(navigate_to_pick, pick, navigate_to_place, place); and predicts the arm action above followed by
+the base target relative to the base pose at the frame the action chunk is predicted from: dx, dy
+(m, in that pose's base frame) and dyaw (rad): 13 values for ``tool``/``tool_rel``, 11 for ``joint``
+(:func:`base_relative`; at execution :func:`base_absolute` turns them back into the env's world
+targets).
 
 Why not the recorded world values: the recorded yaw is unwrapped (a drive's heading is
 continuous), so one heading appears as yaw, yaw + 2 pi or yaw - 2 pi in different demos of one

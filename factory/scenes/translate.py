@@ -1,14 +1,14 @@
 """Reads a Spanish, French, German or Chinese request as English, word by word, and says which
 words it could not read.
 
-The language is the one with the most words of its own in the request (:data:`~.foreign_words.
-FOREIGN_WORDS`, words that are English as well not counted); English wins ties. A foreign
-request is read through its language's words, the longest phrase first ("salle de bain" before
-"salle"); its words that no table knows are *unknown* and reported. An English request keeps
-its text unless it holds foreign words that are not English words too ("a bedroom with a
-taza"); Chinese words are read in any request, and Chinese characters no table knows are
-unknown. The English reading of "recoge la taza y ponla en el cuenco" is "pick up the mug and
-put it in the bowl": the request parser reads it as any other.
+The language is the one with the most words of its own in the request
+(:data:`~.foreign_words.FOREIGN_WORDS`, words that are English as well not counted); English wins
+ties. A foreign request is read through its language's words, the longest phrase first ("salle de
+bain" before "salle"); its words that no table knows are *unknown* and reported. An English request
+keeps its text unless it holds foreign words that are not English words too ("a bedroom with a
+taza"); Chinese words are read in any request, and Chinese characters no table knows are unknown.
+The English reading of "recoge la taza y ponla en el cuenco" is "pick up the mug and put it in the
+bowl": the request parser reads it as any other.
 """
 
 from __future__ import annotations

@@ -10,28 +10,43 @@ inside it, so that the lower floors can hold a task without loading its planner.
 A task class sets :attr:`Task.name` (its registry key, :data:`factory.tasks.TASKS`) and
 :attr:`Task.description`, and fills the hooks; like ManiSkill's ``_load_scene`` /
 ``_initialize_episode`` / ``evaluate``, each hook is one question about the task.
+
+A task is one package (``factory/tasks/<name>/``): ``task.py`` holds the class, cheap to
+import, and the hooks that read data of a heavier floor default to the package's module of
+that floor (:meth:`Task.part`): ``demos.py`` (``demo_scene``), ``dataset.py`` (``LAYOUT``,
+``ROBOT_TYPE``, ``features``, ``arrays_of``, ``columns``, ``card``) and ``env.py``
+(``OBSERVATIONS``, ``action_bounds``); a task overrides a hook where it needs more.
 """
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 if TYPE_CHECKING:
+    from types import ModuleType
+
     from factory.schema import Scene
 
 __all__ = ["Task"]
 
 
 class Task:
-    """A robot task (subclass per task; one instance per process, :func:`~factory.tasks.
-    get_task`)."""
+    """A robot task (subclass per task; one instance per process,
+    :func:`~factory.tasks.get_task`)."""
 
     name: ClassVar[str]
     """Registry key: ``task=<name>`` on the command line, ``task.kind`` in ``scene.json``."""
 
     description: ClassVar[str]
     """One line: what the robot does (``stage=list`` and the run report show it)."""
+
+    def part(self, module: str) -> ModuleType:
+        """The task package's module ``module`` (``demos``, ``dataset``, ``env``), imported on
+        first use: where the hooks' defaults read the task's data and functions."""
+        package = type(self).__module__.rpartition(".")[0]
+        return importlib.import_module(f"{package}.{module}")
 
     # -- scenes: generation, augmentation, validation (floors 4-5) -----------------------------
 
@@ -96,7 +111,7 @@ class Task:
             FactoryError: the scene cannot host the task (the scene's
                 ``failures.scene_unusable``).
         """
-        raise NotImplementedError
+        return self.part("demos").demo_scene(env, scene_id, plan)
 
     # -- dataset: the LeRobot export (floor 8) --------------------------------------------------
     # One export path (factory.dataset) writes every task: the features below, then a video of
@@ -108,21 +123,21 @@ class Task:
         datasets of one layout have the same features, and one dataset holds one layout
         (:mod:`factory.dataset.layout`; a ``meta/factory.json`` without ``layout`` is of the
         default task's). The mixed-layout errors call the robot's base by it ("fixed base")."""
-        raise NotImplementedError
+        return self.part("dataset").LAYOUT
 
     def robot_type(self) -> str:
         """lerobot's ``robot_type`` of the task's datasets."""
-        raise NotImplementedError
+        return self.part("dataset").ROBOT_TYPE
 
     def dataset_features(self) -> dict[str, dict[str, Any]]:
         """The task's LeRobot features other than the cameras' (key -> ``dtype``, ``shape``,
         ``names``), in the dataset's order; a feature of shape (1,) is a scalar column."""
-        raise NotImplementedError
+        return self.part("dataset").features()
 
     def episode_arrays(self, n_frames: int) -> dict[str, tuple[int, ...]]:
         """The arrays an episode of the task holds besides its cameras', and their shapes for
         ``n_frames`` frames: the export refuses an episode whose arrays differ, naming one."""
-        raise NotImplementedError
+        return self.part("dataset").arrays_of(n_frames)
 
     def episode_columns(self, info: Any, arrays: Any, scene_json: bytes) -> dict[str, Any]:
         """The values of :meth:`dataset_features` of one episode: numpy arrays (F, *shape).
@@ -135,7 +150,7 @@ class Task:
         Raises:
             StoreError: values the features cannot hold (names the episode and the fix).
         """
-        raise NotImplementedError
+        return self.part("dataset").columns(info, arrays, scene_json)
 
     def dataset_meta(self) -> dict[str, Any]:
         """The keys the task adds to ``meta/factory.json`` (a merge keeps the first shard's)."""
@@ -152,7 +167,7 @@ class Task:
             cameras: its camera names.
             rgb: the RGB codec settings (``codec``, ``pix_fmt``).
         """
-        raise NotImplementedError
+        return self.part("dataset").card(meta, cameras, rgb)
 
     def card_tags(self) -> tuple[str, ...]:
         """Tags the task's dataset cards add to the factory's."""
@@ -191,11 +206,11 @@ class Task:
     def env_observations(self) -> dict[str, tuple[tuple[int, ...], str]]:
         """The env's observations besides the cameras' and the environment state, in the
         dataset's order: key -> (shape, dtype) of one env's."""
-        raise NotImplementedError
+        return dict(self.part("env").OBSERVATIONS)
 
     def env_action_bounds(self) -> tuple[Any, Any]:
         """The action's lowest and highest values (float32 arrays of its size)."""
-        raise NotImplementedError
+        return self.part("env").action_bounds()
 
     def env_scene(self, run_dir: Path, scene_id: str, dc: Any) -> tuple[Any, Any]:
         """Scene ``scene_id`` of the run composed with the robot exactly as ``stage=demos``
@@ -230,9 +245,9 @@ class Task:
     def env_rules(
         self, setup: Any, planner: Any, num_envs: int, spec: Any, interpolate: bool
     ) -> Any:
-        """The task's rules for a batch of its worlds (a :class:`~factory.policy.batch_sim.
-        BatchRules`: initial configurations, controller, contacts, when an episode ends), for
-        a task without :meth:`env_sim`; arguments as there."""
+        """The task's rules for a batch of its worlds (a
+        :class:`~factory.policy.batch_sim.BatchRules`: initial configurations, controller, contacts,
+        when an episode ends), for a task without :meth:`env_sim`; arguments as there."""
         raise NotImplementedError
 
     def claims_features(self, features: Any) -> bool:

@@ -31,6 +31,41 @@ def test_every_task_resolves(name: str) -> None:
     assert type(task).__module__.startswith(f"factory.tasks.{name}.")
 
 
+@pytest.mark.parametrize("name", list(TASKS))
+def test_task_class_is_cheap(name: str) -> None:
+    """A task class loads none of the heavy libraries (``stage=list`` and generation hold it)."""
+    code = (
+        f"import sys; from factory.tasks import get_task; get_task({name!r}); "
+        "print(sorted(m for m in ('mujoco', 'torch', 'ompl', 'numpy') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("name", list(TASKS))
+def test_task_fills_the_hooks(name: str) -> None:
+    """Every task answers the hooks of each floor (their defaults read its package's
+    ``demos``, ``dataset`` and ``env`` modules) consistently."""
+    from factory.demos.execution import EXECUTIONS
+
+    task = get_task(name)
+    assert task.demo_execution in EXECUTIONS
+    assert callable(task.part("demos").demo_scene)
+    layouts = [t.dataset_layout() for t in tasks()]
+    assert len(set(layouts)) == len(layouts)  # a dataset's layout names its task
+    assert task.robot_type() and task.robot_kind
+    features = task.dataset_features()
+    assert {"observation.state", "action"} <= set(features)
+    arrays = task.episode_arrays(5)
+    assert arrays and all(shape[0] == 5 for shape in arrays.values())
+    assert arrays["action"][1] == features["action"]["shape"][0]
+    low, high = task.env_action_bounds()
+    assert low.shape == high.shape == tuple(features["action"]["shape"]) and (low <= high).all()
+    observations = task.env_observations()
+    assert observations["observation.state"][0] == tuple(features["observation.state"]["shape"])
+    assert set(task.fisheye_cameras()) <= set(task.env_cameras())
+
+
 def test_unknown_task_lists_the_choices() -> None:
     with pytest.raises(ConfigError, match="unknown task 'pick_plcae': choose one of pick_place"):
         get_task("pick_plcae")

@@ -106,11 +106,9 @@ def gpu_calls(
 
     A call packs its episodes onto worlds back to back
     (:func:`~factory.demos.execute.world_schedule.packed_schedule`; at most ``gpu_batch`` worlds,
-    and
-    no more than keep the call about as long as its longest episode,
+    and no more than keep the call about as long as its longest episode,
     :func:`~factory.demos.execute.world_schedule.worlds_for`), so episode lengths cost little
-    padding
-    and a scene needs one call as long as its recordings fit in memory: ``budget`` bytes per
+    padding and a scene needs one call as long as its recordings fit in memory: ``budget`` bytes per
     call (a share of host memory, and of device memory when images stay on the device). Where
     they do not, the episodes are dealt, longest first, over as few calls as fit, so that every
     call has the same mix of lengths.

@@ -1,15 +1,15 @@
 """The mobile task's five cameras rendered in batches on MuJoCo Warp (the GPU twin of
 :class:`factory.tasks.mobile_pick_place.execute.MobileRenderer`).
 
-A mobile episode is simulated first (on the CPU, :func:`~factory.tasks.mobile_pick_place.execute.
-execute_mobile` without images) and drawn afterwards from its recorded integration states.
-:class:`WarpMobileRenderer` makes the recorded frames of one or several episodes of a scene
-the worlds of one MuJoCo Warp model: per call it uploads each world's configuration (``qpos``,
-and the mocap poses when the model has mocap bodies) from the recorded states, runs
-``mujoco_warp.kinematics`` and ``camlight`` (plus ``com_pos`` where a camera or light tracks a
-centre of mass), refits the renderer's BVH, ray-traces every camera of every world in one
-``mujoco_warp.render``, converts the pixels on the device (:mod:`factory.demos.
-mobile_warp_kernels`) and copies RGB and depth back in one block each.
+A mobile episode is simulated first (on the CPU,
+:func:`~factory.tasks.mobile_pick_place.execute.execute_mobile` without images) and drawn afterwards
+from its recorded integration states. :class:`WarpMobileRenderer` makes the recorded frames of one
+or several episodes of a scene the worlds of one MuJoCo Warp model: per call it uploads each world's
+configuration (``qpos``, and the mocap poses when the model has mocap bodies) from the recorded
+states, runs ``mujoco_warp.kinematics`` and ``camlight`` (plus ``com_pos`` where a camera or light
+tracks a centre of mass), refits the renderer's BVH, ray-traces every camera of every world in one
+``mujoco_warp.render``, converts the pixels on the device
+(:mod:`factory.demos.execute.mobile_warp_kernels`) and copies RGB and depth back in one block each.
 
 Cameras: the pinhole cameras (``left``, ``right``, ``wrist``) use MuJoCo Warp's own rays;
 each fisheye camera (``fisheye_front``, ``fisheye_back``) is one camera whose precomputed

@@ -11,11 +11,10 @@ of every world and camera, and a conversion kernel to ``uint8`` RGB and depth (`
 ``float32`` m). On CUDA that sequence is captured once into a CUDA graph and replayed per
 frame. The host copies each frame's images, states and contacts in a few large blocks.
 
-Appearance randomisation (``looks``, as the CPU executor takes them): the call's model copy has
-one row per world of the fields an appearance sets, and
+Appearance randomisation (``looks``, as the CPU executor takes them): the call's model copy has one
+row per world of the fields an appearance sets, and
 :func:`~factory.demos.execute.warp_kernels.set_looks` writes an episode's row of the patch tables
-into
-its world's fields when the episode starts (before the first ``forward``, and in the captured
+into its world's fields when the episode starts (before the first ``forward``, and in the captured
 period after a packed world's reset), so each world renders its episode's look.
 
 The recorded MuJoCo integration state has the layout of ``mj_getState(..., mjSTATE_INTEGRATION)``
@@ -242,9 +241,8 @@ class WarpExecutor:
             None keeps its own choice (by the number of geom pairs).
         arenas: allocate each call's recordings in shared memory arenas taken from this
             :class:`~factory.demos.execute.shared_frames.ArenaPool` (Linux), so that writer
-            processes
-            read them in place; :meth:`take_arenas` hands them over (to be given back to the
-            pool once written). None: ordinary numpy arrays.
+            processes read them in place; :meth:`take_arenas` hands them over (to be given back to
+            the pool once written). None: ordinary numpy arrays.
         images_on_device: keep a call's images on the device until the call ends, then copy
             them into an arena in one block per camera (needs ``arenas``): the host holds no
             images while the call runs, so calls of many more worlds fit in host memory, and
@@ -307,11 +305,10 @@ class WarpExecutor:
 
         Args:
             plans: the episodes (of this scene).
-            worlds: worlds of the call; fewer than ``len(plans)`` packs the episodes onto them
-                back to back (:func:`~factory.demos.execute.world_schedule.packed_schedule`: no
-                world
-                waits for the longest episode); None: one world per episode, all starting
-                together (:func:`~factory.demos.execute.world_schedule.padded_schedule`).
+            worlds: worlds of the call; fewer than ``len(plans)`` packs the episodes onto them back
+                to back (:func:`~factory.demos.execute.world_schedule.packed_schedule`: no world
+                waits for the longest episode); None: one world per episode, all starting together
+                (:func:`~factory.demos.execute.world_schedule.padded_schedule`).
             looks: per plan, its appearance (an
                 :class:`~factory.schema.episode.EpisodeAppearance`) and the model fields it
                 sets (a :class:`~factory.demos.record.appearance.ModelPatch`), as

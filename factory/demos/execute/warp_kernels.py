@@ -2,8 +2,7 @@
 """Warp kernels of the GPU demo executor (:mod:`factory.demos.execute.warp`).
 
 A call's worlds follow a :class:`~factory.demos.execute.world_schedule.WorldSchedule`: ``(B, n)``
-tables
-(episode, frame, start, row) indexed by the frame boundary ``b = step // per_frame``, where
+tables (episode, frame, start, row) indexed by the frame boundary ``b = step // per_frame``, where
 ``step`` is a device-side counter of physics steps, so one captured recording period serves
 every boundary.
 

@@ -3,8 +3,7 @@
 The pinhole part of both recording renderers (the fixed-base task's
 :class:`~factory.demos.execute.cpu.FrameRenderer` and the mobile task's
 :class:`~factory.tasks.mobile_pick_place.execute.MobileRenderer`): :class:`CameraStrip` draws its
-cameras
-into one offscreen buffer and reads it back at once (one GPU synchronization per frame);
+cameras into one offscreen buffer and reads it back at once (one GPU synchronization per frame);
 :func:`size_offscreen` prepares a model's offscreen buffer for it and :func:`encode_depth`
 stores depth as recorded.
 """

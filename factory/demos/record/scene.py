@@ -63,9 +63,9 @@ class DemoScene(ABC):
     ) -> tuple[EpisodeInfo, dict[str, np.ndarray]]:
         """The metadata and arrays a successful recording of ``plan`` is stored as (episode
         ``slot`` of the scene, planned from ``seed``), recorded with the settings ``rec_cfg``
-        by the ``recorder`` executor (``cpu`` or ``warp``): :func:`~factory.demos.record.
-        payload.episode_meta` and :func:`~factory.demos.record.payload.episode_arrays` with
-        the task's fields and arrays."""
+        by the ``recorder`` executor (``cpu`` or ``warp``):
+        :func:`~factory.demos.record.payload.episode_meta` and
+        :func:`~factory.demos.record.payload.episode_arrays` with the task's fields and arrays."""
 
 
 class SimulatingScene(DemoScene):

@@ -78,7 +78,7 @@ def meta() -> dict[str, Any]:
     }
 
 
-def columns(info: Any, arrays: Any) -> dict[str, np.ndarray]:
+def columns(info: Any, arrays: Any, scene_json: bytes = b"") -> dict[str, np.ndarray]:
     """The values of :func:`features` of one episode, (F, ...) each.
 
     Raises:

@@ -6,15 +6,14 @@ at a time on one ``MjData``, :func:`~factory.tasks.mobile_pick_place.execute.exe
 
 The cameras are ``demos.cameras`` (pinhole, on the robot) plus both fisheye cameras;
 ``demos.randomize`` does not apply. Stored episodes keep the fixed task's
-:class:`~factory.schema.episode.EpisodeInfo` fields and fill ``route`` (the route check's pick
-and place poses the drives ended at, their indices in the route's lists, its pose counts,
-grid cell and footprint; :meth:`~factory.tasks.mobile_pick_place.plan.MobilePlanner.
-route_record`): ``pick_id`` is the object, ``support_id`` the pick support, ``target_id`` the
-place support, ``robot`` the spawn pose (z = 0), ``phases`` the first frame of each phase
-(sub-tasks included), ``cameras`` the pinhole cameras then ``fisheye_front`` /
-``fisheye_back``. Arrays: as the fixed task's (``time``, ``state``, ``joint_pos``,
-``gripper``, ``ee_pose``, ``rgb/<camera>``, ``depth/<camera>``), with ``action`` of 11
-columns (arm 7, gripper, base x, y, yaw) instead of 8, and in addition ``base_pose`` (F, 3),
+:class:`~factory.schema.episode.EpisodeInfo` fields and fill ``route`` (the route check's pick and
+place poses the drives ended at, their indices in the route's lists, its pose counts, grid cell and
+footprint; :meth:`~factory.tasks.mobile_pick_place.plan.MobilePlanner.route_record`): ``pick_id`` is
+the object, ``support_id`` the pick support, ``target_id`` the place support, ``robot`` the spawn
+pose (z = 0), ``phases`` the first frame of each phase (sub-tasks included), ``cameras`` the pinhole
+cameras then ``fisheye_front`` / ``fisheye_back``. Arrays: as the fixed task's (``time``, ``state``,
+``joint_pos``, ``gripper``, ``ee_pose``, ``rgb/<camera>``, ``depth/<camera>``), with ``action`` of
+11 columns (arm 7, gripper, base x, y, yaw) instead of 8, and in addition ``base_pose`` (F, 3),
 ``subtask`` (F,) int8 (index into ``SUBTASKS``) and ``subtask_done`` (F,) bool. There is no
 ``env_state``.
 """
@@ -53,7 +52,7 @@ def mobile_scene_planner(
 ) -> tuple[MobileSetup, MobilePlanner]:
     """A scene of a run composed with the mobile robot, and its planner with the demos
     settings ``dc`` (``demos.*``): what ``stage=demos`` plans in and what the closed-loop env
-    (:mod:`factory.policy.mobile_env`) simulates.
+    (:mod:`factory.tasks.mobile_pick_place.env`) simulates.
 
     Raises:
         FactoryError: the scene cannot be loaded or cannot host the task.

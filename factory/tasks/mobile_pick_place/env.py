@@ -1,9 +1,9 @@
 """The mobile pick-and-place task in the evaluation env (``task=mobile_pick_place``): the
 Panda on the Omron base, simulated one episode at a time as ``stage=demos`` simulates the task.
 
-:class:`MobileSim` is the simulation behind :class:`~factory.policy.vector_env.
-PickPlaceVecEnv` for this task; it runs ``n`` episodes of one scene with the demos' own pieces,
-so that what a policy sees and does in it is what the dataset recorded:
+:class:`MobileSim` is the simulation behind :class:`~factory.policy.vector_env.PickPlaceVecEnv` for
+this task; it runs ``n`` episodes of one scene with the demos' own pieces, so that what a policy
+sees and does in it is what the dataset recorded:
 
 * scene: :func:`factory.tasks.mobile_pick_place.demos.mobile_scene_planner`, the same set-up as
   ``stage=demos`` (the scene composed with the mobile robot, light floor objects in the base's
@@ -12,24 +12,24 @@ so that what a policy sees and does in it is what the dataset recorded:
   starts where the demos' planner starts episode ``s``: base at a random free pose, arm
   stowed, hand closed), or a recorded MuJoCo integration state (replay);
 * action (11,) as recorded: arm joint targets (7, rad), gripper command (m; 0.08 open,
-  negative squeezes), base target x, y (m, world) and unwrapped yaw (rad), one per frame
-  (``1 / fps`` s). The controller is the demos': :func:`~factory.tasks.pick_place.plan.
-  targets_to_ctrl` for the arm and fingers, the base's position actuators with the planner's
-  velocity lead. With ``interpolate`` (default) arm and base targets move linearly from the
-  previous action over the frame with the velocity ``(a - a_prev) * fps`` as lead (the
-  recorded action of frame ``f`` is the plan's target at the end of frame ``f``, so this
-  first-order hold follows the plan's per-step targets closely); the gripper command is held;
+  negative squeezes), base target x, y (m, world) and unwrapped yaw (rad), one per frame (``1 /
+  fps`` s). The controller is the demos': :func:`~factory.tasks.pick_place.plan.targets_to_ctrl` for
+  the arm and fingers, the base's position actuators with the planner's velocity lead. With
+  ``interpolate`` (default) arm and base targets move linearly from the previous action over the
+  frame with the velocity ``(a - a_prev) * fps`` as lead (the recorded action of frame ``f`` is the
+  plan's target at the end of frame ``f``, so this first-order hold follows the plan's per-step
+  targets closely); the gripper command is held;
 * physics: one ``mujoco.MjData`` per episode stepped one physics step at a time as
   :func:`~factory.tasks.mobile_pick_place.execute.simulate` does, the deepest contact of the
   base and of the arm measured after every step
   (:func:`~factory.tasks.mobile_pick_place.execute.penetrations`);
-* observations keyed like the dataset's features: ``observation.state`` (11: arm joints,
-  finger opening, base x, y, yaw), ``observation.ee_pose`` (7: tool position + quaternion wxyz,
-  world), ``subtask_index`` (1, int64), and per camera ``observation.images.<cam>`` /
-  ``observation.depth.<cam>`` drawn by the demos' :class:`~factory.tasks.mobile_pick_place.
-  execute.MobileRenderer` from the frame's state set into a fresh ``MjData`` (as
-  ``render_frames``: the same images for the same state; fisheye images are ``width``
-  square);
+* observations keyed like the dataset's features: ``observation.state`` (11: arm joints, finger
+  opening, base x, y, yaw), ``observation.ee_pose`` (7: tool position + quaternion wxyz, world),
+  ``subtask_index`` (1, int64), and per camera ``observation.images.<cam>`` /
+  ``observation.depth.<cam>`` drawn by the demos'
+  :class:`~factory.tasks.mobile_pick_place.execute.MobileRenderer` from the frame's state set into a
+  fresh ``MjData`` (as ``render_frames``: the same images for the same state; fisheye images are
+  ``width`` square);
 * sub-tasks (``navigate_to_pick``, ``pick``, ``navigate_to_place``, ``place``): the env's own
   check of each sub-task's end condition, read from the simulation (:class:`SubtaskRule`), not
   the policy's prediction (the policies predict no done flag). The demos end a drive when the
@@ -221,8 +221,8 @@ class MobileSim:
     """``num_envs`` mobile pick-and-place episodes of one scene (see the module docstring).
 
     Args:
-        setup: the scene with the mobile robot (:func:`~factory.tasks.mobile_pick_place.demos.
-            mobile_scene_planner`).
+        setup: the scene with the mobile robot (
+            :func:`~factory.tasks.mobile_pick_place.demos.mobile_scene_planner`).
         planner: its planner (the spawn rule, and the privileged agent).
         num_envs: episodes run at once (stepped one after the other).
         spec: what to observe (:class:`~factory.policy.obs_spec.ObsSpec`).

@@ -1,30 +1,25 @@
 """Planning a mobile pick-and-place episode: spawn, drive, pick, carry, place.
 
 :class:`MobilePlanner` plans the episodes of one scene
-(:class:`~factory.tasks.mobile_pick_place.scene.
-MobileSetup`), each deterministic in its seed in a fresh process (OMPL's generator is seeded
-once per process):
+(:class:`~factory.tasks.mobile_pick_place.scene.MobileSetup`), each deterministic in its seed in a
+fresh process (OMPL's generator is seeded once per process):
 
 1. spawns the base at a random free pose from which the route's lattice reaches a verified
    pick pose (:meth:`factory.nav.route.TaskRoute.random_spawn`: a region of the stowed
    base's SE(2) lattice), arm stowed, hand closed;
 2. ``navigate_to_pick``: base poses within reach of the object
    (:func:`~factory.tasks.mobile_pick_place.scene.task_work_poses`, all sides of the support and
-   facing
-   the object from every direction), of them only those the route check verified
-   (``MobileSetup.route``, :class:`factory.nav.route.TaskRoute`: a place pose shares their
-   region of the carrying base's free poses) in the spawn's region of the stowed base's
-   free poses (:meth:`~factory.nav.route.TaskRoute.picks_from`), an SE(2) path for the
-   base's footprint
+   facing the object from every direction), of them only those the route check verified
+   (``MobileSetup.route``, :class:`factory.nav.route.TaskRoute`: a place pose shares their region of
+   the carrying base's free poses) in the spawn's region of the stowed base's free poses
+   (:meth:`~factory.nav.route.TaskRoute.picks_from`), an SE(2) path for the base's footprint
    (:func:`factory.nav.plan_se2_path`), timed with ruckig under
    :data:`~factory.robots.mobile_panda.BASE_LIMITS`, re-checked with the robot's real shape;
-3. ``pick``: the fixed-base machinery with the arm's base frame at the mobile arm mount:
-   antipodal grasps ranked for carrying (:func:`carry_order`), mink IK
-   (:class:`factory.robots.ik.IKSolver`, on the fixed robot alone in its link0 frame, here
-   mapped through the mount pose), OMPL RRTConnect arm motions checked in the scene
-   (:mod:`factory.demos.plan.planner`), ruckig timing (:mod:`factory.demos.plan.timing`); then the
-   arm
-   folds into a carry pose;
+3. ``pick``: the fixed-base machinery with the arm's base frame at the mobile arm mount: antipodal
+   grasps ranked for carrying (:func:`carry_order`), mink IK (:class:`factory.robots.ik.IKSolver`,
+   on the fixed robot alone in its link0 frame, here mapped through the mount pose), OMPL RRTConnect
+   arm motions checked in the scene (:mod:`factory.demos.plan.planner`), ruckig timing
+   (:mod:`factory.demos.plan.timing`); then the arm folds into a carry pose;
 4. ``navigate_to_place``: as 2, to a pose within reach of the place support's top that the
    route verified in the region of the pick pose reached, with the footprint lengthened by
    the object and the object in the hand in the re-check;

@@ -37,63 +37,18 @@ class MobilePickPlaceTask(Task):
 
     # -- demos ----------------------------------------------------------------------------------
     # set-up, planner, simulation and stored episode: factory.tasks.mobile_pick_place.demos
+    # (demo_scene)
 
     demo_execution: ClassVar[str] = "episode"
 
-    def demo_scene(self, env: Any, scene_id: str, plan: bool = True) -> Any:
-        """The scene composed with the mobile robot (:class:`~factory.tasks.mobile_pick_place.
-        demos.MobilePickPlaceScene`); with its planner, a scene where the base cannot work at
-        both supports raises."""
-        from factory.tasks.mobile_pick_place.demos import demo_scene
-
-        return demo_scene(env, scene_id, plan)
-
     # -- dataset --------------------------------------------------------------------------------
     # the features and card lines: factory.tasks.mobile_pick_place.dataset
-
-    def dataset_layout(self) -> str:
-        """``mobile``."""
-        from factory.tasks.mobile_pick_place.dataset import LAYOUT
-
-        return LAYOUT
-
-    def robot_type(self) -> str:
-        """``franka_panda_omron``."""
-        from factory.tasks.mobile_pick_place.dataset import ROBOT_TYPE
-
-        return ROBOT_TYPE
-
-    def dataset_features(self) -> dict[str, dict[str, Any]]:
-        """The arm's and the base's state, tool pose, action; the sub-task and its end."""
-        from factory.tasks.mobile_pick_place.dataset import features
-
-        return features()
-
-    def episode_arrays(self, n_frames: int) -> dict[str, tuple[int, ...]]:
-        """The arm's arrays (11 action columns), the base pose, the sub-task labels."""
-        from factory.tasks.mobile_pick_place.dataset import arrays_of
-
-        return arrays_of(n_frames)
-
-    def episode_columns(self, info: Any, arrays: Any, scene_json: bytes) -> dict[str, Any]:
-        """The arrays (the scene is not read)."""
-        from factory.tasks.mobile_pick_place.dataset import columns
-
-        return columns(info, arrays)
 
     def dataset_meta(self) -> dict[str, Any]:
         """``layout``, the sub-task names, the state's and action's column names."""
         from factory.tasks.mobile_pick_place.dataset import meta
 
         return meta()
-
-    def dataset_card(
-        self, meta: dict[str, Any], cameras: list[str], rgb: dict[str, Any]
-    ) -> tuple[str, list[str]]:
-        """Mobile manipulation demonstrations; the features, the route and extras."""
-        from factory.tasks.mobile_pick_place.dataset import card
-
-        return card(meta, cameras, rgb)
 
     def card_tags(self) -> tuple[str, ...]:
         """``mobile-manipulation``."""
@@ -103,7 +58,7 @@ class MobilePickPlaceTask(Task):
 
     # -- policy ---------------------------------------------------------------------------------
 
-    # the env's simulation: factory.tasks.mobile_pick_place.env
+    # the env's observations, action bounds and simulation: factory.tasks.mobile_pick_place.env
 
     env_max_steps: ClassVar[int] = 1500
     robot_kind: ClassVar[str] = "mobile"
@@ -120,22 +75,10 @@ class MobilePickPlaceTask(Task):
 
         return ALL_CAMERAS
 
-    def env_observations(self) -> dict[str, tuple[tuple[int, ...], str]]:
-        """The arm's and the base's state (11), the tool pose (7), the sub-task (1)."""
-        from factory.tasks.mobile_pick_place.env import OBSERVATIONS
-
-        return dict(OBSERVATIONS)
-
-    def env_action_bounds(self) -> tuple[Any, Any]:
-        """The arm's and the gripper's (as the fixed task's), the base target unbounded."""
-        from factory.tasks.mobile_pick_place.env import action_bounds
-
-        return action_bounds()
-
     def env_scene(self, run_dir: Any, scene_id: str, dc: Any) -> tuple[Any, Any]:
-        """The demos' set-up and planner (:func:`factory.tasks.mobile_pick_place.demos.
-        mobile_scene_planner`); a scene where the base cannot reach both supports raises
-        TaskError."""
+        """The demos' set-up and planner (
+        :func:`factory.tasks.mobile_pick_place.demos.mobile_scene_planner`); a scene where the base
+        cannot reach both supports raises TaskError."""
         from factory.errors import TaskError
         from factory.tasks.mobile_pick_place.demos import mobile_scene_planner
 

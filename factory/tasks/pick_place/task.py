@@ -28,61 +28,13 @@ class PickPlaceTask(Task):
         return not spec.get("source")
 
     # -- demos ----------------------------------------------------------------------------------
-    # set-up, planner and stored episode: factory.tasks.pick_place.demos
+    # set-up, planner and stored episode: factory.tasks.pick_place.demos (demo_scene)
 
     demo_execution: ClassVar[str] = "batch"
 
-    def demo_scene(self, env: Any, scene_id: str, plan: bool = True) -> Any:
-        """The scene with the Panda at its base spot (:class:`~factory.tasks.pick_place.demos.
-        PickPlaceScene`)."""
-        from factory.tasks.pick_place.demos import demo_scene
-
-        return demo_scene(env, scene_id, plan)
-
-    # -- dataset --------------------------------------------------------------------------------
-    # the features and card lines: factory.tasks.pick_place.dataset
-
-    def dataset_layout(self) -> str:
-        """``fixed`` (its datasets hold no ``layout``: written before there were two)."""
-        from factory.tasks.pick_place.dataset import LAYOUT
-
-        return LAYOUT
-
-    def robot_type(self) -> str:
-        """``franka_panda``."""
-        from factory.tasks.pick_place.dataset import ROBOT_TYPE
-
-        return ROBOT_TYPE
-
-    def dataset_features(self) -> dict[str, dict[str, Any]]:
-        """The arm's state, tool pose, the objects' poses, the arm's action."""
-        from factory.tasks.pick_place.dataset import features
-
-        return features()
-
-    def episode_arrays(self, n_frames: int) -> dict[str, tuple[int, ...]]:
-        """The arm's arrays (``env_state``, absent from older stores, is checked when read)."""
-        from factory.tasks.pick_place.dataset import arrays_of
-
-        return arrays_of(n_frames)
-
-    def episode_columns(self, info: Any, arrays: Any, scene_json: bytes) -> dict[str, Any]:
-        """The arrays, and the objects' poses from the MuJoCo states of older stores."""
-        from factory.tasks.pick_place.dataset import columns
-
-        return columns(info, arrays, scene_json)
-
-    def dataset_card(
-        self, meta: dict[str, Any], cameras: list[str], rgb: dict[str, Any]
-    ) -> tuple[str, list[str]]:
-        """Franka Panda demonstrations; the features and extras."""
-        from factory.tasks.pick_place.dataset import card
-
-        return card(meta, cameras, rgb)
-
-    # -- policy ---------------------------------------------------------------------------------
-
-    # the env's rules and observations: factory.tasks.pick_place.env
+    # -- dataset and policy ---------------------------------------------------------------------
+    # the features and card lines: factory.tasks.pick_place.dataset; the env's observations,
+    # action bounds and rules: factory.tasks.pick_place.env
 
     robot_kind: ClassVar[str] = "fixed-base"
 
@@ -98,22 +50,9 @@ class PickPlaceTask(Task):
 
         return CAMERAS
 
-    def env_observations(self) -> dict[str, tuple[tuple[int, ...], str]]:
-        """The arm's state (8) and the tool pose (7)."""
-        from factory.tasks.pick_place.env import OBSERVATIONS
-
-        return dict(OBSERVATIONS)
-
-    def env_action_bounds(self) -> tuple[Any, Any]:
-        """Arm joint targets within the Panda's limits (rad), the gripper command from
-        squeezing shut to open (m)."""
-        from factory.tasks.pick_place.env import action_bounds
-
-        return action_bounds()
-
     def env_scene(self, run_dir: Any, scene_id: str, dc: Any) -> tuple[Any, Any]:
-        """The demos' set-up and planner (:func:`factory.tasks.pick_place.demos.
-        scene_planner`)."""
+        """The demos' set-up and planner (
+        :func:`factory.tasks.pick_place.demos.scene_planner`)."""
         from factory.tasks.pick_place.demos import scene_planner
 
         return scene_planner(run_dir, scene_id, dc)
