@@ -5,7 +5,7 @@
 #   .whl   first part of the wheels (under the 64 MiB a call may carry), installed by a first call
 #   .whl2  the rest, installed by a second call right after (the machine stays warm 30 s)
 #   .gl    the GL loader debs for MUJOCO_GL=egl rendering
-#   .gpu/robots  the composed Panda model (robosuite's wheel is 148 MB: its model is exported
+#   .gpu/robots  the composed Panda models, fixed and mobile (robosuite's wheel is 148 MB: they are exported
 #                here once and read through FACTORY_ROBOT_CACHE instead)
 #   .gpu/env.sh  the environment of every later call
 #
@@ -55,6 +55,8 @@ apt-get $o update -qq
 mkdir -p .gpu
 FACTORY_ROBOT_CACHE=$PWD/.gpu/robots "$PY" -c \
   "from factory.robots.panda import export_robot, robot_cache_dir as d; d().is_dir() or export_robot(d())"
+FACTORY_ROBOT_CACHE=$PWD/.gpu/robots "$PY" -c "from factory.robots.mobile_panda import \
+  export_mobile_robot, mobile_cache_dir as d; d().is_dir() or export_mobile_robot(d())"
 cat > .gpu/env.sh <<'EOF'
 export PYTHONPATH=/tmp/site:/tmp/site2:$PWD MUJOCO_GL=egl FACTORY_ROBOT_CACHE=$PWD/.gpu/robots \
   PYTHONUNBUFFERED=1 HF_HUB_OFFLINE=1
