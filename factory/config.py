@@ -426,10 +426,11 @@ class TrainConfig:
             ``rgb`` (the recorded cameras' images + joints, gripper, tool pose) or ``rgbd``
             (RGB and depth of every camera + the same; the paper's setting).
         action: what the model predicts: ``tool`` (the tool pose in the robot's base frame +
-            gripper, turned into joint targets by IK at execution; the paper's end-effector
-            actions, and what generalises from few demos), ``tool_rel`` (the same with
-            positions relative to the tool at each action chunk's start) or ``joint`` (the
-            dataset's 8-D joint-target action as it is; what ``lerobot-eval`` runs unchanged).
+            gripper, turned into joint targets by IK at execution; the paper's end-effector actions,
+            and what generalises from few demos), ``tool_rel`` (the same with positions relative to
+            the tool at each action chunk's start) or ``joint`` (the dataset's 8-D joint-target
+            action as it is). ``lerobot-eval`` runs ``tool`` and ``joint`` policies (its env takes
+            the policy's action; :mod:`factory.policy.lerobot_plugin`).
         dataset: the merged LeRobot dataset (empty: ``<run_dir>/dataset/merged``).
         scenes: the dataset's scenes trained on: empty (all), a number ``N`` (the first ``N``
             of its scene ids, sorted) or a list of ids; the other scenes' episodes are never

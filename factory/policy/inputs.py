@@ -37,8 +37,8 @@ The model predicts (``train.action``):
   frame the action chunk is predicted from (``action[:3] = target - tool_now``, base frame):
   a reach is then the tool-to-object offset the model reads, and the normalisation range of
   the positions shrinks from the workspace to one chunk's motion.
-* ``joint``: the dataset's 8-D action as it is (arm joint targets, rad, + gripper, m): what
-  LeRobot's own evaluation (``lerobot-eval`` on the ``factory`` env) can run unchanged.
+* ``joint``: the dataset's 8-D action as it is (arm joint targets, rad, + gripper, m); like
+  ``tool``, what LeRobot's own evaluation (``lerobot-eval`` on the ``factory`` env) runs.
 
 Mobile datasets (``task=mobile_pick_place``, recognised by their ``subtask_index`` feature;
 :mod:`factory.tasks.mobile_pick_place.dataset`) read ``observation.state`` (11,): arm joints,

@@ -173,3 +173,78 @@ def test_lerobot_eval_command(policy_run: Path, tmp_path: Path) -> None:
     assert res.returncode == 0, res.stderr[-3000:]
     info = json.loads((out_dir / "eval_info.json").read_text())
     assert info["overall"]["n_episodes"] == 2
+
+
+@pytest.mark.slow
+def test_lerobot_eval_runs_the_default_trained_policy(
+    policy_run: Path, tmp_path: Path, pcli
+) -> None:
+    """The policy ``stage=train`` makes by default (diffusion, ``train.inputs=state``,
+    ``train.action=tool``: model inputs computed from the raw state, tool-pose actions) runs
+    under lerobot's own ``lerobot-eval`` with only the documented flags: the env reads the
+    factory policy from ``--policy.path`` and observes and acts as ``stage=eval`` does."""
+    import json
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    import factory.policy.lerobot_plugin as plugin
+
+    out = pcli(
+        "stage=train",
+        f"run_dir={policy_run}",
+        "train.name=lerobot_default",
+        "train.steps=2",
+        "train.batch_size=2",
+        "train.device=cpu",
+        "train.options={diffusion: {down_dims: [16, 32], diffusion_step_embed_dim: 16}}",
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    model = policy_run / "policy" / "lerobot_default" / "checkpoints" / "last" / "pretrained_model"
+    info = json.loads((model / "factory_policy.json").read_text())
+    assert (info["inputs"], info["action"]) == ("state", "tool")
+    out_dir = tmp_path / "out"
+    res = subprocess.run(
+        [
+            str(Path(sys.executable).parent / "lerobot-eval"),
+            "--env.discover_packages_path=factory.policy.lerobot_plugin",
+            "--env.type=factory",
+            f"--env.run_dir={policy_run}",
+            "--env.scene=kitchen_b",
+            "--env.episode_length=5",
+            f"--policy.path={model}",
+            "--policy.device=cpu",
+            "--eval.n_episodes=2",
+            "--eval.batch_size=2",
+            f"--output_dir={out_dir}",
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=600,
+    )
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert json.loads((out_dir / "eval_info.json").read_text())["overall"]["n_episodes"] == 2
+    # the env speaks the model's language: 17-D state, 24-D environment state, 10-D tool action
+    cfg = plugin.FactoryEnv(run_dir=str(policy_run), scene="kitchen_b", policy="lerobot_default")
+    shapes = {k: f.shape for k, f in cfg.features.items()}
+    assert shapes == {"action": (10,), "agent_pos": (17,), "environment_state": (24,)}
+    env = plugin.LeRobotPickPlaceEnv(**cfg.gym_kwargs)
+    obs, _ = env.reset(seed=0)
+    assert obs["agent_pos"].shape == (17,) and obs["environment_state"].shape == (24,)
+    # the tool pose it starts at, held: the arm stays where it is
+    joints = env._state.copy()
+    obs, *_ = env.step(np.concatenate([obs["agent_pos"][8:17], [0.08]]).astype(np.float32))
+    assert np.abs(env._state[:7] - joints[:7]).max() < 0.05
+    env.close()
+    # a policy lerobot-eval cannot serve is refused in one line naming stage=eval
+    rel = tmp_path / "rel"
+    shutil.copytree(model, rel)
+    (rel / "factory_policy.json").write_text(json.dumps({**info, "action": "tool_rel"}))
+    with pytest.raises(ValueError, match="evaluate it with python -m factory stage=eval"):
+        plugin.FactoryEnv(run_dir=str(policy_run), policy=str(rel))
+    with pytest.raises(ValueError, match=r"env\.policy: no policy 'nope'"):
+        plugin.FactoryEnv(run_dir=str(policy_run), policy="nope")
