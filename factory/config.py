@@ -446,6 +446,11 @@ class TrainConfig:
         seed: seed of initialisation and sampling.
         device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
         num_workers: DataLoader processes (0: in the training process).
+        loader: ``device`` gathers each batch by index from features and frames held in
+            device memory (or pinned host memory where they do not fit), with image
+            augmentation on the batch (:mod:`factory.policy.device_batches`); ``dataloader``
+            builds samples in Python and collates them (torch's DataLoader, ``num_workers``);
+            ``auto``: ``device`` on CUDA when the frames are in memory, else ``dataloader``.
         video_cache: image policies: ``auto`` decodes the videos read into memory once when
             they take less than half of the available memory (uint8 RGB, uint16 depth: 82 kB
             a frame of one camera at 128 x 128), ``memory`` always, ``off`` decodes the frames
@@ -478,6 +483,7 @@ class TrainConfig:
     seed: int = 0
     device: str = "auto"
     num_workers: int = 0
+    loader: str = "auto"
     video_cache: str = "auto"
     threads: int = 0
     save_every: int = 2000

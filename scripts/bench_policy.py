@@ -61,6 +61,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         device=a.device,
         threads=a.threads,
         num_workers=a.workers,
+        loader=a.loader,
         options=options,
     )
     features = json.loads((root / "meta" / "info.json").read_text())["features"]
@@ -78,6 +79,13 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
     if trainer.device.startswith("cuda"):
         torch.cuda.synchronize()
     warm = time.perf_counter() - t1
+    t2 = time.perf_counter()  # the data pipeline alone: batches made, no model
+    for _ in range(a.steps):
+        batch = next(batches)
+    if trainer.device.startswith("cuda"):
+        torch.cuda.synchronize()
+    data = time.perf_counter() - t2
+    del batch
     info = train_info(tc, spec, root)
     ckpt = trainer.save(tmp / "bench" / "checkpoints", info)
     out = {
@@ -86,6 +94,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         "device": trainer.device,
         "threads": torch.get_num_threads(),
         "num_workers": a.workers,
+        "loader": "device" if type(batches).__name__ == "DeviceBatches" else "dataloader",
         "batch_size": a.batch_size,
         "parameters": trainer.parameters(),
         "cold_seconds": round(cold, 2),
@@ -93,6 +102,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         "warm_seconds": round(warm, 2),
         "steps_per_s": round(a.steps / warm, 2),
         "samples_per_s": round(a.steps * a.batch_size / warm, 1),
+        "data_only_samples_per_s": round(a.steps * a.batch_size / data, 1),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "peak_gpu_mb": round(torch.cuda.max_memory_allocated() / 2**20, 1)
         if trainer.device.startswith("cuda")
@@ -153,6 +163,7 @@ def main() -> None:
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
     p.add_argument("--workers", type=int, default=0, help="DataLoader processes")
+    p.add_argument("--loader", default="auto", choices=["auto", "device", "dataloader"])
     p.add_argument("--options", default="", help='policy options JSON, {"diffusion": {...}}')
     p.add_argument("--episodes", type=int, default=4, help="rollouts per scene")
     p.add_argument("--max-steps", type=int, default=200, help="frames per rollout")

@@ -659,10 +659,24 @@ class Trainer:
         return sampler
 
     def loader(self) -> Iterator[Any]:
-        """Endless batches of ``train.batch_size`` samples (:meth:`sampler`)."""
+        """Endless batches of ``train.batch_size`` samples (:meth:`sampler`): gathered on the
+        device (:class:`~factory.policy.device_batches.DeviceBatches`, ``train.loader``) or
+        collated by torch's DataLoader."""
         import torch
 
+        from factory.policy.device_batches import DeviceBatches, resolve_loader
+
         sampler = self.sampler()
+        frames = self.trainset.frames
+        setting = getattr(self.tc, "loader", "dataloader")
+        if resolve_loader(setting, self.device, frames is not None) == "device":
+            assert frames is not None
+            indices = None if sampler is None else np.asarray(list(sampler.indices), np.int64)
+            augment = bool(self.tc.augment_images and self.spec.cameras)
+            log.info("train: batches gathered on %s (train.loader=%s)", self.device, setting)
+            return DeviceBatches(
+                frames, self.device, self.tc.batch_size, indices, self.tc.seed + self.step, augment
+            )
         workers = self.tc.num_workers
         loader: Any = torch.utils.data.DataLoader(
             self.trainset,  # type: ignore[arg-type]

@@ -29,6 +29,7 @@ from factory.policy.checkpoint import (
     read_info,
     write_train_json,
 )
+from factory.policy.device_batches import LOADERS
 from factory.policy.inputs import INPUTS, InputSpec, input_spec
 
 log = logging.getLogger(__name__)
@@ -52,6 +53,8 @@ def check_config(tc: Any) -> None:
     for key in ("horizon", "n_obs_steps", "n_action_steps", "num_workers", "threads"):
         if getattr(tc, key) < 0:
             raise ConfigError(f"train.{key} must be >= 0, got {getattr(tc, key)}")
+    if tc.loader not in LOADERS:
+        raise ConfigError(f"train.loader must be one of {', '.join(LOADERS)}, got {tc.loader!r}")
     if tc.video_cache not in ("auto", "memory", "off"):
         raise ConfigError(f"train.video_cache must be auto, memory or off, got {tc.video_cache!r}")
     if tc.max_minutes < 0:
