@@ -57,7 +57,7 @@ the assets the episodes use).
 
 Usage::
 
-    PYTHONPATH=/work/baseline python scripts/task_digests.py --out DIR [--cases a,b,c,d]
+    PYTHONPATH=path/to/other/checkout python scripts/task_digests.py --out DIR [--cases a,b,c,d]
     python scripts/task_digests.py --compare DIR1 DIR2
 
 ``--out`` writes ``DIR/<case>.json`` and the command output to ``<work>/<case>/logs/``;

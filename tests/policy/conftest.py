@@ -8,6 +8,7 @@ import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -61,3 +62,21 @@ def pcli():
 def n_recorded() -> int:
     """Episodes recorded in ``policy_run``'s ``kitchen_a``."""
     return EPISODES
+
+
+TINY_DIFFUSION: dict[str, Any] = {
+    "diffusion": {
+        "horizon": 8,
+        "n_action_steps": 4,
+        "down_dims": [16, 32],
+        "diffusion_step_embed_dim": 16,
+        "num_inference_steps": 3,
+        "spatial_softmax_num_keypoints": 4,
+    }
+}
+
+
+@pytest.fixture(scope="session")
+def tiny_options() -> dict[str, Any]:
+    """``train.options`` of a tiny diffusion policy (seconds to train a few steps on a CPU)."""
+    return TINY_DIFFUSION

@@ -17,27 +17,17 @@ pytest.importorskip("robosuite")
 from factory.config import TrainConfig
 from factory.errors import ConfigError, PolicyError
 
-TINY: dict[str, Any] = {
-    "diffusion": {
-        "horizon": 8,
-        "n_action_steps": 4,
-        "down_dims": [16, 32],
-        "diffusion_step_embed_dim": 16,
-        "num_inference_steps": 3,
-        "spatial_softmax_num_keypoints": 4,
-    }
-}
 
-
-def _opened(policy_run: Path, inputs: str, action: str) -> tuple[Any, Any]:
-    """The dataset and its converted view (frames decoded into memory) of a setting."""
+def _opened(policy_run: Path, inputs: str, action: str, options: dict[str, Any]) -> tuple[Any, Any]:
+    """The dataset and its converted view (frames decoded into memory) of a setting, with the
+    windows of the policy of ``options`` (``train.options``)."""
     from factory.policy.inputs import input_spec
     from factory.policy.train import open_dataset, policy_config
 
     dataset = policy_run / "dataset" / "merged"
     feats = json.loads((dataset / "meta" / "info.json").read_text())["features"]
     spec = input_spec(inputs, feats, action)
-    cfg = policy_config(TrainConfig(inputs=inputs, action=action, options=TINY), spec, "cpu")
+    cfg = policy_config(TrainConfig(inputs=inputs, action=action, options=options), spec, "cpu")
     return open_dataset(dataset, spec, cfg, augment=False, video_cache="memory")
 
 
@@ -46,7 +36,7 @@ def _opened(policy_run: Path, inputs: str, action: str) -> tuple[Any, Any]:
     [("state", "tool"), ("state", "tool_rel"), ("state", "joint"), ("rgbd", "tool")],
 )
 def test_device_batches_equal_the_dataloader_samples(
-    policy_run: Path, inputs: str, action: str
+    policy_run: Path, tiny_options: dict[str, Any], inputs: str, action: str
 ) -> None:
     """Episode starts and ends (clamped windows, pad masks) included; RGB and depth of both
     cameras for rgbd."""
@@ -54,7 +44,7 @@ def test_device_batches_equal_the_dataloader_samples(
 
     from factory.policy.device_batches import DeviceBatches
 
-    base, trainset = _opened(policy_run, inputs, action)
+    base, trainset = _opened(policy_run, inputs, action, tiny_options)
     assert trainset.frames is not None
     batches = DeviceBatches(trainset.frames, "cpu", batch_size=4)
     ends = base.meta.episodes["dataset_to_index"]
@@ -71,14 +61,16 @@ def test_device_batches_equal_the_dataloader_samples(
     assert bool(got["action_is_pad"][-1, -1])  # the last frame's window runs past its episode
 
 
-def test_epochs_draw_every_allowed_frame_once(policy_run: Path) -> None:
+def test_epochs_draw_every_allowed_frame_once(
+    policy_run: Path, tiny_options: dict[str, Any]
+) -> None:
     """An epoch is a permutation of the sampler's frames (reproducible from the seed), served
     in batches; the last batch of an epoch is smaller."""
     import torch
 
     from factory.policy.device_batches import DeviceBatches
 
-    _, trainset = _opened(policy_run, "state", "tool")
+    _, trainset = _opened(policy_run, "state", "tool", tiny_options)
     pool = np.arange(3, 40)  # 37 frames
     a = DeviceBatches(trainset.frames, "cpu", batch_size=5, indices=pool, seed=1)
     sizes = [next(a)["observation.state"].shape[0] for _ in range(8)]
@@ -93,7 +85,9 @@ def test_epochs_draw_every_allowed_frame_once(policy_run: Path) -> None:
     assert torch.equal(c._order, b._order)
 
 
-def test_augmentation_shifts_and_jitters_rgb_only(policy_run: Path) -> None:
+def test_augmentation_shifts_and_jitters_rgb_only(
+    policy_run: Path, tiny_options: dict[str, Any]
+) -> None:
     """Augmented RGB stays in [0, 1] and differs from the plain batch; depth is untouched; a
     sample's observation steps get the same draw (at an episode's first frame both steps are
     that frame, and stay equal)."""
@@ -101,7 +95,7 @@ def test_augmentation_shifts_and_jitters_rgb_only(policy_run: Path) -> None:
 
     from factory.policy.device_batches import DeviceBatches
 
-    _, trainset = _opened(policy_run, "rgbd", "tool")
+    _, trainset = _opened(policy_run, "rgbd", "tool", tiny_options)
     plain = DeviceBatches(trainset.frames, "cpu", batch_size=4)
     aug = DeviceBatches(trainset.frames, "cpu", batch_size=4, augment=True, seed=3)
     idx = torch.tensor([0, 5, 9, 20])
@@ -140,7 +134,9 @@ def test_loader_setting() -> None:
         check_config(TrainConfig(name="x", loader="gpu"))
 
 
-def test_training_with_the_device_loader(policy_run: Path, tmp_path: Path) -> None:
+def test_training_with_the_device_loader(
+    policy_run: Path, tmp_path: Path, tiny_options: dict[str, Any]
+) -> None:
     """stage=train train.loader=device (here on the CPU device) trains and saves."""
     from factory.config import FactoryConfig
     from factory.context import StageContext
@@ -156,7 +152,7 @@ def test_training_with_the_device_loader(policy_run: Path, tmp_path: Path) -> No
         save_every=2,
         log_every=1,
         threads=1,
-        options=TINY,
+        options=tiny_options,
         loader="device",
         device="cpu",
     )

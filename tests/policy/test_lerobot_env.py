@@ -10,6 +10,39 @@ pytest.importorskip("robosuite")
 pytest.importorskip("lerobot")
 
 
+def lerobot_eval(run: Path, model: Path, out_dir: Path, scene: str, *flags: str) -> dict:
+    """Runs lerobot's own ``lerobot-eval`` on the factory env (2 episodes of 5 frames, on the
+    CPU) with extra ``flags``; returns its ``eval_info.json``."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    res = subprocess.run(
+        [
+            str(Path(sys.executable).parent / "lerobot-eval"),
+            "--env.discover_packages_path=factory.policy.lerobot_plugin",
+            "--env.type=factory",
+            f"--env.run_dir={run}",
+            f"--env.scene={scene}",
+            "--env.episode_length=5",
+            *flags,
+            f"--policy.path={model}",
+            "--policy.device=cpu",
+            "--eval.n_episodes=2",
+            "--eval.batch_size=2",
+            f"--output_dir={out_dir}",
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=600,
+    )
+    assert res.returncode == 0, res.stderr[-3000:]
+    info: dict = json.loads((out_dir / "eval_info.json").read_text())
+    return info
+
+
 def test_lerobot_make_env_and_eval_policy(policy_run: Path, tmp_path: Path) -> None:
     import torch
     from lerobot.envs.configs import EnvConfig
@@ -126,11 +159,6 @@ def test_one_gym_id_per_task() -> None:
 def test_lerobot_eval_command(policy_run: Path, tmp_path: Path) -> None:
     """The documented ``lerobot-eval --env.type=factory`` command with a saved LeRobot policy
     (ACT from the dataset's statistics, untrained: it only has to run)."""
-    import json
-    import os
-    import subprocess
-    import sys
-
     import torch
     from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
     from lerobot.policies.act.configuration_act import ACTConfig
@@ -147,31 +175,14 @@ def test_lerobot_eval_command(policy_run: Path, tmp_path: Path) -> None:
     model = tmp_path / "pretrained_model"
     for part in (policy, pre, post):
         part.save_pretrained(model)
-    out_dir = tmp_path / "out"
-    bin_dir = Path(sys.executable).parent
-    res = subprocess.run(
-        [
-            str(bin_dir / "lerobot-eval"),
-            "--env.discover_packages_path=factory.policy.lerobot_plugin",
-            "--env.type=factory",
-            f"--env.run_dir={policy_run}",
-            "--env.scene=kitchen_a",
-            "--env.obs_type=agent_pos",
-            "--env.env_state=true",
-            "--env.episode_length=5",
-            f"--policy.path={model}",
-            "--policy.device=cpu",
-            "--eval.n_episodes=2",
-            "--eval.batch_size=2",
-            f"--output_dir={out_dir}",
-        ],
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        timeout=600,
+    info = lerobot_eval(
+        policy_run,
+        model,
+        tmp_path / "out",
+        "kitchen_a",
+        "--env.obs_type=agent_pos",
+        "--env.env_state=true",
     )
-    assert res.returncode == 0, res.stderr[-3000:]
-    info = json.loads((out_dir / "eval_info.json").read_text())
     assert info["overall"]["n_episodes"] == 2
 
 
@@ -184,10 +195,7 @@ def test_lerobot_eval_runs_the_default_trained_policy(
     under lerobot's own ``lerobot-eval`` with only the documented flags: the env reads the
     factory policy from ``--policy.path`` and observes and acts as ``stage=eval`` does."""
     import json
-    import os
     import shutil
-    import subprocess
-    import sys
 
     import numpy as np
 
@@ -206,28 +214,8 @@ def test_lerobot_eval_runs_the_default_trained_policy(
     model = policy_run / "policy" / "lerobot_default" / "checkpoints" / "last" / "pretrained_model"
     info = json.loads((model / "factory_policy.json").read_text())
     assert (info["inputs"], info["action"]) == ("state", "tool")
-    out_dir = tmp_path / "out"
-    res = subprocess.run(
-        [
-            str(Path(sys.executable).parent / "lerobot-eval"),
-            "--env.discover_packages_path=factory.policy.lerobot_plugin",
-            "--env.type=factory",
-            f"--env.run_dir={policy_run}",
-            "--env.scene=kitchen_b",
-            "--env.episode_length=5",
-            f"--policy.path={model}",
-            "--policy.device=cpu",
-            "--eval.n_episodes=2",
-            "--eval.batch_size=2",
-            f"--output_dir={out_dir}",
-        ],
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        timeout=600,
-    )
-    assert res.returncode == 0, res.stderr[-3000:]
-    assert json.loads((out_dir / "eval_info.json").read_text())["overall"]["n_episodes"] == 2
+    result = lerobot_eval(policy_run, model, tmp_path / "out", "kitchen_b")
+    assert result["overall"]["n_episodes"] == 2
     # the env speaks the model's language: 17-D state, 24-D environment state, 10-D tool action
     cfg = plugin.FactoryEnv(run_dir=str(policy_run), scene="kitchen_b", policy="lerobot_default")
     shapes = {k: f.shape for k, f in cfg.features.items()}
