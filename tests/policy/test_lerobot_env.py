@@ -186,6 +186,14 @@ def test_lerobot_eval_command(policy_run: Path, tmp_path: Path) -> None:
     assert info["overall"]["n_episodes"] == 2
 
 
+def test_policy_path_is_read_in_both_spellings() -> None:
+    import factory.policy.lerobot_plugin as plugin
+
+    argv = ["--env.type=factory", "--policy.path=a/b", "--policy.path", "c", "--policy.device=cpu"]
+    assert plugin.policy_paths(argv) == ["a/b", "c"]
+    assert plugin.policy_paths(["--policy.path"]) == []
+
+
 @pytest.mark.slow
 def test_lerobot_eval_runs_the_default_trained_policy(
     policy_run: Path, tmp_path: Path, pcli

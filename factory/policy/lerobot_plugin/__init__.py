@@ -67,8 +67,20 @@ GYM_IDS: dict[str, str] = {f"{GYM_NAMESPACE}/{gym_name(t)}": t for t in task_nam
 """Gymnasium id -> registered task."""
 GYM_ID = f"{GYM_NAMESPACE}/{gym_name(DEFAULT_TASK)}"
 """The default task's id (``factory/PickPlace-v0``)."""
-POLICY_FLAG = "--policy.path="
+POLICY_FLAG = "--policy.path"
 """lerobot-eval's policy option: a factory policy there sets the env's inputs and actions."""
+
+
+def policy_paths(argv: list[str]) -> list[str]:
+    """The values of lerobot-eval's ``--policy.path`` in ``argv`` (``--policy.path=P`` or
+    ``--policy.path P``)."""
+    out = []
+    for i, arg in enumerate(argv):
+        if arg.startswith(POLICY_FLAG + "="):
+            out.append(arg[len(POLICY_FLAG) + 1 :])
+        elif arg == POLICY_FLAG and i + 1 < len(argv):
+            out.append(argv[i + 1])
+    return out
 
 
 def factory_policy(ref: str | None, run_dir: str) -> Path | None:
@@ -88,7 +100,7 @@ def factory_policy(ref: str | None, run_dir: str) -> Path | None:
     from factory.policy.checkpoint import INFO_IN_MODEL, resolve_ref
 
     if ref is None:
-        given = [a[len(POLICY_FLAG) :] for a in sys.argv if a.startswith(POLICY_FLAG)]
+        given = policy_paths(sys.argv[1:])
         found = [Path(g) for g in given if (Path(g) / INFO_IN_MODEL).is_file()]
         return found[-1] if found else None
     try:
