@@ -175,16 +175,17 @@ class DeviceBatches:
         self._pos += self.batch_size
         return self.gather(idx)
 
-    def _window(self, idx: Any, key: str) -> Any | None:
+    def _window(self, idx: Any, key: str, start: Any, end: Any) -> Any | None:
         """Frame indices (B, T) of ``key``'s window around each sample, clamped to the sample's
-        episode; None: the key has no window (one frame)."""
+        episode (``start``, ``end``: (B, 1) its first and past-the-last frame); None: the key
+        has no window (one frame)."""
         import torch
 
         delta = self.delta.get(key)
         if delta is None:
             return None
         q = idx[:, None] + delta[None, :]
-        return torch.minimum(torch.maximum(q, self.start[idx][:, None]), self.end[idx][:, None] - 1)
+        return torch.minimum(torch.maximum(q, start), end - 1)
 
     def gather(self, idx: Any) -> dict[str, Any]:
         """The batch of the samples at dataset frames ``idx`` ((B,) int64 on the device):
@@ -192,9 +193,10 @@ class DeviceBatches:
         import torch
 
         idx = idx.to(self.device)
+        start, end = self.start[idx][:, None], self.end[idx][:, None]
         out: dict[str, Any] = {}
         for key, values in self.values.items():
-            at = self._window(idx, key)
+            at = self._window(idx, key, start, end)
             out[key] = values[idx if at is None else at]
         if self.spec.action == "tool_rel" or self.spec.mobile:
             act = out[ACTION].clone()
@@ -205,7 +207,7 @@ class DeviceBatches:
                 act[..., -BASE_DIM:] = base_relative_t(act[..., -BASE_DIM:], self.base_pose[idx])
             out[ACTION] = act
         for key, frames in self.videos.items():
-            at = self._window(idx, key)
+            at = self._window(idx, key, start, end)
             where = (idx if at is None else at).to(frames.device)
             pix = frames[where].to(self.device, non_blocking=True)
             if key.startswith(DEPTH_PREFIX):
@@ -218,9 +220,7 @@ class DeviceBatches:
             delta = self.delta.get(key)
             if delta is not None:
                 q = idx[:, None] + delta[None, :]
-                out[f"{key}_is_pad"] = (q < self.start[idx][:, None]) | (
-                    q >= self.end[idx][:, None]
-                )
+                out[f"{key}_is_pad"] = (q < start) | (q >= end)
         return out
 
     def _augment(self, img: Any) -> Any:

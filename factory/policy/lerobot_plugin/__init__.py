@@ -305,9 +305,8 @@ class FactoryEnv(EnvConfig):
             cams = ()
         elif self.obs_type != "pixels_agent_pos":
             raise ValueError(f"env.obs_type must be pixels_agent_pos or agent_pos: {self.obs_type}")
-        path = factory_policy(self.policy, self.run_dir)
-        if path is not None:  # what the policy reads: its cameras, and the raw env state
-            adapter = PolicyAdapter(path)
+        adapter = self.adapter()
+        if adapter is not None:  # what the policy reads: its cameras, and the raw env state
             return replace(
                 spec,
                 cameras=adapter.spec.cameras,
@@ -326,15 +325,18 @@ class FactoryEnv(EnvConfig):
 
     @property
     def gym_kwargs(self) -> dict[str, Any]:
+        spec = self.obs_spec()
+        dataset = self._dataset()
+        policy = factory_policy(self.policy, self.run_dir)
         return {
             "task": self.task_name(),
             "run_dir": self.run_dir,
             "scene": self.scene,
-            "dataset": None if self._dataset() is None else str(self._dataset()),
-            "cameras": ",".join(self.obs_spec().cameras),
-            "env_state": self.obs_spec().env_state,
+            "dataset": None if dataset is None else str(dataset),
+            "cameras": ",".join(spec.cameras),
+            "env_state": spec.env_state,
             "max_steps": self.episode_length,
-            "policy": None if (p := factory_policy(self.policy, self.run_dir)) is None else str(p),
+            "policy": None if policy is None else str(policy),
         }
 
 
