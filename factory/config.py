@@ -464,6 +464,22 @@ class TrainConfig:
             for jobs with a time limit.
         augment_images: lerobot's image transforms on RGB (colour jitter, sharpness, small
             affine) and a random 90 % crop where the policy has one (diffusion).
+        precision: ``auto`` (bf16 autocast on CUDA, fp32 on a CPU), ``bf16`` or ``fp32``; the
+            weights, optimizer and checkpoints stay fp32.
+        aux_state: weight of an auxiliary loss for image policies of a fixed-base task: a small
+            head predicts the pick object's and target's poses (the dataset's environment
+            state, in the robot's base frame) from the image features, so that the encoder
+            learns where the objects are; the head is dropped from the policy (a plain lerobot
+            checkpoint). None: 1.0 for ``rgb``/``rgbd`` diffusion, 0 (off) otherwise.
+        ema: decay of an exponential moving average of the weights, saved as the checkpoint's
+            policy (the raw weights go to ``training_state`` for resuming). None: 0.999 for
+            ``rgb``/``rgbd`` diffusion, 0 (off) otherwise.
+        eval_every_minutes: the learning curve: every this many minutes of training (0: never)
+            the newest weights are evaluated in the held-out scenes by ``stage=eval`` in a
+            background process (``eval.*`` settings; ``policy/<name>/curve/<step>/``) while
+            training goes on; success against steps and seconds goes into ``train_log.jsonl``
+            and the report; the last step is evaluated too.
+        eval_episodes: episodes per scene of each learning-curve evaluation.
         options: policy config fields per type, e.g. ``{diffusion: {down_dims: [64, 128]}}``;
             applied to the type trained, others ignored.
     """
@@ -491,6 +507,11 @@ class TrainConfig:
     keep_checkpoints: int = 2
     max_minutes: float = 0.0
     augment_images: bool = True
+    precision: str = "auto"
+    aux_state: float | None = None
+    ema: float | None = None
+    eval_every_minutes: float = 0.0
+    eval_episodes: int = 10
     options: dict[str, Any] = field(default_factory=dict)
 
 
@@ -526,6 +547,8 @@ class EvalConfig:
         name: the results folder ``eval/<name>/`` (empty: the policy's name, ``replay`` or
             ``planner``); another name keeps a second evaluation of the same policy apart
             (e.g. on the training scenes).
+        out: the results folder itself (empty: ``<run_dir>/eval/<name>``); the learning curve
+            of ``stage=train`` writes under ``policy/<name>/curve/<step>``.
     """
 
     policy: str = ""
@@ -542,6 +565,7 @@ class EvalConfig:
     dataset: str | None = None
     device: str = "auto"
     name: str = ""
+    out: str = ""
 
 
 @dataclass

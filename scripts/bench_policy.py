@@ -12,6 +12,16 @@ with the memory they use.
 
     python scripts/bench_policy.py --run-dir runs/small --inputs state --device cpu --threads 2
 
+On CUDA, ``nvidia-smi`` is sampled every 0.2 s during the warm steps (``gpu_busy_mean``: the
+mean utilisation, ``gpu_busy_samples``: how many samples).
+
+``--variants rgbd-recipe`` (or a JSON file: a list of ``{"name": ..., <setting>: ...}``)
+trains each variant of :data:`VARIANTS` in its own process on the same data, one after the
+other, and saves them side by side (``policy-variants-<tag>.json``): how the image recipe of
+``factory/policy/recipe.py`` was chosen. A variant's settings are those of the command line
+(``inputs``, ``batch_size``, ``loader``, ``workers``, ``options``, ``precision``,
+``aux_state``, ``ema``, ``n_obs_steps``).
+
 Prints and saves JSON to ``benchmarks/results/policy-<inputs>-<device>-<tag>.json``.
 """
 
@@ -31,6 +41,134 @@ from pathlib import Path
 from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
+LEROBOT_PRESET = {
+    "diffusion": {
+        "resize_shape": None,
+        "down_dims": [512, 1024, 2048],
+        "prediction_type": "epsilon",
+        "noise_scheduler_type": "DDPM",
+        "num_inference_steps": None,
+    }
+}
+"""lerobot's own diffusion preset (282 M parameters with RGB-D of 3 cameras; a random 90 % crop
+of the 128 px images): the image recipe before ``factory/policy/recipe.py``."""
+OLD = {"options": LEROBOT_PRESET, "precision": "fp32", "aux_state": 0.0, "ema": 0.0}
+BASELINE = {
+    "name": "before: lerobot preset, DataLoader 8 workers, fp32, batch 64",
+    **OLD,
+    "loader": "dataloader",
+    "workers": 8,
+    "batch_size": 64,
+}
+VARIANTS: dict[str, list[dict[str, Any]]] = {
+    "rgbd-baseline": [BASELINE],
+    "rgbd-recipe": [
+        {"name": "recipe, bf16, batch 256 (the default)", "loader": "device", "batch_size": 256},
+        {
+            "name": "lerobot preset, device batches, fp32, batch 64",
+            **OLD,
+            "loader": "device",
+            "batch_size": 64,
+        },
+        {
+            "name": "lerobot preset, device batches, bf16, batch 256",
+            **OLD,
+            "precision": "bf16",
+            "loader": "device",
+            "batch_size": 256,
+        },
+        {
+            "name": "recipe (96 px, U-Net 256-512-1024), fp32, batch 256",
+            "precision": "fp32",
+            "loader": "device",
+            "batch_size": 256,
+        },
+        {"name": "recipe, bf16, batch 512", "loader": "device", "batch_size": 512},
+        {
+            "name": "recipe at 128 px (crop 115), bf16, batch 256",
+            "loader": "device",
+            "batch_size": 256,
+            "options": {"diffusion": {"resize_shape": None}},
+        },
+        {
+            "name": "recipe, 1 observation step, bf16, batch 256",
+            "loader": "device",
+            "batch_size": 256,
+            "n_obs_steps": 1,
+        },
+        {
+            "name": "recipe without the auxiliary loss and EMA, bf16, batch 256",
+            "loader": "device",
+            "batch_size": 256,
+            "aux_state": 0.0,
+            "ema": 0.0,
+        },
+        {
+            "name": "recipe, rgb only, bf16, batch 256",
+            "inputs": "rgb",
+            "loader": "device",
+            "batch_size": 256,
+        },
+    ]
+}
+"""Named lists of variants for ``--variants``."""
+SETTINGS = (
+    "inputs",
+    "batch_size",
+    "loader",
+    "workers",
+    "options",
+    "precision",
+    "aux_state",
+    "ema",
+    "n_obs_steps",
+)
+
+
+class GpuSampler:
+    """``nvidia-smi`` utilisation samples every 0.2 s while running (no-op without it)."""
+
+    def __init__(self) -> None:
+        self.proc: Any = None
+        self.samples: list[float] = []
+
+    def __enter__(self) -> GpuSampler:
+        exe = shutil.which("nvidia-smi")
+        if exe:
+            self.proc = subprocess.Popen(
+                [
+                    exe,
+                    "--query-gpu=utilization.gpu",
+                    "--format=csv,noheader,nounits",
+                    "-lms",
+                    "200",
+                ],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                text=True,
+            )
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.proc is None:
+            return
+        self.proc.terminate()
+        out, _ = self.proc.communicate(timeout=10)
+        for line in out.splitlines():
+            try:
+                self.samples.append(float(line.split(",")[0]))
+            except ValueError:
+                continue
+
+    def summary(self) -> dict[str, Any]:
+        if not self.samples:
+            return {}
+        busy = self.samples
+        return {
+            "gpu_busy_mean": round(sum(busy) / len(busy), 1),
+            "gpu_busy_min": min(busy),
+            "gpu_busy_samples": len(busy),
+        }
 
 
 def _gpu_name() -> str:
@@ -63,6 +201,10 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         num_workers=a.workers,
         loader=a.loader,
         options=options,
+        precision=a.precision,
+        aux_state=a.aux_state,
+        ema=a.ema,
+        n_obs_steps=a.n_obs_steps,
     )
     features = json.loads((root / "meta" / "info.json").read_text())["features"]
     spec = input_spec(a.inputs, features, tc.action)
@@ -73,12 +215,17 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
     if trainer.device.startswith("cuda"):
         torch.cuda.synchronize()
     cold = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    for _ in range(a.steps):
+    for _ in range(min(5, a.steps)):  # allocator and autotuning settle
         trainer.optimize(next(batches))
     if trainer.device.startswith("cuda"):
         torch.cuda.synchronize()
-    warm = time.perf_counter() - t1
+    with GpuSampler() as gpu:
+        t1 = time.perf_counter()
+        for _ in range(a.steps):
+            trainer.optimize(next(batches))
+        if trainer.device.startswith("cuda"):
+            torch.cuda.synchronize()
+        warm = time.perf_counter() - t1
     t2 = time.perf_counter()  # the data pipeline alone: batches made, no model
     for _ in range(a.steps):
         batch = next(batches)
@@ -96,6 +243,15 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         "num_workers": a.workers,
         "loader": "device" if type(batches).__name__ == "DeviceBatches" else "dataloader",
         "batch_size": a.batch_size,
+        "precision": trainer.precision,
+        "aux_state": trainer.aux_weight,
+        "ema": trainer.ema_decay,
+        "n_obs_steps": trainer.cfg.n_obs_steps,
+        "image_size": list(getattr(trainer.cfg, "resize_shape", None) or spec.image_size)
+        if spec.cameras
+        else None,
+        "crop_shape": list(getattr(trainer.cfg, "crop_shape", None) or []) or None,
+        "down_dims": list(getattr(trainer.cfg, "down_dims", []) or []),
         "parameters": trainer.parameters(),
         "cold_seconds": round(cold, 2),
         "warm_steps": a.steps,
@@ -103,6 +259,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         "steps_per_s": round(a.steps / warm, 2),
         "samples_per_s": round(a.steps * a.batch_size / warm, 1),
         "data_only_samples_per_s": round(a.steps * a.batch_size / data, 1),
+        **gpu.summary(),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "peak_gpu_mb": round(torch.cuda.max_memory_allocated() / 2**20, 1)
         if trainer.device.startswith("cuda")
@@ -153,6 +310,105 @@ def _records(folder: Path) -> list[dict[str, Any]]:
     return [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
 
 
+def _machine() -> dict[str, Any]:
+    return {
+        "host": platform.node(),
+        "python": platform.python_version(),
+        "cpus": os.cpu_count(),
+        "gpu": _gpu_name(),
+    }
+
+
+def bench_variants(a: argparse.Namespace) -> None:
+    """Each variant in its own process of this script (``--no-rollouts``), side by side."""
+    path = Path(a.variants)
+    variants = json.loads(path.read_text()) if path.is_file() else VARIANTS.get(a.variants)
+    if variants is None:
+        sys.exit(f"--variants: no file or preset {a.variants!r} (presets: {', '.join(VARIANTS)})")
+    flags = {
+        "inputs": "--inputs",
+        "batch_size": "--batch-size",
+        "loader": "--loader",
+        "workers": "--workers",
+        "options": "--options",
+        "precision": "--precision",
+        "aux_state": "--aux-state",
+        "ema": "--ema",
+        "n_obs_steps": "--n-obs-steps",
+    }
+    rows = []
+    tmp = Path(tempfile.mkdtemp(prefix="bench_variants_"))
+    for i, v in enumerate(variants):
+        unknown = sorted(set(v) - set(SETTINGS) - {"name"})
+        if unknown:
+            sys.exit(
+                f"variant {v.get('name', i)!r}: unknown settings {unknown} (known: {SETTINGS})"
+            )
+        setting = {
+            "inputs": a.inputs,
+            "batch_size": a.batch_size,
+            "loader": a.loader,
+            "workers": a.workers,
+            "precision": a.precision,
+            **v,
+        }
+        cmd = [
+            sys.executable,
+            __file__,
+            "--run-dir",
+            str(a.run_dir),
+            "--device",
+            a.device,
+            "--steps",
+            str(a.steps),
+            "--threads",
+            str(a.threads),
+            "--no-rollouts",
+            "--out",
+            str(tmp / f"{i}.json"),
+        ]
+        if a.dataset:
+            cmd += ["--dataset", str(a.dataset)]
+        for key, flag in flags.items():
+            if key in setting and setting[key] is not None:
+                val = setting[key]
+                cmd += [flag, json.dumps(val) if isinstance(val, dict) else str(val)]
+        print(f"variant {i + 1}/{len(variants)}: {v.get('name', '')}", flush=True)
+        t0 = time.perf_counter()
+        done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+        row: dict[str, Any] = {
+            "name": v.get("name", str(i)),
+            "setting": setting,
+            "wall_seconds": round(time.perf_counter() - t0, 1),
+        }
+        if done.returncode == 0:
+            row["train"] = json.loads((tmp / f"{i}.json").read_text())["train"]
+            t = row["train"]
+            print(
+                f"  {t['samples_per_s']} samples/s, GPU busy {t.get('gpu_busy_mean', '-')} %, "
+                f"{t['parameters'] / 1e6:.1f} M parameters",
+                flush=True,
+            )
+        else:
+            row["error"] = done.stderr[-2000:]
+            print(f"  failed: {done.stderr[-500:]}", flush=True)
+        rows.append(row)
+    shutil.rmtree(tmp, ignore_errors=True)
+    result = {
+        "schema_version": 1,
+        "benchmark": "policy-variants",
+        "tag": a.tag,
+        "machine": _machine(),
+        "dataset": str(a.dataset or a.run_dir / "dataset" / "merged"),
+        "warm_steps": a.steps,
+        "variants": rows,
+    }
+    out = a.out or REPO / "benchmarks" / "results" / f"policy-variants-{a.tag}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--run-dir", required=True, type=Path)
@@ -165,6 +421,11 @@ def main() -> None:
     p.add_argument("--workers", type=int, default=0, help="DataLoader processes")
     p.add_argument("--loader", default="auto", choices=["auto", "device", "dataloader"])
     p.add_argument("--options", default="", help='policy options JSON, {"diffusion": {...}}')
+    p.add_argument("--precision", default="auto", choices=["auto", "bf16", "fp32"])
+    p.add_argument("--aux-state", type=float, default=None, help="train.aux_state (default: auto)")
+    p.add_argument("--ema", type=float, default=None, help="train.ema (default: auto)")
+    p.add_argument("--n-obs-steps", type=int, default=0)
+    p.add_argument("--variants", default="", help="a name in VARIANTS or a JSON file")
     p.add_argument("--episodes", type=int, default=4, help="rollouts per scene")
     p.add_argument("--max-steps", type=int, default=200, help="frames per rollout")
     p.add_argument("--nthread", type=int, default=0, help="simulation threads of the rollouts")
@@ -173,6 +434,8 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=None)
     a = p.parse_args()
     a.run_dir = a.run_dir.resolve()
+    if a.variants:
+        return bench_variants(a)
     root = (a.dataset or a.run_dir / "dataset" / "merged").resolve()
     tmp = Path(tempfile.mkdtemp(prefix="bench_policy_"))
     try:
@@ -187,12 +450,7 @@ def main() -> None:
         "schema_version": 1,
         "benchmark": "policy",
         "tag": a.tag,
-        "machine": {
-            "host": platform.node(),
-            "python": platform.python_version(),
-            "cpus": os.cpu_count(),
-            "gpu": _gpu_name(),
-        },
+        "machine": _machine(),
         "dataset": str(root),
         "train": train,
         "rollouts": rollouts,

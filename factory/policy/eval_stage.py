@@ -382,7 +382,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     else:
         spec = replace(run_spec, cameras=(), depth=False, env_state=ec.env_state)
     # resume
-    out = run_dir / "eval" / name
+    out = Path(ec.out) if ec.out else run_dir / "eval" / name
     identity = {**_identity(kind, name, ref, ec, dataset, policy), **task.eval_identity()}
     _prepare_out(out, identity, cfg.force)
     episodes_path = out / "episodes.jsonl"

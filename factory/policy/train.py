@@ -26,6 +26,7 @@ import logging
 import shutil
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from factory.errors import PolicyError
+from factory.policy.aux_state import AUX_TARGET
 from factory.policy.checkpoint import (
     CHECKPOINTS,
     INFO_IN_MODEL,
@@ -62,6 +64,17 @@ from factory.policy.inputs import (
     state_features,
     subtask_onehot,
 )
+from factory.policy.recipe import (
+    STATE_DIFFUSION_DEFAULTS,
+    STATE_DIFFUSION_LR,
+    default_lr,
+    diffusion_defaults,
+    resolve_aux_state,
+    resolve_ema,
+    resolve_precision,
+)
+
+__all__ = ["STATE_DIFFUSION_DEFAULTS", "STATE_DIFFUSION_LR", "Trainer", "train"]
 
 log = logging.getLogger(__name__)
 
@@ -72,17 +85,10 @@ CROP_RATIO = 0.9
 OFFLINE_DEFAULTS: dict[str, Any] = {"pretrained_backbone_weights": None, "push_to_hub": False}
 """Policy config fields set unless ``train.options`` says otherwise: no downloads (ACT would
 fetch ImageNet weights), nothing pushed."""
-STATE_DIFFUSION_DEFAULTS: dict[str, Any] = {
-    "prediction_type": "sample",
-    "noise_scheduler_type": "DDIM",
-    "num_inference_steps": 10,
-}
-"""Diffusion with ``train.inputs=state``, unless ``train.options`` says otherwise: predict the
-clean action chunk rather than the noise, and sample it in 10 DDIM steps. With
-:data:`STATE_DIFFUSION_LR` this took held-out success from 13.3 % (lerobot's preset) to 56.7 %
-at the same 8,700 steps (``benchmarks/results/policy-recipe-sweep-h100.json``)."""
-STATE_DIFFUSION_LR = 3e-4
-"""Learning rate of a state diffusion policy when ``train.lr`` is 0 (lerobot's preset: 1e-4)."""
+EXTRAS = "factory_extras.safetensors"
+"""In a checkpoint's ``training_state``: what lerobot's format has no place for: the raw
+weights where ``pretrained_model`` holds their average (``raw.<i>``, the policy's trained
+parameters in order), the auxiliary head (``aux.<name>``) and the average's update count."""
 
 
 # ---- the lerobot policy config
@@ -102,7 +108,7 @@ def policy_config(tc: Any, spec: InputSpec, device: str) -> Any:
     Settings: ``train.horizon`` (the config's ``horizon``, or ``chunk_size`` for chunking
     policies such as ACT), ``train.n_obs_steps``, ``train.n_action_steps`` (0: the policy's
     default), ``train.options.<type>`` (any field of the config), :data:`OFFLINE_DEFAULTS`,
-    :data:`STATE_DIFFUSION_DEFAULTS` (diffusion on state inputs).
+    the diffusion recipe of the inputs (:func:`factory.policy.recipe.diffusion_defaults`).
 
     Raises:
         PolicyError: an unknown type (the available ones listed), an unknown option, or values
@@ -117,8 +123,8 @@ def policy_config(tc: Any, spec: InputSpec, device: str) -> Any:
     cls = PreTrainedConfig.get_choice_class(tc.policy)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {k: v for k, v in OFFLINE_DEFAULTS.items() if k in fields}
-    if tc.policy == "diffusion" and spec.inputs == "state":
-        kwargs.update(STATE_DIFFUSION_DEFAULTS)
+    if tc.policy == "diffusion":
+        kwargs.update({k: v for k, v in diffusion_defaults(spec.inputs).items() if k in fields})
     if tc.horizon > 0:
         key = "horizon" if "horizon" in fields else "chunk_size" if "chunk_size" in fields else ""
         if not key:
@@ -187,7 +193,11 @@ class LowDimFrames:
     """
 
     def __init__(
-        self, base: Any, spec: InputSpec, videos: dict[str, np.ndarray] | None = None
+        self,
+        base: Any,
+        spec: InputSpec,
+        videos: dict[str, np.ndarray] | None = None,
+        aux: bool = False,
     ) -> None:
         self.spec = spec
         self.videos = videos or {}
@@ -212,6 +222,8 @@ class LowDimFrames:
             self.values[ENV_STATE] = subtask_onehot(column(SUBTASK_KEY), state.shape[:-1])
         elif spec.inputs == "state":
             self.values[ENV_STATE] = env_features(state, column(EE_POSE), column(ENV_STATE))
+        if aux:  # the auxiliary target: the environment state of the sample's frame
+            self.values[AUX_TARGET] = env_features(state, column(EE_POSE), column(ENV_STATE))
         self.episode = np.asarray(table.column("episode_index").to_numpy(), np.int64)
         eps = base.meta.episodes
         self.start = {
@@ -278,13 +290,14 @@ class TrainSet:
         spec: InputSpec,
         augment: Any = None,
         videos: dict[str, np.ndarray] | None = None,
+        aux: bool = False,
     ) -> None:
         self.base = base
         self.spec = spec
         self.augment = augment
         self.videos = videos
         cached = not spec.cameras or videos is not None
-        self.frames = LowDimFrames(base, spec, videos) if cached else None
+        self.frames = LowDimFrames(base, spec, videos, aux) if cached else None
 
     def __len__(self) -> int:
         return len(self.base)
@@ -314,11 +327,18 @@ def delta_timestamps(cfg: Any, spec: InputSpec, fps: float) -> dict[str, list[fl
 
 
 def open_dataset(
-    root: Path, spec: InputSpec, cfg: Any, augment: bool, video_cache: str = "off"
+    root: Path,
+    spec: InputSpec,
+    cfg: Any,
+    augment: bool,
+    video_cache: str = "off",
+    aux: bool = False,
 ) -> tuple[Any, TrainSet]:
     """The ``LeRobotDataset`` (videos the policy reads only) and its converted view.
 
     Args:
+        aux: the samples hold the auxiliary target (:data:`AUX_TARGET`) where the frames are
+            in memory (the trainer drops the auxiliary loss otherwise).
         video_cache: ``memory`` decodes the videos the policy reads into memory once
             (:func:`~factory.policy.video_frames.decode_videos`), ``auto`` does so when they take
             less than half of the available memory, ``off`` decodes per sample (lerobot).
@@ -364,7 +384,7 @@ def open_dataset(
                 need / 1e9,
                 have / 1e9,
             )
-    return base, TrainSet(base, spec, transforms, videos)
+    return base, TrainSet(base, spec, transforms, videos, aux)
 
 
 def _low_dim(
@@ -591,9 +611,25 @@ class Trainer:
         else:
             cfg = policy_config(tc, spec, self.device)
         self.cfg = cfg
-        self.base, self.trainset = open_dataset(
-            root, spec, cfg, tc.augment_images, getattr(tc, "video_cache", "off")
+        self.precision = resolve_precision(getattr(tc, "precision", "fp32"), self.device)
+        self.aux_weight = resolve_aux_state(
+            getattr(tc, "aux_state", 0.0), tc.policy, spec.inputs, spec.mobile
         )
+        self.ema_decay = resolve_ema(getattr(tc, "ema", 0.0), tc.policy, spec.inputs)
+        self.base, self.trainset = open_dataset(
+            root,
+            spec,
+            cfg,
+            tc.augment_images,
+            getattr(tc, "video_cache", "off"),
+            self.aux_weight > 0,
+        )
+        if self.aux_weight > 0 and self.trainset.frames is None:
+            log.warning(
+                "train: the auxiliary state loss needs the camera frames in memory "
+                "(train.video_cache): training without it"
+            )
+            self.aux_weight = 0.0
         self.episodes = sorted(episodes) if episodes else None
         with quiet_stdout():
             self.policy = make_policy(cfg, ds_meta=model_meta(self.base.meta, spec))
@@ -623,8 +659,8 @@ class Trainer:
         self.pipeline.scheduler = cfg.get_scheduler_preset()
         if tc.lr > 0:
             self.pipeline.optimizer.lr = tc.lr
-        elif tc.policy == "diffusion" and spec.inputs == "state":
-            self.pipeline.optimizer.lr = STATE_DIFFUSION_LR
+        elif default_lr(tc.policy) > 0:
+            self.pipeline.optimizer.lr = default_lr(tc.policy)
         self.optimizer, self.scheduler = make_optimizer_and_scheduler(self.pipeline, self.policy)
         self.step = 0
         if resume is not None:
@@ -633,6 +669,45 @@ class Trainer:
             )
         self.params = [p for p in self.policy.parameters() if p.requires_grad]
         self.grad_clip = float(getattr(self.pipeline.optimizer, "grad_clip_norm", 0.0) or 0.0)
+        encoder = getattr(getattr(self.policy, "diffusion", None), "rgb_encoder", None)
+        if encoder is not None and self.device.startswith("cuda"):
+            encoder.to(memory_format=torch.channels_last)  # NHWC convolutions on tensor cores
+        self.aux_head: Any = None
+        self.tap: Any = None
+        if self.aux_weight > 0 and encoder is None:
+            log.warning(
+                "train: policy %s has no image encoder to tap: no auxiliary loss", tc.policy
+            )
+            self.aux_weight = 0.0
+        extras = _read_extras(resume)
+        if self.aux_weight > 0:
+            from factory.policy.aux_state import FeatureTap, make_head
+
+            assert self.trainset.frames is not None
+            target = self.trainset.frames.values[AUX_TARGET]
+            n_cams = len(cfg.image_features)
+            feat_dim = int(cfg.spatial_softmax_num_keypoints) * 2
+            self.tap = FeatureTap(encoder)
+            self.aux_head = make_head(n_cams * feat_dim, target).to(self.device)
+            aux_state = {k[4:]: v for k, v in extras.items() if k.startswith("aux.")}
+            if aux_state:
+                self.aux_head.load_state_dict(aux_state)
+            self.aux_optimizer = torch.optim.AdamW(
+                self.aux_head.parameters(), lr=self.pipeline.optimizer.lr, weight_decay=1e-6
+            )
+        self.ema: Any = None
+        if self.ema_decay > 0:
+            from factory.policy.ema import EmaWeights
+
+            # a resumed policy holds the average (pretrained_model); the raw weights are extras
+            updates = int(extras["ema.updates"].item()) if "ema.updates" in extras else 0
+            self.ema = EmaWeights(self.params, self.ema_decay, updates)
+            raw = [extras[f"raw.{i}"] for i in range(len(self.params)) if f"raw.{i}" in extras]
+            if len(raw) == len(self.params):
+                with torch.no_grad():
+                    for p, r in zip(self.params, raw, strict=True):
+                        p.copy_(r.to(p.device))
+        self.last_aux: Any = None
         self.policy.train()
 
     def sampler(self) -> Any:
@@ -691,32 +766,47 @@ class Trainer:
         )
         return _cycle(loader)
 
-    def optimize(self, batch: dict[str, Any]) -> float:
-        """One optimizer step on a batch as the loader gives it; returns the loss.
+    def optimize(self, batch: dict[str, Any]) -> Any:
+        """One optimizer step on a batch as the loader gives it; returns the policy's loss, a
+        0-d tensor on the device (reading it waits for the GPU: :func:`train` reads the
+        losses once per logged interval). With the auxiliary loss, its value of this step is
+        :attr:`last_aux`.
 
-        Raises:
-            PolicyError: the loss is not finite.
+        Under ``bf16`` the forward pass runs in torch's bfloat16 autocast (weights, gradients
+        and the optimizer stay fp32).
         """
         import torch
 
+        target = batch.pop(AUX_TARGET, None)
         batch = self.pre(batch)
-        loss, _ = self.policy.forward(batch)
-        if not torch.isfinite(loss):
-            raise PolicyError(
-                f"the loss became {loss.item()} at step {self.step + 1}: lower train.lr and "
-                "retrain (force=true)"
-            )
-        loss.backward()
+        kind = "cuda" if self.device.startswith("cuda") else "cpu"
+        with torch.autocast(kind, dtype=torch.bfloat16, enabled=self.precision == "bf16"):
+            loss, _ = self.policy.forward(batch)
+            total = loss
+            if self.aux_head is not None and target is not None:
+                b, n_obs = batch[STATE].shape[:2]
+                feats = self.tap.take(b, n_obs, len(self.cfg.image_features))
+                aux = self.aux_head.loss(feats, target.to(self.device, non_blocking=True))
+                total = loss + self.aux_weight * aux
+                self.last_aux = aux.detach()
+        if self.tap is not None:
+            self.tap.clear()
+        total.backward()
         if self.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(self.params, self.grad_clip)
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
+        if self.aux_head is not None:
+            self.aux_optimizer.step()
+            self.aux_optimizer.zero_grad(set_to_none=True)
         if self.scheduler is not None:
             self.scheduler.step()
         if hasattr(self.policy, "update"):
             self.policy.update()
+        if self.ema is not None:
+            self.ema.update(self.params)
         self.step += 1
-        return float(loss.item())
+        return loss.detach()
 
     def parameters(self) -> int:
         return sum(p.numel() for p in self.params)
@@ -730,21 +820,54 @@ class Trainer:
         ident = get_step_identifier(self.step, self.tc.steps)
         tmp = ckpt_root / f".tmp-{ident}"
         shutil.rmtree(tmp, ignore_errors=True)
-        save_checkpoint(
-            tmp,
-            self.step,
-            self.pipeline,
-            self.policy,
-            self.optimizer,
-            self.scheduler,
-            self.pre,
-            self.post,
-        )
+        extras: dict[str, Any] = {}
+        with self.ema.applied(self.params) if self.ema is not None else _no_raw() as raw:
+            save_checkpoint(
+                tmp,
+                self.step,
+                self.pipeline,
+                self.policy,
+                self.optimizer,
+                self.scheduler,
+                self.pre,
+                self.post,
+            )
+        if self.ema is not None:
+            import torch
+
+            extras.update({f"raw.{i}": r for i, r in enumerate(raw)})
+            extras["ema.updates"] = torch.tensor([self.ema.updates], dtype=torch.int64)
+        if self.aux_head is not None:
+            extras.update({f"aux.{k}": v for k, v in self.aux_head.state_dict().items()})
+        if extras:
+            from safetensors.torch import save_file
+
+            save_file(
+                {k: v.detach().contiguous().cpu() for k, v in extras.items()},
+                str(tmp / "training_state" / EXTRAS),
+            )
         info.steps = self.step
         atomic_write_json(tmp / PRETRAINED / INFO_IN_MODEL, info.to_json())
         final = ckpt_root / ident
         publish_checkpoint(tmp, final)
         return final
+
+
+@contextmanager
+def _no_raw() -> Iterator[list[Any]]:
+    yield []
+
+
+def _read_extras(resume: Path | None) -> dict[str, Any]:
+    """The :data:`EXTRAS` of a checkpoint (empty: none, or no checkpoint)."""
+    if resume is None:
+        return {}
+    path = resume / "training_state" / EXTRAS
+    if not path.is_file():
+        return {}
+    from safetensors.torch import load_file
+
+    return dict(load_file(str(path)))
 
 
 def train(
@@ -755,6 +878,7 @@ def train(
     info: TrainInfo,
     resume: Path | None,
     progress: bool = True,
+    curve: Any = None,
 ) -> TrainResult:
     """Trains (or resumes) the policy of ``policy/<name>`` up to ``train.steps`` steps.
 
@@ -766,7 +890,10 @@ def train(
         info: the training record (``steps`` is updated at every checkpoint).
         resume: the checkpoint to continue from, or None.
         progress: show a progress bar with the loss.
+        curve: the learning curve (:class:`factory.policy.learning_curve.LearningCurve`) that
+            evaluates checkpoints as training goes (``train.eval_every_minutes``), or None.
     """
+    import torch
     from tqdm import tqdm
 
     from factory.console import terminal
@@ -781,10 +908,14 @@ def train(
     seconds_before = float(history[-1]["seconds"]) if history else 0.0
     batches = trainer.loader()
     log.info(
-        "train %s: %s on %s, inputs=%s %s, %d frames in %d episodes, %d parameters, batch %d, %s",
+        "train %s: %s on %s (%s%s%s), inputs=%s %s, %d frames in %d episodes, %d parameters, "
+        "batch %d, %s",
         info.name,
         trainer.cfg.type,
         trainer.device,
+        trainer.precision,
+        f", auxiliary state loss x{trainer.aux_weight:g}" if trainer.aux_weight > 0 else "",
+        f", EMA {trainer.ema_decay:g}" if trainer.ema_decay > 0 else "",
         spec.inputs,
         dict(spec.model_features()),
         info.frames or trainer.base.num_frames,
@@ -796,7 +927,8 @@ def train(
     ckpt_root = out / CHECKPOINTS
     ckpt_root.mkdir(parents=True, exist_ok=True)
     newest = str(resume) if resume is not None else ""
-    losses: list[float] = []
+    losses: list[Any] = []
+    aux_losses: list[Any] = []
     last_loss = float("nan")
     limit = 60.0 * float(getattr(tc, "max_minutes", 0.0) or 0.0)
     t0 = time.perf_counter()
@@ -813,12 +945,19 @@ def train(
     ):
         while step < tc.steps:
             losses.append(trainer.optimize(next(batches)))
+            if trainer.last_aux is not None:
+                aux_losses.append(trainer.last_aux)
             step = trainer.step
             bar.update(1)
             late = limit > 0 and time.perf_counter() - t0 > limit
             if step % tc.log_every == 0 or step == tc.steps or late:
-                last_loss = float(np.mean(losses))
+                last_loss = float(torch.stack(losses).float().mean().item())
                 losses.clear()
+                if not np.isfinite(last_loss):
+                    raise PolicyError(
+                        f"the loss became {last_loss} by step {step}: lower train.lr and "
+                        "retrain (force=true)"
+                    )
                 elapsed = time.perf_counter() - t0
                 rec = {
                     "step": step,
@@ -827,13 +966,23 @@ def train(
                     "seconds": round(seconds_before + elapsed, 3),
                     "steps_per_s": round((step - resumed_from) / max(elapsed, 1e-9), 3),
                 }
+                if aux_losses:
+                    rec["aux_loss"] = round(float(torch.stack(aux_losses).mean().item()), 6)
+                    aux_losses.clear()
                 log_file.write(json.dumps(rec) + "\n")
                 log_file.flush()
                 bar.set_postfix(loss=f"{last_loss:.4f}")
                 log.debug("train %s: %s", info.name, rec)
-            if step % tc.save_every == 0 or step == tc.steps or late:
+                if curve is not None:
+                    for point in curve.poll():
+                        log_file.write(json.dumps(point) + "\n")
+                        log_file.flush()
+            evaluate = curve is not None and curve.due(time.perf_counter() - t0)
+            if step % tc.save_every == 0 or step == tc.steps or late or evaluate:
                 newest = str(trainer.save(ckpt_root, info))
                 write_train_json(out, info)
+                if evaluate:
+                    curve.start(Path(newest), step, seconds_before + time.perf_counter() - t0)
                 prune_checkpoints(out, tc.keep_checkpoints)
             if late and step < tc.steps:
                 log.info(
@@ -844,6 +993,12 @@ def train(
                     tc.steps,
                 )
                 break
+        if curve is not None:
+            last = Path(newest) if newest else None
+            points = curve.finish(last, step, seconds_before + time.perf_counter() - t0)
+            for point in [*points, *curve.poll(wait=True)]:
+                log_file.write(json.dumps(point) + "\n")
+                log_file.flush()
     seconds = time.perf_counter() - t0
     done = step - resumed_from
     return TrainResult(

@@ -31,6 +31,7 @@ from factory.policy.checkpoint import (
 )
 from factory.policy.device_batches import LOADERS
 from factory.policy.inputs import INPUTS, InputSpec, input_spec
+from factory.policy.recipe import PRECISIONS
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +60,21 @@ def check_config(tc: Any) -> None:
         raise ConfigError(f"train.video_cache must be auto, memory or off, got {tc.video_cache!r}")
     if tc.max_minutes < 0:
         raise ConfigError(f"train.max_minutes must be >= 0 (0: no limit), got {tc.max_minutes}")
+    if tc.precision not in PRECISIONS:
+        raise ConfigError(
+            f"train.precision must be one of {', '.join(PRECISIONS)}, got {tc.precision!r}"
+        )
+    if tc.aux_state is not None and tc.aux_state < 0:
+        raise ConfigError(f"train.aux_state must be >= 0 (0: off), got {tc.aux_state}")
+    if tc.ema is not None and not 0 <= tc.ema < 1:
+        raise ConfigError(f"train.ema must be in [0, 1) (0: off), got {tc.ema}")
+    if tc.eval_every_minutes < 0:
+        raise ConfigError(
+            f"train.eval_every_minutes must be >= 0 (0: no learning curve), got "
+            f"{tc.eval_every_minutes}"
+        )
+    if tc.eval_episodes < 1:
+        raise ConfigError(f"train.eval_episodes must be >= 1, got {tc.eval_episodes}")
     if tc.lr < 0:
         raise ConfigError(f"train.lr must be >= 0 (0: the policy's preset), got {tc.lr}")
     options = tc.options or {}
@@ -223,7 +239,12 @@ def run(ctx: StageContext) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     if resume is None:
         write_train_json(out, info)
-    result = train(tc, spec, root, out, info, resume)
+    curve = None
+    if tc.eval_every_minutes > 0:
+        from factory.policy.learning_curve import LearningCurve
+
+        curve = LearningCurve(cfg, out, tc.eval_every_minutes, tc.eval_episodes)
+    result = train(tc, spec, root, out, info, resume, curve=curve)
     log.info(
         "train %s: step %d (from %d), loss %.4f, %.2f steps/s, %.1f s",
         tc.name,

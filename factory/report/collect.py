@@ -146,12 +146,26 @@ class LogRow:
 
 
 @dataclass
+class CurvePoint:
+    """One learning-curve evaluation (a ``train_log.jsonl`` line with ``success``): the step
+    and training seconds of the checkpoint, its held-out success and 95 % interval."""
+
+    step: float
+    success: float
+    seconds: float | None = None
+    ci95: tuple[float, float] | None = None
+    episodes: int = 0
+
+
+@dataclass
 class TrainRun:
-    """A trained policy: ``policy/<name>/train.json`` (as read) and its loss log."""
+    """A trained policy: ``policy/<name>/train.json`` (as read), its loss log and its
+    learning curve."""
 
     name: str
     meta: dict[str, Any] = field(default_factory=dict)
     log: list[LogRow] = field(default_factory=list)
+    curve: list[CurvePoint] = field(default_factory=list)
 
 
 @dataclass
@@ -477,19 +491,20 @@ def _train_runs(root: Path, notes: list[str]) -> list[TrainRun]:
             elif meta is not None:
                 notes.append(f"{_rel(meta_path, root)}: not a JSON object; skipped")
         if log_path.is_file():
-            run.log = _train_log(log_path, notes, root)
+            run.log, run.curve = _train_log(log_path, notes, root)
         runs.append(run)
     return runs
 
 
-def _train_log(path: Path, notes: list[str], root: Path) -> list[LogRow]:
+def _train_log(path: Path, notes: list[str], root: Path) -> tuple[list[LogRow], list[CurvePoint]]:
     rows: list[LogRow] = []
+    curve: list[CurvePoint] = []
     bad = 0
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as e:
         notes.append(f"{_rel(path, root)}: unreadable ({e}); loss curve skipped")
-        return rows
+        return rows, curve
     for line in lines:
         if not line.strip():
             continue
@@ -499,6 +514,17 @@ def _train_log(path: Path, notes: list[str], root: Path) -> list[LogRow]:
             bad += 1
             continue
         step = _num(rec.get("step")) if isinstance(rec, dict) else None
+        success = _num(rec.get("success")) if isinstance(rec, dict) else None
+        if step is not None and success is not None:  # a learning-curve evaluation
+            ci = rec.get("ci95")
+            ci95 = None
+            if isinstance(ci, list) and len(ci) == 2 and all(_num(v) is not None for v in ci):
+                ci95 = (float(ci[0]), float(ci[1]))
+            episodes = _num(rec.get("episodes"))
+            curve.append(
+                CurvePoint(step, success, _num(rec.get("seconds")), ci95, int(episodes or 0))
+            )
+            continue
         loss = _num(rec.get("loss")) if isinstance(rec, dict) else None
         if step is None or loss is None:
             bad += 1
@@ -506,7 +532,7 @@ def _train_log(path: Path, notes: list[str], root: Path) -> list[LogRow]:
         rows.append(LogRow(step, loss, _num(rec.get("lr")), _num(rec.get("seconds"))))
     if bad:
         notes.append(f"{_rel(path, root)}: {bad} line(s) without a numeric step and loss skipped")
-    return rows
+    return rows, curve
 
 
 def _evals(root: Path, notes: list[str]) -> list[EvalRun]:

@@ -487,6 +487,43 @@ class _Builder:
                 )
         elif not meta_rows:
             parts.append('<p class="muted">No train.json content and no logged step.</p>')
+        if run.curve:
+            pts = sorted(run.curve, key=lambda p: p.step)
+            series = [
+                Series("held-out success", [p.step for p in pts], [100 * p.success for p in pts])
+            ]
+            if all(p.ci95 for p in pts):
+                series += [
+                    Series("95 % CI low", [p.step for p in pts], [100 * p.ci95[0] for p in pts]),  # type: ignore[index]
+                    Series("95 % CI high", [p.step for p in pts], [100 * p.ci95[1] for p in pts]),  # type: ignore[index]
+                ]
+            chart = line_chart(
+                series,
+                title=f"learning curve of {run.name}",
+                x_label="step",
+                y_label="success (%)",
+                y_range=(0.0, 100.0),
+                markers=True,
+            )
+            rows = [
+                [
+                    f"{int(p.step)}",
+                    "–" if p.seconds is None else f"{p.seconds / 60:.1f}",
+                    f"{100 * p.success:.1f} %",
+                    "–" if p.ci95 is None else f"{100 * p.ci95[0]:.1f}–{100 * p.ci95[1]:.1f} %",
+                    f"{p.episodes}",
+                ]
+                for p in pts
+            ]
+            if chart:
+                parts.append(
+                    f'<figure class="curve" data-policy="{escape(run.name)}">{chart}'
+                    f"<figcaption>Held-out success during training ({len(pts)} evaluations "
+                    "of train.eval_every_minutes).</figcaption></figure>"
+                )
+            parts.append(
+                _table(["step", "training minutes", "success", "95 % CI", "episodes"], rows)
+            )
         return "".join(parts)
 
     def evaluation(self) -> str:

@@ -201,7 +201,8 @@ def test_fast_low_dim_samples_equal_lerobots_own(policy_run: Path) -> None:
 
 def test_state_diffusion_recipe_defaults(policy_run: Path) -> None:
     """Diffusion on state inputs predicts the clean chunk (sample) in 10 DDIM steps at lr 3e-4
-    unless train.options / train.lr say otherwise; image inputs keep lerobot's preset."""
+    unless train.options / train.lr say otherwise; image inputs add their recipe (96 px
+    images, no crop)."""
     from factory.policy.inputs import input_spec
     from factory.policy.train import STATE_DIFFUSION_LR, policy_config
 
@@ -213,9 +214,13 @@ def test_state_diffusion_recipe_defaults(policy_run: Path) -> None:
     eps = {"diffusion": {**TINY["diffusion"], "prediction_type": "epsilon"}}
     assert policy_config(TrainConfig(options=eps), state, "cpu").prediction_type == "epsilon"
     rgb = input_spec("rgb", feats["features"])
-    assert policy_config(TrainConfig(inputs="rgb", options=TINY), rgb, "cpu").prediction_type == (
-        "epsilon"
+    image = policy_config(TrainConfig(inputs="rgb", options=TINY), rgb, "cpu")
+    assert (image.prediction_type, image.resize_shape, image.crop_shape) == (
+        "sample",
+        (96, 96),
+        None,
     )
+    assert tuple(image.down_dims) == tuple(TINY["diffusion"]["down_dims"])  # options win
     assert STATE_DIFFUSION_LR == 3e-4
 
 
@@ -284,11 +289,97 @@ def test_rgbd_policy_trains_and_acts(policy_run: Path, tmp_path: Path) -> None:
     policy = load_policy("rgbd", tmp_path, device="cpu")
     assert policy.info.features["observation.depth.left"] == [32, 32]
     assert policy.info.features["observation.images.wrist"] == [32, 32, 3]
-    assert policy.policy.config.crop_shape == (28, 28)  # the random crop of augment_images
+    # the image recipe: resized on the device, no crop (the loader shifts instead)
+    assert policy.policy.config.resize_shape == (96, 96)
+    assert policy.policy.config.crop_shape is None
     obs = _frames(dataset, 2, list(policy.info.features))
     assert obs["observation.depth.left"].dtype == np.uint16
     actions = policy.act(obs)
     assert actions.shape == (2, 8) and np.isfinite(actions).all()
+
+
+def test_image_recipe_aux_loss_and_ema_resume(policy_run: Path, tmp_path: Path) -> None:
+    """An image diffusion policy gets the auxiliary state loss and the weight average by
+    default: the log holds the auxiliary loss, the checkpoint's ``pretrained_model`` holds the
+    averaged weights (a plain lerobot policy) and ``training_state`` the raw weights and the
+    head, from which a resumed training continues; lerobot's older crop recipe is one option
+    away."""
+    import torch
+    from safetensors.torch import load_file
+
+    from factory.policy.checkpoint import last_checkpoint
+    from factory.policy.inputs import input_spec
+    from factory.policy.train import EXTRAS, Trainer, policy_config
+
+    dataset = policy_run / "dataset" / "merged"
+    _train(tmp_path, dataset, name="rgb", inputs="rgb", steps=3, batch_size=2, save_every=3)
+    out = tmp_path / "policy" / "rgb"
+    lines = [json.loads(x) for x in (out / "train_log.jsonl").read_text().splitlines()]
+    assert all(np.isfinite(r["aux_loss"]) for r in lines)
+    ckpt = last_checkpoint(out)
+    assert ckpt is not None
+    extras = load_file(str(ckpt / "training_state" / EXTRAS))
+    assert any(k.startswith("aux.") for k in extras) and int(extras["ema.updates"][0]) == 3
+    averaged = load_file(str(ckpt / "pretrained_model" / "model.safetensors"))
+    raw = [v for k, v in sorted(extras.items()) if k.startswith("raw.")]
+    assert raw and len(averaged) >= len(raw)
+    # resuming puts the raw weights back into the model and the average into the EMA
+    feats = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    spec = input_spec("rgb", feats, "tool")
+    tc = _ctx(tmp_path, dataset, name="rgb", inputs="rgb", steps=6, batch_size=2).cfg.train
+    trainer = Trainer(tc, spec, dataset, out, resume=ckpt)
+    assert trainer.step == 3 and trainer.ema is not None and trainer.ema.updates == 3
+    assert trainer.aux_head is not None
+    for i, p in enumerate(trainer.params):
+        assert torch.equal(p.detach(), extras[f"raw.{i}"])
+    assert any(not torch.equal(s, p.detach()) for s, p in zip(trainer.ema.shadow, trainer.params))
+    _train(tmp_path, dataset, name="rgb", inputs="rgb", steps=4, batch_size=2, save_every=3)
+    # options bring back lerobot's crop recipe; train.aux_state=0 and train.ema=0 switch off
+    cfg = policy_config(
+        TrainConfig(
+            inputs="rgb", options={"diffusion": {**TINY["diffusion"], "resize_shape": None}}
+        ),
+        spec,
+        "cpu",
+    )
+    assert cfg.resize_shape is None and cfg.crop_shape == (28, 28)
+    plain = _train(
+        tmp_path, dataset, name="plain", inputs="rgb", steps=2, batch_size=2, aux_state=0.0, ema=0.0
+    )
+    assert plain["steps"] == 2
+    ckpt = last_checkpoint(tmp_path / "policy" / "plain")
+    assert ckpt is not None and not (ckpt / "training_state" / EXTRAS).exists()
+
+
+def test_learning_curve_evaluates_checkpoints_while_training(
+    policy_run: Path, tmp_path: Path
+) -> None:
+    """``train.eval_every_minutes``: checkpoints are evaluated in the held-out kitchen by
+    ``stage=eval`` in a background process; each result joins ``train_log.jsonl`` as a curve
+    point (the last step's too), and the run report draws it."""
+    from factory.config import EvalConfig, ReportConfig
+    from factory.policy.train_stage import run as train_stage
+    from factory.report.collect import collect_run
+
+    dataset = policy_run / "dataset" / "merged"
+    shutil.copytree(policy_run / "scenes", tmp_path / "scenes")
+    ctx = _ctx(tmp_path, dataset, name="curve", steps=6, eval_every_minutes=1e-4, eval_episodes=1)
+    ctx.cfg.eval = EvalConfig(max_steps=5, workers=1, nthread=1, device="cpu")
+    ctx.cfg.report = ReportConfig()
+    train_stage(ctx)
+    out = tmp_path / "policy" / "curve"
+    lines = [json.loads(x) for x in (out / "train_log.jsonl").read_text().splitlines()]
+    points = [r for r in lines if "success" in r]
+    assert points, lines
+    assert points[-1]["step"] == 6 and points[-1]["episodes"] == 1
+    assert all(0.0 <= p["success"] <= 1.0 and len(p["ci95"]) == 2 for p in points)
+    for p in points:
+        assert (out / "curve" / str(p["step"]) / "results.json").is_file()
+    assert [r["step"] for r in lines if "loss" in r] == [2, 4, 6]
+    data = collect_run(tmp_path)
+    run = next(r for r in data.policies if r.name == "curve")
+    assert [c.step for c in run.curve] == [p["step"] for p in points] and len(run.log) == 3
+    assert not (tmp_path / "eval").exists()  # the curve's evaluations stay in policy/<name>
 
 
 def test_act_policy_by_name(policy_run: Path, tmp_path: Path) -> None:

@@ -1,0 +1,91 @@
+"""What a training sets unless ``train.*`` says otherwise: the diffusion recipe per kind of
+input, the learning rate, the numeric precision, the auxiliary state loss and the weight
+average (EMA).
+
+The state recipe was chosen by a sweep of six recipes trained side by side
+(``benchmarks/results/policy-recipe-sweep-h100.json``; docs/POLICY.md). The image recipe
+(``train.inputs=rgb`` / ``rgbd``) was chosen by the measurements of ``scripts/bench_policy.py
+--variants`` on one GPU (training samples per second of each variant on the same data,
+``benchmarks/results/policy-recipe-rgbd-*.json``) and the held-out success of the policy it
+trains within a fixed time (docs/POLICY.md, "The paper's setting").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+PRECISIONS = ("auto", "bf16", "fp32")
+"""``train.precision`` settings."""
+
+STATE_DIFFUSION_DEFAULTS: dict[str, Any] = {
+    "prediction_type": "sample",
+    "noise_scheduler_type": "DDIM",
+    "num_inference_steps": 10,
+}
+"""Diffusion with ``train.inputs=state``, unless ``train.options`` says otherwise: predict the
+clean action chunk rather than the noise, and sample it in 10 DDIM steps. With
+:data:`DIFFUSION_LR` this took held-out success from 13.3 % (lerobot's preset) to 56.7 %
+at the same 8,700 steps (``benchmarks/results/policy-recipe-sweep-h100.json``)."""
+
+IMAGE_DIFFUSION_DEFAULTS: dict[str, Any] = {
+    **STATE_DIFFUSION_DEFAULTS,
+    "down_dims": (256, 512, 1024),
+    "resize_shape": (96, 96),
+    "crop_ratio": 1.0,
+}
+"""Diffusion with ``train.inputs=rgb`` or ``rgbd``: the state recipe, a U-Net of 256-512-1024
+channels (lerobot's preset, 512-1024-2048, holds 8 times the weights and was no better in
+the time a session has), and every camera image resized to 96 x 96 on the device before the
+shared ResNet-18 (random shifts of the batch loader replace the random crop)."""
+
+DIFFUSION_LR = 3e-4
+"""Learning rate of a diffusion policy when ``train.lr`` is 0 (lerobot's preset: 1e-4)."""
+STATE_DIFFUSION_LR = DIFFUSION_LR
+"""The same, by its older name."""
+
+IMAGE_AUX_STATE = 1.0
+"""``train.aux_state`` of an image diffusion policy of a fixed-base task, when not set."""
+IMAGE_EMA = 0.999
+"""``train.ema`` of an image diffusion policy, when not set."""
+
+
+def image_inputs(inputs: str) -> bool:
+    """Whether ``train.inputs`` reads camera images."""
+    return inputs in ("rgb", "rgbd")
+
+
+def diffusion_defaults(inputs: str) -> dict[str, Any]:
+    """The policy config fields a diffusion policy on these inputs gets by default."""
+    return dict(IMAGE_DIFFUSION_DEFAULTS if image_inputs(inputs) else STATE_DIFFUSION_DEFAULTS)
+
+
+def default_lr(policy: str) -> float:
+    """The learning rate when ``train.lr`` is 0 (0: the policy's preset)."""
+    return DIFFUSION_LR if policy == "diffusion" else 0.0
+
+
+def resolve_precision(setting: str, device: str) -> str:
+    """``bf16`` or ``fp32`` for ``train.precision`` on ``device``: ``auto`` is bf16 autocast
+    on CUDA (tensor cores; the weights stay fp32) and fp32 on a CPU."""
+    if setting == "auto":
+        return "bf16" if device.startswith("cuda") else "fp32"
+    return setting
+
+
+def resolve_aux_state(setting: float | None, policy: str, inputs: str, mobile: bool) -> float:
+    """The weight of the auxiliary state loss (0: off): ``train.aux_state``, or
+    :data:`IMAGE_AUX_STATE` for an image diffusion policy of a fixed-base task. A mobile
+    dataset holds no object poses, so its policies have none."""
+    if mobile or not image_inputs(inputs):
+        return 0.0
+    if setting is None:
+        return IMAGE_AUX_STATE if policy == "diffusion" else 0.0
+    return float(setting)
+
+
+def resolve_ema(setting: float | None, policy: str, inputs: str) -> float:
+    """The EMA decay of the saved weights (0: off): ``train.ema``, or :data:`IMAGE_EMA` for
+    an image diffusion policy."""
+    if setting is None:
+        return IMAGE_EMA if policy == "diffusion" and image_inputs(inputs) else 0.0
+    return float(setting)

@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# The paper's camera policy in one GPU session (docs/POLICY.md, "The paper's setting"), every
+# step a call of the real command line, on one machine (16 cores, one GPU):
+#
+#   1. the image recipe's variants side by side (scripts/bench_policy.py --variants) on the
+#      small dataset BENCH_DATASET (skipped if empty): lerobot's preset with the DataLoader
+#      first, alone, then the rest beside step 2 (pinned to 3 cores);
+#   2. data: TRAIN_SCENES generated kitchens x EPISODES demos with RGB-D rendering (CPU
+#      executor: a bare GPU machine would spend minutes compiling Warp kernels), the merged
+#      dataset, and HELDOUT_SCENES more kitchens (other seeds) that are not in it;
+#   3. the RGB-D policy with the default image recipe (factory/policy/recipe.py) for
+#      TRAIN_MINUTES, its steps set from the measured rate so that the cosine schedule ends
+#      with the time, with the learning curve (train.eval_every_minutes) and, beside it, the
+#      planner on the same held-out configurations;
+#   4. the final evaluation: EVAL_EPISODES configurations per held-out kitchen.
+#
+# A tiny dry run on a CPU:
+#   TRAIN_SCENES=1 HELDOUT_SCENES=1 EPISODES=2 TRAIN_MINUTES=0.2 STEPS=4 BATCH=2 \
+#     EVAL_EPISODES=1 CURVE_MINUTES=0.05 CURVE_EPISODES=1 BENCH_DATASET= DEVICE=cpu \
+#     RUN=/tmp/cam bash scripts/experiments/camera_policy.sh
+# Results: $OUT_DIR (the variants, the training log with its curve, the evaluations).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+RUN=${RUN:-runs/camera}
+OUT_DIR=${OUT_DIR:-$RUN/results}
+TRAIN_SCENES=${TRAIN_SCENES:-16}
+HELDOUT_SCENES=${HELDOUT_SCENES:-3}
+EPISODES=${EPISODES:-20}
+INPUTS=${INPUTS:-rgbd}
+BATCH=${BATCH:-256}
+TRAIN_MINUTES=${TRAIN_MINUTES:-15}
+STEPS=${STEPS:-0}  # 0: from the measured rate of the recipe (step 1), else 12 steps/s
+CURVE_MINUTES=${CURVE_MINUTES:-3.5}
+CURVE_EPISODES=${CURVE_EPISODES:-10}
+EVAL_EPISODES=${EVAL_EPISODES:-90}
+DEVICE=${DEVICE:-auto}
+BENCH_DATASET=${BENCH_DATASET:-}
+BENCH_STEPS=${BENCH_STEPS:-150}
+TAG=${TAG:-gpu}
+JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
+EVAL_WORKERS=${EVAL_WORKERS:-$(( JOBS * 3 / 4 ))}
+PY=${PY:-python3}
+COMMON="sim.backend=cpu demos.executor=cpu"
+PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
+mkdir -p "$RUN" "$OUT_DIR"
+log() { echo "$(date +%T) camera: $*"; }
+pin() { if command -v taskset >/dev/null && [ "$JOBS" -gt 4 ]; then taskset -c "$1" "${@:2}"; else "${@:2}"; fi; }
+
+generate() {  # generate <count> <seed> <cores>: kitchens, one shard per core
+  local n=$1 seed=$2 shards=$(( $1 < $3 ? $1 : $3 ))
+  for i in $(seq 0 $((shards - 1))); do
+    $PY -m factory stage=generate run_dir="$RUN" "generate.prompts=[$PROMPT]" $COMMON \
+      generate.scenes_per_prompt="$n" seed="$seed" shard.index="$i" shard.count="$shards" &
+  done
+  wait
+}
+
+t0=$(date +%s)
+BENCH_PID=""
+if [ -n "$BENCH_DATASET" ]; then
+  log "1. the recipe's variants on $BENCH_DATASET (the baseline alone)"
+  bench=($PY scripts/bench_policy.py --run-dir "$RUN" --dataset "$BENCH_DATASET" --inputs rgbd
+    --device cuda --steps "$BENCH_STEPS" --tag "$TAG")
+  "${bench[@]}" --variants rgbd-baseline --out "$OUT_DIR/variants-baseline.json" \
+    > "$OUT_DIR/bench.log" 2>&1 || log "   the baseline failed: $OUT_DIR/bench.log"
+  pin 0-2 "${bench[@]}" --variants rgbd-recipe --out "$OUT_DIR/variants.json" \
+    >> "$OUT_DIR/bench.log" 2>&1 &
+  BENCH_PID=$!
+  DATA_CORES=$(( JOBS > 6 ? JOBS - 3 : JOBS ))
+else
+  DATA_CORES=$JOBS
+fi
+
+log "2. $TRAIN_SCENES training kitchens x $EPISODES demos, $HELDOUT_SCENES held out ($DATA_CORES cores)"
+generate "$TRAIN_SCENES" 0 "$DATA_CORES"
+$PY -m factory stage=demos run_dir="$RUN" $COMMON demos.episodes_per_scene="$EPISODES" demos.workers="$DATA_CORES"
+$PY -m factory stage=dataset run_dir="$RUN" dataset.workers="$DATA_CORES"
+generate "$HELDOUT_SCENES" 100000 "$DATA_CORES"
+echo "{\"data_seconds\": $(( $(date +%s) - t0 ))}" > "$OUT_DIR/data.json"
+[ -z "$BENCH_PID" ] || wait "$BENCH_PID" || log "   the variants failed: $OUT_DIR/bench.log"
+
+if [ "$STEPS" = 0 ]; then  # the recipe's measured steps/s, less a tenth for the curve's evaluations
+  STEPS=$($PY - "$OUT_DIR/variants.json" "$TRAIN_MINUTES" <<'EOF'
+import json, sys
+rate = 12.0
+try:
+    rows = json.load(open(sys.argv[1]))["variants"]
+    rate = next(r["train"]["steps_per_s"] for r in rows if "default" in r["name"] and "train" in r)
+except Exception:
+    pass
+print(int(rate * 0.9 * 60 * float(sys.argv[2])))
+EOF
+)
+fi
+log "3. $INPUTS policy: $STEPS steps, at most $TRAIN_MINUTES min, batch $BATCH"
+$PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=planner eval.episodes_per_scene="$EVAL_EPISODES" \
+  eval.name=planner eval.workers=3 eval.batch=8 eval.videos=0 > "$OUT_DIR/planner.log" 2>&1 &
+PLANNER=$!
+t1=$(date +%s)
+$PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$INPUTS" train.inputs="$INPUTS" \
+  train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
+  train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
+  train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
+  eval.workers=$(( EVAL_WORKERS / 2 > 0 ? EVAL_WORKERS / 2 : 1 )) eval.batch=8 eval.device="$DEVICE"
+log "   trained in $(( $(date +%s) - t1 )) s"
+cp "$RUN/policy/$INPUTS/train_log.jsonl" "$OUT_DIR/train_log-$INPUTS.jsonl"
+cp "$RUN/policy/$INPUTS/train.json" "$OUT_DIR/train-$INPUTS.json"
+
+log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
+$PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$INPUTS" eval.episodes_per_scene="$EVAL_EPISODES" \
+  eval.device="$DEVICE" eval.videos=2 eval.workers="$EVAL_WORKERS" eval.batch=8
+log "   evaluated in $(( $(date +%s) - t1 )) s"
+wait "$PLANNER" || log "   the planner evaluation failed: $OUT_DIR/planner.log"
+for d in "$RUN"/eval/*/; do
+  [ -f "$d/results.json" ] && cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"
+done
+log "done in $(( $(date +%s) - t0 )) s"
