@@ -45,12 +45,14 @@ COMMON="sim.backend=cpu demos.executor=cpu"
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 mkdir -p "$RUN" "$OUT_DIR"
 log() { echo "$(date +%T) camera: $*"; }
-pin() { if command -v taskset >/dev/null && [ "$JOBS" -gt 4 ]; then taskset -c "$1" "${@:2}"; else "${@:2}"; fi; }
+pin() {  # pin <cores> <command...>: taskset where there are cores to spare
+  if command -v taskset >/dev/null && [ "$JOBS" -gt 6 ]; then taskset -c "$1" "${@:2}"; else "${@:2}"; fi
+}
 
-generate() {  # generate <count> <seed> <cores>: kitchens, one shard per core
-  local n=$1 seed=$2 shards=$(( $1 < $3 ? $1 : $3 ))
+generate() {  # generate <count> <seed>: kitchens, one shard per core (the data's cores)
+  local n=$1 seed=$2 shards=$(( $1 < JOBS ? $1 : JOBS ))
   for i in $(seq 0 $((shards - 1))); do
-    $PY -m factory stage=generate run_dir="$RUN" "generate.prompts=[$PROMPT]" $COMMON \
+    pin "$DATA_PIN" $PY -m factory stage=generate run_dir="$RUN" "generate.prompts=[$PROMPT]" $COMMON \
       generate.scenes_per_prompt="$n" seed="$seed" shard.index="$i" shard.count="$shards" &
   done
   wait
@@ -68,15 +70,18 @@ if [ -n "$BENCH_DATASET" ]; then
     >> "$OUT_DIR/bench.log" 2>&1 &
   BENCH_PID=$!
   DATA_CORES=$(( JOBS > 6 ? JOBS - 3 : JOBS ))
+  DATA_PIN=3-$(( JOBS - 1 ))
 else
   DATA_CORES=$JOBS
+  DATA_PIN=0-$(( JOBS - 1 ))
 fi
 
 log "2. $TRAIN_SCENES training kitchens x $EPISODES demos, $HELDOUT_SCENES held out ($DATA_CORES cores)"
-generate "$TRAIN_SCENES" 0 "$DATA_CORES"
-$PY -m factory stage=demos run_dir="$RUN" $COMMON demos.episodes_per_scene="$EPISODES" demos.workers="$DATA_CORES"
-$PY -m factory stage=dataset run_dir="$RUN" dataset.workers="$DATA_CORES"
-generate "$HELDOUT_SCENES" 100000 "$DATA_CORES"
+generate "$TRAIN_SCENES" 0
+pin "$DATA_PIN" $PY -m factory stage=demos run_dir="$RUN" $COMMON \
+  demos.episodes_per_scene="$EPISODES" demos.workers="$DATA_CORES"
+pin "$DATA_PIN" $PY -m factory stage=dataset run_dir="$RUN" dataset.workers="$DATA_CORES"
+generate "$HELDOUT_SCENES" 100000
 echo "{\"data_seconds\": $(( $(date +%s) - t0 ))}" > "$OUT_DIR/data.json"
 [ -z "$BENCH_PID" ] || wait "$BENCH_PID" || log "   the variants failed: $OUT_DIR/bench.log"
 
