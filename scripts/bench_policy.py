@@ -71,30 +71,29 @@ VARIANTS: dict[str, list[dict[str, Any]]] = {
             "batch_size": 64,
         },
         {
-            "name": "lerobot preset, device batches, bf16, batch 256",
-            **OLD,
-            "precision": "bf16",
-            "loader": "device",
-            "batch_size": 256,
-        },
-        {
-            "name": "recipe (96 px, U-Net 256-512-1024), fp32, batch 256",
+            "name": "recipe, fp32, batch 256",
             "precision": "fp32",
             "loader": "device",
             "batch_size": 256,
         },
         {"name": "recipe, bf16, batch 512", "loader": "device", "batch_size": 512},
         {
-            "name": "recipe at 128 px (crop 115), bf16, batch 256",
+            "name": "recipe at 96 px, bf16, batch 256",
             "loader": "device",
             "batch_size": 256,
-            "options": {"diffusion": {"resize_shape": None}},
+            "options": {"diffusion": {"resize_shape": [96, 96]}},
         },
         {
-            "name": "recipe, 1 observation step, bf16, batch 256",
+            "name": "recipe, 2 observation steps, bf16, batch 256",
             "loader": "device",
             "batch_size": 256,
-            "n_obs_steps": 1,
+            "n_obs_steps": 2,
+        },
+        {
+            "name": "recipe, U-Net 256-512-1024, bf16, batch 256",
+            "loader": "device",
+            "batch_size": 256,
+            "options": {"diffusion": {"down_dims": [256, 512, 1024]}},
         },
         {
             "name": "recipe without the auxiliary loss and EMA, bf16, batch 256",
@@ -109,7 +108,7 @@ VARIANTS: dict[str, list[dict[str, Any]]] = {
             "loader": "device",
             "batch_size": 256,
         },
-    ]
+    ],
 }
 """Named lists of variants for ``--variants``."""
 SETTINGS = (

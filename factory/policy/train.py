@@ -670,7 +670,7 @@ class Trainer:
         self.params = [p for p in self.policy.parameters() if p.requires_grad]
         self.grad_clip = float(getattr(self.pipeline.optimizer, "grad_clip_norm", 0.0) or 0.0)
         encoder = getattr(getattr(self.policy, "diffusion", None), "rgb_encoder", None)
-        if encoder is not None and self.device.startswith("cuda"):
+        if encoder is not None:
             encoder.to(memory_format=torch.channels_last)  # NHWC convolutions on tensor cores
         self.aux_head: Any = None
         self.tap: Any = None
@@ -821,7 +821,10 @@ class Trainer:
         tmp = ckpt_root / f".tmp-{ident}"
         shutil.rmtree(tmp, ignore_errors=True)
         extras: dict[str, Any] = {}
-        with self.ema.applied(self.params) if self.ema is not None else _no_raw() as raw:
+        with (
+            self.ema.applied(self.params) if self.ema is not None else _no_raw() as raw,
+            _contiguous_state(self.optimizer),
+        ):
             save_checkpoint(
                 tmp,
                 self.step,
@@ -856,6 +859,24 @@ class Trainer:
 @contextmanager
 def _no_raw() -> Iterator[list[Any]]:
     yield []
+
+
+@contextmanager
+def _contiguous_state(optimizer: Any) -> Iterator[None]:
+    """The optimizer's state tensors made contiguous for the block: lerobot saves them with
+    safetensors, which refuses the channels-last moments of a channels-last image encoder;
+    the originals are put back after it."""
+    swapped: list[tuple[dict[str, Any], str, Any]] = []
+    for state in optimizer.state.values():
+        for key, value in state.items():
+            if hasattr(value, "is_contiguous") and not value.is_contiguous():
+                swapped.append((state, key, value))
+                state[key] = value.contiguous()
+    try:
+        yield
+    finally:
+        for state, key, value in swapped:
+            state[key] = value
 
 
 def _read_extras(resume: Path | None) -> dict[str, Any]:

@@ -44,18 +44,21 @@ PY=${PY:-python3}
 COMMON="sim.backend=cpu demos.executor=cpu"
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 mkdir -p "$RUN" "$OUT_DIR"
+rm -f "$RUN/exit_status"
+trap 'echo $? > "$RUN/exit_status"' EXIT  # for whoever watches: the script ended, and how
 log() { echo "$(date +%T) camera: $*"; }
 pin() {  # pin <cores> <command...>: taskset where there are cores to spare
   if command -v taskset >/dev/null && [ "$JOBS" -gt 6 ]; then taskset -c "$1" "${@:2}"; else "${@:2}"; fi
 }
 
 generate() {  # generate <count> <seed>: kitchens, one shard per core (the data's cores)
-  local n=$1 seed=$2 shards=$(( $1 < JOBS ? $1 : JOBS ))
+  local n=$1 seed=$2 shards=$(( $1 < JOBS ? $1 : JOBS )) pids=()
   for i in $(seq 0 $((shards - 1))); do
     pin "$DATA_PIN" $PY -m factory stage=generate run_dir="$RUN" "generate.prompts=[$PROMPT]" $COMMON \
       generate.scenes_per_prompt="$n" seed="$seed" shard.index="$i" shard.count="$shards" &
+    pids+=($!)
   done
-  wait
+  wait "${pids[@]}"  # its own shards only, not the benchmark running beside
 }
 
 t0=$(date +%s)

@@ -201,7 +201,7 @@ def test_fast_low_dim_samples_equal_lerobots_own(policy_run: Path) -> None:
 
 def test_state_diffusion_recipe_defaults(policy_run: Path) -> None:
     """Diffusion on state inputs predicts the clean chunk (sample) in 10 DDIM steps at lr 3e-4
-    unless train.options / train.lr say otherwise; image inputs add their recipe (96 px
+    unless train.options / train.lr say otherwise; image inputs add their recipe (84 px
     images, no crop)."""
     from factory.policy.inputs import input_spec
     from factory.policy.train import STATE_DIFFUSION_LR, policy_config
@@ -217,9 +217,10 @@ def test_state_diffusion_recipe_defaults(policy_run: Path) -> None:
     image = policy_config(TrainConfig(inputs="rgb", options=TINY), rgb, "cpu")
     assert (image.prediction_type, image.resize_shape, image.crop_shape) == (
         "sample",
-        (96, 96),
+        (84, 84),
         None,
     )
+    assert image.n_obs_steps == 1
     assert tuple(image.down_dims) == tuple(TINY["diffusion"]["down_dims"])  # options win
     assert STATE_DIFFUSION_LR == 3e-4
 
@@ -290,7 +291,7 @@ def test_rgbd_policy_trains_and_acts(policy_run: Path, tmp_path: Path) -> None:
     assert policy.info.features["observation.depth.left"] == [32, 32]
     assert policy.info.features["observation.images.wrist"] == [32, 32, 3]
     # the image recipe: resized on the device, no crop (the loader shifts instead)
-    assert policy.policy.config.resize_shape == (96, 96)
+    assert policy.policy.config.resize_shape == (84, 84)
     assert policy.policy.config.crop_shape is None
     obs = _frames(dataset, 2, list(policy.info.features))
     assert obs["observation.depth.left"].dtype == np.uint16
