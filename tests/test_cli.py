@@ -290,6 +290,9 @@ def test_small_profile_main_job(small_run) -> None:
     meta = LeRobotDatasetMetadata("factory/demos", root=run / "dataset" / "merged")
     assert meta.total_episodes == 2 and meta.total_frames > 0
     assert "observation.images.wrist" in meta.video_keys
+    # the GPU data path (train.loader=device) runs here on CPU tensors
+    train_log = (run / "logs" / "train-0-of-1.log").read_text()
+    assert "batches gathered on cpu (train.loader=device)" in train_log
     # quiet terminal: factory's lines only, the summary table last, the rest in the logs
     outside = _lines_from_outside_factory(out.stdout, out.stderr)
     assert len(outside) == 0, "\n".join(outside)
