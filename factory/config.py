@@ -480,6 +480,9 @@ class TrainConfig:
             training goes on; success against steps and seconds goes into ``train_log.jsonl``
             and the report; the last step is evaluated too.
         eval_episodes: episodes per scene of each learning-curve evaluation.
+        gpus: data-parallel processes on one node (``cuda:0`` .. ``cuda:N-1``; with
+            ``train.device=cpu``, CPU processes): each trains on its own ``batch_size``
+            samples and the gradients are averaged (:mod:`factory.policy.data_parallel`).
         options: policy config fields per type, e.g. ``{diffusion: {down_dims: [64, 128]}}``;
             applied to the type trained, others ignored.
     """
@@ -512,6 +515,7 @@ class TrainConfig:
     ema: float | None = None
     eval_every_minutes: float = 0.0
     eval_episodes: int = 10
+    gpus: int = 1
     options: dict[str, Any] = field(default_factory=dict)
 
 

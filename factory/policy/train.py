@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import os
 import shutil
 import time
 from collections.abc import Iterator
@@ -585,6 +586,7 @@ class Trainer:
         out: Path,
         resume: Path | None = None,
         episodes: list[int] | None = None,
+        accelerator: Any = None,
     ) -> None:
         import torch
         from lerobot.configs.default import DatasetConfig
@@ -601,7 +603,13 @@ class Trainer:
             torch.set_num_threads(tc.threads)
         self.tc = tc
         self.spec = spec
-        self.device = resolve_device(tc.device)
+        if accelerator is None:
+            self.device = resolve_device(tc.device)
+        else:  # this rank's device: cuda:<rank>, or the CPU
+            dev = accelerator.device
+            self.device = "cpu" if dev.type == "cpu" else str(dev)
+        if self.device.startswith("cuda"):
+            torch.backends.cudnn.benchmark = True  # fixed image shapes: the fastest kernels
         set_seed(tc.seed)
         if resume is not None:
             pretrained = resume / PRETRAINED
@@ -708,7 +716,24 @@ class Trainer:
                     for p, r in zip(self.params, raw, strict=True):
                         p.copy_(r.to(p.device))
         self.last_aux: Any = None
+        self.sync: Any = None
+        if accelerator is not None and accelerator.num_processes > 1:
+            from factory.policy.data_parallel import GradientSync
+
+            head = list(self.aux_head.parameters()) if self.aux_head is not None else []
+            self.sync = GradientSync(accelerator, [*self.params, *head])
+            self.sync.broadcast_weights()
+            if self.ema is not None:
+                import torch.distributed as dist
+
+                for t in self.ema.shadow:
+                    dist.broadcast(t, 0)
         self.policy.train()
+
+    @property
+    def rank(self) -> int:
+        """This process's rank (0 without data parallelism)."""
+        return 0 if self.sync is None else self.sync.rank
 
     def sampler(self) -> Any:
         """lerobot's ``EpisodeAwareSampler`` over the episodes trained on (without the last
@@ -750,7 +775,12 @@ class Trainer:
             augment = bool(self.tc.augment_images and self.spec.cameras)
             log.info("train: batches gathered on %s (train.loader=%s)", self.device, setting)
             return DeviceBatches(
-                frames, self.device, self.tc.batch_size, indices, self.tc.seed + self.step, augment
+                frames,
+                self.device,
+                self.tc.batch_size,
+                indices,
+                self.tc.seed + self.step + 1_000_003 * self.rank,
+                augment,
             )
         workers = self.tc.num_workers
         loader: Any = torch.utils.data.DataLoader(
@@ -792,6 +822,8 @@ class Trainer:
         if self.tap is not None:
             self.tap.clear()
         total.backward()
+        if self.sync is not None:
+            self.sync.average()
         if self.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(self.params, self.grad_clip)
         self.optimizer.step()
@@ -900,6 +932,7 @@ def train(
     resume: Path | None,
     progress: bool = True,
     curve: Any = None,
+    accelerator: Any = None,
 ) -> TrainResult:
     """Trains (or resumes) the policy of ``policy/<name>`` up to ``train.steps`` steps.
 
@@ -913,6 +946,8 @@ def train(
         progress: show a progress bar with the loss.
         curve: the learning curve (:class:`factory.policy.learning_curve.LearningCurve`) that
             evaluates checkpoints as training goes (``train.eval_every_minutes``), or None.
+        accelerator: this rank's ``accelerate.Accelerator`` under ``train.gpus`` > 1
+            (:mod:`factory.policy.data_parallel`); rank 0 alone writes.
     """
     import torch
     from tqdm import tqdm
@@ -920,11 +955,14 @@ def train(
     from factory.console import terminal
     from factory.store import atomic_write_text
 
-    trainer = Trainer(tc, spec, root, out, resume, info.episode_indices or None)
+    trainer = Trainer(tc, spec, root, out, resume, info.episode_indices or None, accelerator)
+    main = trainer.rank == 0
+    if not main:
+        curve = None
     step = resumed_from = trainer.step
     log_path = out / TRAIN_LOG
     history = _read_log(log_path, step)
-    if log_path.exists():  # drop lines past the checkpoint of a killed run
+    if main and log_path.exists():  # drop lines past the checkpoint of a killed run
         atomic_write_text(log_path, "".join(json.dumps(r) + "\n" for r in history))
     seconds_before = float(history[-1]["seconds"]) if history else 0.0
     batches = trainer.loader()
@@ -960,9 +998,9 @@ def train(
             desc=f"train {info.name}",
             unit="step",
             file=terminal(),
-            disable=None if progress else True,
+            disable=None if progress and main else True,
         ) as bar,
-        log_path.open("a") as log_file,
+        log_path.open("a") if main else open(os.devnull, "w") as log_file,
     ):
         while step < tc.steps:
             losses.append(trainer.optimize(next(batches)))
@@ -971,6 +1009,9 @@ def train(
             step = trainer.step
             bar.update(1)
             late = limit > 0 and time.perf_counter() - t0 > limit
+            if trainer.sync is not None:  # every rank stops at the same step: rank 0's clock
+                at_log = step % tc.log_every == 0 or step == tc.steps
+                late = trainer.sync.any(late) if at_log else False
             if step % tc.log_every == 0 or step == tc.steps or late:
                 last_loss = float(torch.stack(losses).float().mean().item())
                 losses.clear()
@@ -999,7 +1040,7 @@ def train(
                         log_file.write(json.dumps(point) + "\n")
                         log_file.flush()
             evaluate = curve is not None and curve.due(time.perf_counter() - t0)
-            if step % tc.save_every == 0 or step == tc.steps or late or evaluate:
+            if main and (step % tc.save_every == 0 or step == tc.steps or late or evaluate):
                 newest = str(trainer.save(ckpt_root, info))
                 write_train_json(out, info)
                 if evaluate:

@@ -68,6 +68,8 @@ def check_config(tc: Any) -> None:
         raise ConfigError(f"train.aux_state must be >= 0 (0: off), got {tc.aux_state}")
     if tc.ema is not None and not 0 <= tc.ema < 1:
         raise ConfigError(f"train.ema must be in [0, 1) (0: off), got {tc.ema}")
+    if tc.gpus < 1:
+        raise ConfigError(f"train.gpus must be >= 1, got {tc.gpus}")
     if tc.eval_every_minutes < 0:
         raise ConfigError(
             f"train.eval_every_minutes must be >= 0 (0: no learning curve), got "
@@ -208,6 +210,15 @@ def run(ctx: StageContext) -> dict[str, Any]:
             tc.name,
         )
     device = resolve_device(tc.device)
+    if tc.gpus > 1 and device.startswith("cuda"):
+        import torch
+
+        have = torch.cuda.device_count()
+        if have < tc.gpus:
+            raise ConfigError(
+                f"train.gpus={tc.gpus} but this machine has {have} CUDA device(s): "
+                f"use train.gpus={max(have, 1)} or fewer"
+            )
     policy_config(tc, spec, device)  # an unknown type or bad options fail before any write
     info = train_info(tc, spec, root)
     out = policy_dir(store.root, tc.name)
@@ -244,7 +255,14 @@ def run(ctx: StageContext) -> dict[str, Any]:
         from factory.policy.learning_curve import LearningCurve
 
         curve = LearningCurve(cfg, out, tc.eval_every_minutes, tc.eval_episodes)
-    result = train(tc, spec, root, out, info, resume, curve=curve)
+    if tc.gpus > 1:
+        from factory.policy.data_parallel import launch
+
+        launch(tc.gpus, device, _train_rank, (tc, spec, root, out, info, resume, curve))
+        ckpt, step = checkpoint_of(out)
+        result = _result_of(out, resume, ckpt, step)
+    else:
+        result = train(tc, spec, root, out, info, resume, curve=curve)
     log.info(
         "train %s: step %d (from %d), loss %.4f, %.2f steps/s, %.1f s",
         tc.name,
@@ -267,6 +285,33 @@ def run(ctx: StageContext) -> dict[str, Any]:
         "checkpoint": result.checkpoint,
         "produced": [_produced(out)],
     }
+
+
+def _train_rank(accelerator: Any, *args: Any) -> None:
+    """One rank of a data-parallel training (:func:`factory.policy.data_parallel.launch`)."""
+    from factory.policy.train import train
+
+    tc, spec, root, out, info, resume, curve = args
+    train(tc, spec, root, out, info, resume, curve=curve, accelerator=accelerator)
+
+
+def _result_of(out: Path, resume: Path | None, ckpt: Path | None, step: int) -> Any:
+    """What rank 0 trained, read back from its log and checkpoints."""
+    from factory.policy.checkpoint import TRAIN_LOG, checkpoint_step
+    from factory.policy.train import TrainResult
+
+    lines = [json.loads(x) for x in (out / TRAIN_LOG).read_text().splitlines() if x.strip()]
+    losses = [r for r in lines if "loss" in r]
+    last = losses[-1] if losses else {}
+    start = checkpoint_step(resume) if resume is not None else 0
+    return TrainResult(
+        step=step,
+        resumed_from=start,
+        loss=float(last.get("loss", float("nan"))),
+        seconds=float(last.get("seconds", 0.0)),
+        steps_per_s=float(last.get("steps_per_s", 0.0)),
+        checkpoint=str(ckpt) if ckpt is not None else "",
+    )
 
 
 def _produced(out: Path) -> dict[str, Any]:

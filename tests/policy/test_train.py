@@ -383,6 +383,26 @@ def test_learning_curve_evaluates_checkpoints_while_training(
     assert not (tmp_path / "eval").exists()  # the curve's evaluations stay in policy/<name>
 
 
+def test_data_parallel_training_on_two_cpu_processes(policy_run: Path, tmp_path: Path) -> None:
+    """``train.gpus=2`` (here two CPU processes over gloo, as on two GPUs over NCCL): rank 0
+    logs and checkpoints every step count once, the policy it saves acts, and a bad count is a
+    one-line error."""
+    from factory.errors import ConfigError
+    from factory.policy.checkpoint import load_policy
+
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(tmp_path, dataset, name="dp", steps=4, device="cpu", gpus=2)
+    assert result["steps"] == 4 and result["finished"]
+    out = tmp_path / "policy" / "dp"
+    lines = [json.loads(x) for x in (out / "train_log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in lines] == [2, 4]  # one writer
+    policy = load_policy("dp", tmp_path, device="cpu")
+    actions = policy.act(_frames(dataset, 2, list(policy.info.features)))
+    assert actions.shape == (2, 8) and np.isfinite(actions).all()
+    with pytest.raises(ConfigError, match=r"train\.gpus"):
+        _train(tmp_path, dataset, name="dp0", steps=2, gpus=0)
+
+
 def test_act_policy_by_name(policy_run: Path, tmp_path: Path) -> None:
     from lerobot.policies.act.modeling_act import ACTPolicy
 
