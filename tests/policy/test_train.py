@@ -380,6 +380,11 @@ def test_learning_curve_evaluates_checkpoints_while_training(
     data = collect_run(tmp_path)
     run = next(r for r in data.policies if r.name == "curve")
     assert [c.step for c in run.curve] == [p["step"] for p in points] and len(run.log) == 3
+    from factory.report.media import MediaSink
+    from factory.report.page import build_page
+
+    html = build_page(data, ReportConfig(), MediaSink(tmp_path, embed=True)).html
+    assert "learning curve of curve" in html and "training minutes" in html
     assert not (tmp_path / "eval").exists()  # the curve's evaluations stay in policy/<name>
 
 
