@@ -95,7 +95,8 @@ def test_augmentation_shifts_and_jitters_rgb_only(
 
     from factory.policy.device_batches import DeviceBatches
 
-    _, trainset = _opened(policy_run, "rgbd", "tool", tiny_options)
+    two_steps = {"diffusion": {**tiny_options["diffusion"], "n_obs_steps": 2}}
+    _, trainset = _opened(policy_run, "rgbd", "tool", two_steps)
     plain = DeviceBatches(trainset.frames, "cpu", batch_size=4)
     aug = DeviceBatches(trainset.frames, "cpu", batch_size=4, augment=True, seed=3)
     idx = torch.tensor([0, 5, 9, 20])
