@@ -32,13 +32,25 @@ CURVE = "curve"
 
 
 def _evaluate(cfg: Any, log_path: str) -> None:
-    """The child process: ``stage=eval`` with its output in ``log_path``."""
+    """The child process: ``stage=eval`` (:func:`factory.policy.eval_stage.run`) with its
+    output in ``log_path``."""
+    import sys
+
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     os.dup2(fd, 1)
     os.dup2(fd, 2)
-    from factory.__main__ import execute
+    logging.basicConfig(
+        level=getattr(logging, str(cfg.log_level).upper(), logging.INFO),
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+    from factory.context import StageContext
+    from factory.policy.eval_stage import run
+    from factory.sim.gl import configure_gl
+    from factory.store import RunStore, Shard
 
-    execute(cfg)
+    configure_gl(cfg.render.gl)  # before anything imports mujoco
+    run(StageContext(cfg=cfg, store=RunStore(cfg.run_dir), shard=Shard(0, 1)))
 
 
 @dataclasses.dataclass

@@ -308,6 +308,10 @@ class TrainSet:
             out = self.frames.item(idx)
         else:
             out = convert_sample(self.spec, self.base[idx])
+            if out[STATE].ndim == 2:  # lerobot squeezes a one-frame video window: restore it
+                for k in self.spec.visual_keys():
+                    if out[k].ndim == 3:
+                        out[k] = out[k][None]
         if self.augment is not None:
             for k in self.spec.image_keys():
                 out[k] = self.augment(out[k])
