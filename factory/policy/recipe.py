@@ -4,10 +4,10 @@ average (EMA).
 
 The state recipe was chosen by a sweep of six recipes trained side by side
 (``benchmarks/results/policy-recipe-sweep-h100.json``; docs/POLICY.md). The image recipe
-(``train.inputs=rgb`` / ``rgbd``) was chosen by the measurements of ``scripts/bench_policy.py
---variants`` on one GPU (training samples per second of each variant on the same data,
-``benchmarks/results/policy-recipe-rgbd-*.json``) and the held-out success of the policy it
-trains within a fixed time (docs/POLICY.md, "The paper's setting").
+(``train.inputs=rgb`` / ``rgbd``) was chosen for speed by the measurements of
+``scripts/bench_policy.py --variants`` on one H100 (training samples per second of each
+variant on the same data, ``benchmarks/results/policy-recipe-rgbd-h100.json``); its held-out
+success within a fixed time is not measured yet (docs/POLICY.md, "The paper's setting").
 """
 
 from __future__ import annotations
