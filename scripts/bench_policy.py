@@ -318,6 +318,13 @@ def _machine() -> dict[str, Any]:
     }
 
 
+def _save(result: dict[str, Any], out: Path) -> None:
+    """Writes a benchmark's JSON and says where."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
 def bench_variants(a: argparse.Namespace) -> None:
     """Each variant in its own process of this script (``--no-rollouts``), side by side."""
     path = Path(a.variants)
@@ -402,10 +409,7 @@ def bench_variants(a: argparse.Namespace) -> None:
         "warm_steps": a.steps,
         "variants": rows,
     }
-    out = a.out or REPO / "benchmarks" / "results" / f"policy-variants-{a.tag}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {out}")
+    _save(result, a.out or REPO / "benchmarks" / "results" / f"policy-variants-{a.tag}.json")
 
 
 def main() -> None:
@@ -455,10 +459,10 @@ def main() -> None:
         "rollouts": rollouts,
     }
     device = "cuda" if train["device"].startswith("cuda") else "cpu"
-    out = a.out or REPO / "benchmarks" / "results" / f"policy-{a.inputs}-{device}-{a.tag}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {out}")
+    _save(
+        result,
+        a.out or REPO / "benchmarks" / "results" / f"policy-{a.inputs}-{device}-{a.tag}.json",
+    )
 
 
 if __name__ == "__main__":

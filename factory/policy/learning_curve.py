@@ -113,7 +113,7 @@ class LearningCurve:
         proc = ctx.Process(target=_evaluate, args=(cfg, str(folder / "eval.log")), daemon=True)
         proc.start()
         self.job = _Job(step, seconds, folder, proc, time.perf_counter())
-        self.next_at = max(self.next_at, 0.0) + self.every
+        self.next_at += self.every
         self.done.add(step)
         log.info(
             "train: learning curve: evaluating step %d in the background (%s)",

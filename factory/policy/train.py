@@ -27,7 +27,7 @@ import os
 import shutil
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -858,7 +858,7 @@ class Trainer:
         shutil.rmtree(tmp, ignore_errors=True)
         extras: dict[str, Any] = {}
         with (
-            self.ema.applied(self.params) if self.ema is not None else _no_raw() as raw,
+            self.ema.applied(self.params) if self.ema is not None else nullcontext([]) as raw,
             _contiguous_state(self.optimizer),
         ):
             save_checkpoint(
@@ -890,11 +890,6 @@ class Trainer:
         final = ckpt_root / ident
         publish_checkpoint(tmp, final)
         return final
-
-
-@contextmanager
-def _no_raw() -> Iterator[list[Any]]:
-    yield []
 
 
 @contextmanager
