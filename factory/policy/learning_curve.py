@@ -110,7 +110,8 @@ class LearningCurve:
             ),
         )
         ctx = multiprocessing.get_context("spawn")
-        proc = ctx.Process(target=_evaluate, args=(cfg, str(folder / "eval.log")), daemon=True)
+        # not daemonic: stage=eval starts a pool of worker processes when eval.workers > 1
+        proc = ctx.Process(target=_evaluate, args=(cfg, str(folder / "eval.log")))
         proc.start()
         self.job = _Job(step, seconds, folder, proc, time.perf_counter())
         self.next_at += self.every
@@ -162,6 +163,13 @@ class LearningCurve:
             point["episodes"],
         )
         return [point]
+
+    def stop(self) -> None:
+        """Ends the evaluation running, if any (the training failed or was interrupted)."""
+        job, self.job = self.job, None
+        if job is not None and job.process.is_alive():
+            job.process.terminate()
+            job.process.join(10)
 
     def finish(self, checkpoint: Path | None, step: int, seconds: float) -> list[dict[str, Any]]:
         """Evaluates the last checkpoint when its step has no point yet: waits for the

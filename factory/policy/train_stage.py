@@ -255,14 +255,19 @@ def run(ctx: StageContext) -> dict[str, Any]:
         from factory.policy.learning_curve import LearningCurve
 
         curve = LearningCurve(cfg, out, tc.eval_every_minutes, tc.eval_episodes)
-    if tc.gpus > 1:
-        from factory.policy.data_parallel import launch
+    try:
+        if tc.gpus > 1:
+            from factory.policy.data_parallel import launch
 
-        launch(tc.gpus, device, _train_rank, (tc, spec, root, out, info, resume, curve))
-        ckpt, step = checkpoint_of(out)
-        result = _result_of(out, resume, ckpt, step)
-    else:
-        result = train(tc, spec, root, out, info, resume, curve=curve)
+            launch(tc.gpus, device, _train_rank, (tc, spec, root, out, info, resume, curve))
+            ckpt, step = checkpoint_of(out)
+            result = _result_of(out, resume, ckpt, step)
+        else:
+            result = train(tc, spec, root, out, info, resume, curve=curve)
+    except BaseException:
+        if curve is not None:
+            curve.stop()  # no evaluation outlives a failed or killed training
+        raise
     log.info(
         "train %s: step %d (from %d), loss %.4f, %.2f steps/s, %.1f s",
         tc.name,

@@ -364,15 +364,16 @@ def test_learning_curve_evaluates_checkpoints_while_training(
 
     dataset = policy_run / "dataset" / "merged"
     shutil.copytree(policy_run / "scenes", tmp_path / "scenes")
-    ctx = _ctx(tmp_path, dataset, name="curve", steps=6, eval_every_minutes=1e-4, eval_episodes=1)
-    ctx.cfg.eval = EvalConfig(max_steps=5, workers=1, nthread=1, device="cpu")
+    ctx = _ctx(tmp_path, dataset, name="curve", steps=6, eval_every_minutes=1e-4, eval_episodes=2)
+    # two workers, one episode each: the evaluation's own worker pool starts in the child
+    ctx.cfg.eval = EvalConfig(max_steps=5, workers=2, batch=1, nthread=1, device="cpu")
     ctx.cfg.report = ReportConfig()
     train_stage(ctx)
     out = tmp_path / "policy" / "curve"
     lines = [json.loads(x) for x in (out / "train_log.jsonl").read_text().splitlines()]
     points = [r for r in lines if "success" in r]
     assert points, lines
-    assert points[-1]["step"] == 6 and points[-1]["episodes"] == 1
+    assert points[-1]["step"] == 6 and points[-1]["episodes"] == 2
     assert all(0.0 <= p["success"] <= 1.0 and len(p["ci95"]) == 2 for p in points)
     for p in points:
         assert (out / "curve" / str(p["step"]) / "results.json").is_file()
