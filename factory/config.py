@@ -474,6 +474,9 @@ class TrainConfig:
         ema: decay of an exponential moving average of the weights, saved as the checkpoint's
             policy (the raw weights go to ``training_state`` for resuming). None: 0.999 for
             ``rgb``/``rgbd`` diffusion, 0 (off) otherwise.
+        compile: ``torch.compile`` the policy's image encoder and U-Net in place
+            (``nn.Module.compile``: the checkpoint's keys do not change) to fuse their
+            normalisations and activations; the first steps wait for the compiler.
         eval_every_minutes: the learning curve: every this many minutes of training (0: never)
             the newest weights are evaluated in the held-out scenes by ``stage=eval`` in a
             background process (``eval.*`` settings; ``policy/<name>/curve/<step>/``) while
@@ -513,6 +516,7 @@ class TrainConfig:
     precision: str = "auto"
     aux_state: float | None = None
     ema: float | None = None
+    compile: bool = False
     eval_every_minutes: float = 0.0
     eval_episodes: int = 10
     gpus: int = 1

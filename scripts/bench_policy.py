@@ -109,8 +109,32 @@ VARIANTS: dict[str, list[dict[str, Any]]] = {
             "batch_size": 256,
         },
     ],
+    "rgbd-speed": [
+        {"name": "recipe, bf16, batch 256 (the default)", "loader": "device", "batch_size": 256},
+        {"name": "recipe, bf16, batch 512", "loader": "device", "batch_size": 512},
+        {
+            "name": "recipe, compiled, bf16, batch 256",
+            "loader": "device",
+            "batch_size": 256,
+            "compile": True,
+        },
+        {
+            "name": "recipe, compiled, bf16, batch 512",
+            "loader": "device",
+            "batch_size": 512,
+            "compile": True,
+        },
+        {
+            "name": "recipe at 72 px, compiled, bf16, batch 512",
+            "loader": "device",
+            "batch_size": 512,
+            "compile": True,
+            "options": {"diffusion": {"resize_shape": [72, 72]}},
+        },
+    ],
 }
-"""Named lists of variants for ``--variants``."""
+"""Named lists of variants for ``--variants``: ``rgbd-speed`` is the short list for the
+throughput target (run after ``rgbd-baseline`` on a machine doing nothing else)."""
 SETTINGS = (
     "inputs",
     "batch_size",
@@ -121,6 +145,7 @@ SETTINGS = (
     "aux_state",
     "ema",
     "n_obs_steps",
+    "compile",
 )
 
 
@@ -204,6 +229,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         aux_state=a.aux_state,
         ema=a.ema,
         n_obs_steps=a.n_obs_steps,
+        compile=a.compile == "true",
     )
     features = json.loads((root / "meta" / "info.json").read_text())["features"]
     spec = input_spec(a.inputs, features, tc.action)
@@ -246,6 +272,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         "aux_state": trainer.aux_weight,
         "ema": trainer.ema_decay,
         "n_obs_steps": trainer.cfg.n_obs_steps,
+        "compile": tc.compile,
         "image_size": list(getattr(trainer.cfg, "resize_shape", None) or spec.image_size)
         if spec.cameras
         else None,
@@ -341,6 +368,7 @@ def bench_variants(a: argparse.Namespace) -> None:
         "aux_state": "--aux-state",
         "ema": "--ema",
         "n_obs_steps": "--n-obs-steps",
+        "compile": "--compile",
     }
     rows = []
     tmp = Path(tempfile.mkdtemp(prefix="bench_variants_"))
@@ -378,7 +406,8 @@ def bench_variants(a: argparse.Namespace) -> None:
         for key, flag in flags.items():
             if key in setting and setting[key] is not None:
                 val = setting[key]
-                cmd += [flag, json.dumps(val) if isinstance(val, dict) else str(val)]
+                text = json.dumps(val) if isinstance(val, dict | bool) else str(val)
+                cmd += [flag, text]
         print(f"variant {i + 1}/{len(variants)}: {v.get('name', '')}", flush=True)
         t0 = time.perf_counter()
         done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
@@ -428,6 +457,7 @@ def main() -> None:
     p.add_argument("--aux-state", type=float, default=None, help="train.aux_state (default: auto)")
     p.add_argument("--ema", type=float, default=None, help="train.ema (default: auto)")
     p.add_argument("--n-obs-steps", type=int, default=0)
+    p.add_argument("--compile", default="false", choices=["true", "false"], help="train.compile")
     p.add_argument("--variants", default="", help="a name in VARIANTS or a JSON file")
     p.add_argument("--episodes", type=int, default=4, help="rollouts per scene")
     p.add_argument("--max-steps", type=int, default=200, help="frames per rollout")

@@ -299,6 +299,34 @@ def test_rgbd_policy_trains_and_acts(policy_run: Path, tmp_path: Path) -> None:
     assert actions.shape == (2, 8) and np.isfinite(actions).all()
 
 
+def test_compiled_training_saves_the_plain_policy(
+    policy_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``train.compile``: the encoder and U-Net are traced by ``torch.compile`` (here with the
+    ``aot_eager`` backend: the same graphs, no code generation), the auxiliary loss's feature
+    tap still sees the encoder, and the checkpoint is the plain lerobot policy, key for key."""
+    from safetensors.torch import load_file
+
+    from factory.policy import train as train_module
+    from factory.policy.checkpoint import last_checkpoint
+
+    monkeypatch.setattr(train_module, "COMPILE_BACKEND", "aot_eager")
+    dataset = policy_run / "dataset" / "merged"
+    for name, compiled in (("plain", False), ("compiled", True)):
+        result = _train(
+            tmp_path, dataset, name=name, inputs="rgbd", steps=2, batch_size=2, compile=compiled
+        )
+        assert result["steps"] == 2
+    lines = (tmp_path / "policy" / "compiled" / "train_log.jsonl").read_text().splitlines()
+    assert all(np.isfinite(json.loads(x)["aux_loss"]) for x in lines)
+    keys = {}
+    for name in ("plain", "compiled"):
+        ckpt = last_checkpoint(tmp_path / "policy" / name)
+        assert ckpt is not None
+        keys[name] = sorted(load_file(str(ckpt / "pretrained_model" / "model.safetensors")))
+    assert keys["compiled"] == keys["plain"]
+
+
 def test_image_recipe_aux_loss_and_ema_resume(policy_run: Path, tmp_path: Path) -> None:
     """An image diffusion policy gets the auxiliary state loss and the weight average by
     default: the log holds the auxiliary loss, the checkpoint's ``pretrained_model`` holds the
