@@ -141,7 +141,8 @@ class EpisodeInfo:
         plan_seconds: planning time per planned motion (s).
         outcome: numbers of the success check.
         factory_version: version of factory that recorded it.
-        cleared: objects of the scene taken out to free the robot's base spot.
+        cleared: objects of the scene taken out to free the robot's base spot, or (the
+            fixed-base task) as look-alikes of the task's objects within reach.
         frozen: objects out of the robot's reach that were simulated static (no free joint):
             ``state`` holds no coordinates for them.
         appearance: the episode's appearance randomisation (``None``: recorded with the

@@ -41,10 +41,12 @@ from factory.tasks.pick_place.objects import (
     task_objects,
 )
 from factory.tasks.pick_place.plan import (
+    LOOKALIKE_RADIUS,
     EpisodePlan,
     EpisodePlanner,
     clear_clutter,
     has_room,
+    lookalikes,
     setup_scene,
 )
 
@@ -512,21 +514,28 @@ def test_robot_cache_matches_robosuite(tmp_path: Path, monkeypatch) -> None:
 def test_blocked_table_is_cleared(tmp_path: Path) -> None:
     """A generated kitchen whose dining table's nearest spot is taken by a chair: limited to
     that spot, the chair is taken out and the episode plans; with every spot allowed, a free
-    one is used and nothing is cleared (the spot check sees the robot where it is moved even
-    with island sleeping on, which once kept it at the first spot)."""
+    one is used and nothing is cleared for the base (the spot check sees the robot where it is
+    moved even with island sleeping on, which once kept it at the first spot). This kitchen
+    also holds other mugs and bowls near both spots: ``cleared`` names them too (look-alikes,
+    taken out once the spot is chosen)."""
     from factory.scenes.brain import generate_scene
 
     request = "a kitchen where the robot picks up a mug and puts it in the bowl"
     scene, _ = generate_scene(request, AssetLibrary(tmp_path / "assets"), seed=4)
     setup = setup_scene(scene, tmp_path / "assets", max_spots=1)
-    assert setup.cleared, "this scene's nearest spot is blocked by a chair"
-    for oid in setup.cleared:
+    alike = lookalikes(scene, setup.objects, setup.placement, LOOKALIKE_RADIUS)
+    assert alike <= set(setup.cleared)
+    for_base = set(setup.cleared) - alike
+    assert for_base, "this scene's nearest spot is blocked by a chair"
+    for oid in for_base:
         original = scene.object(oid)
-        assert original.placement.kind == "floor" or original.placement.support_id in setup.cleared
+        assert original.placement.kind == "floor" or original.placement.support_id in for_base
+    for oid in setup.cleared:
         assert oid not in {o.id for o in setup.scene.objects}
     assert isinstance(EpisodePlanner(setup).plan_episode(0), EpisodePlan)
     free = setup_scene(scene, tmp_path / "assets")
-    assert free.cleared == ()
+    # nothing cleared for the base: only the other mugs and bowls near the spot
+    assert set(free.cleared) == lookalikes(scene, free.objects, free.placement, LOOKALIKE_RADIUS)
     assert (free.placement.x, free.placement.y) != (setup.placement.x, setup.placement.y)
     checker = CollisionChecker(free.model, free.robot, initial_state(free.model, free.robot))
     assert checker.valid(HOME_QPOS)
@@ -569,3 +578,53 @@ def test_crowded_table_is_cleared_nearest_first(setup) -> None:
     }
     kept = [d for k, d in dist.items() if k not in cleared]
     assert max(dist[k] for k in cleared) <= min(kept, default=np.inf) + 1e-9
+
+
+def test_lookalikes_near_the_robot_are_taken_out(kitchen, setup) -> None:
+    """A second mug and a second bowl (with a plate in it) on the table within
+    LOOKALIKE_RADIUS of the base are taken out and named in ``cleared``; a mug on the floor
+    farther away, and the task's own mug and bowl, stay; ``lookalike_radius=0`` keeps all."""
+    from factory.schema import Vec3
+
+    scene, assets = kitchen
+    objects, spot = setup.objects, setup.placement
+    assert setup.cleared == ()  # the kitchen holds one mug and one bowl
+
+    def copy(obj, oid: str, x: float, y: float, z: float, support: str | None):
+        kind = "on_top" if support else "floor"
+        return replace(
+            obj,
+            id=oid,
+            task_role=None,
+            position=Vec3(x, y, z),
+            placement=replace(obj.placement, kind=kind, support_id=support),
+        )
+
+    pick, target, table = objects.pick, objects.target, objects.support.id
+    top = pick.position.z
+    # on the table's far half, beyond the arm's reach: the base spot stays where it was
+    near_bowl = copy(target, "bowl_near", 1.40, 2.10, top, table)
+    near_mug = copy(pick, "mug_near", 1.85, 1.35, top, table)
+    plate = next(o for o in scene.objects if o.category == "plate")
+    in_bowl = copy(plate, "plate_in_bowl", 1.40, 2.10, top + target.dimensions.height, "bowl_near")
+    far_mug = copy(pick, "mug_far", 0.50, 1.00, 0.0, None)
+    crowded = replace(scene, objects=[*scene.objects, near_bowl, near_mug, in_bowl, far_mug])
+
+    def dist(o) -> float:
+        return float(np.hypot(o.position.x - spot.x, o.position.y - spot.y))
+
+    assert dist(near_bowl) < LOOKALIKE_RADIUS and dist(near_mug) < LOOKALIKE_RADIUS
+    assert dist(far_mug) > LOOKALIKE_RADIUS
+    out = setup_scene(crowded, assets)
+    assert (out.placement.x, out.placement.y) == (spot.x, spot.y)
+    assert out.cleared == ("bowl_near", "mug_near", "plate_in_bowl")
+    kept = {o.id for o in out.scene.objects}
+    assert kept.isdisjoint(out.cleared)
+    assert {pick.id, target.id, table, "mug_far"} <= kept
+    assert out.objects.pick.id == pick.id and out.objects.target.id == target.id
+    for oid in out.cleared:  # the composed model holds no body of them
+        assert mujoco.mj_name2id(out.model, mujoco.mjtObj.mjOBJ_BODY, oid) == -1
+    assert mujoco.mj_name2id(out.model, mujoco.mjtObj.mjOBJ_BODY, "mug_far") >= 0
+    same = setup_scene(crowded, assets, lookalike_radius=0)
+    assert same.cleared == ()
+    assert {o.id for o in same.scene.objects} == {o.id for o in crowded.objects}

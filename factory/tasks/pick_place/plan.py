@@ -99,7 +99,8 @@ class SceneSetup:
     robot: RobotIndex
     rig: CameraRig
     cleared: tuple[str, ...] = ()
-    """Objects taken out of the scene to free the base spot (with what stood on them)."""
+    """Objects taken out of the scene to free the base spot or as look-alikes of the task's
+    objects near it (:func:`lookalikes`), with what stood on them."""
     frozen: tuple[str, ...] = ()
     """Objects out of the robot's reach compiled without their free joint (static)."""
 
@@ -147,6 +148,46 @@ in the demos' model: the arm (0.86 m from the shoulder, plus the hand) cannot to
 FURNITURE_RADIUS = 0.4
 """Floor objects with a footprint radius from this (m) up, or holding other objects, are
 furniture: static in the demos' model unless they are task objects."""
+LOOKALIKE_RADIUS = 1.5
+"""Movable objects of the pick's or the target's category whose centre lies within this (m,
+horizontally) of the robot's base are taken out of the scene (:func:`lookalikes`): a policy
+that sees only camera images cannot tell which of two mugs in front of the robot is "the
+mug", as a person asked to pick up the mug expects one mug within reach. 1.5 m is the arm's
+reach (0.86 m from the shoulder, plus the hand) with a margin; a look-alike farther away may
+still show at the edge of a camera image."""
+
+
+def lookalikes(scene: Scene, objects: TaskObjects, spot: RobotPlacement, radius: float) -> set[str]:
+    """Objects a camera image confuses with the task's own: they are taken out of the scene.
+
+    Look-alikes are movable objects of the pick's or the target's category (other than the
+    pick and the target) whose centre lies less than ``radius`` (m) from the robot's base
+    horizontally. What stands on them goes with them (``Scene.with_dependents``); a look-alike
+    carrying a task object stays.
+
+    Args:
+        scene: the scene.
+        objects: its task objects.
+        spot: the robot's base pose (world frame).
+        radius: horizontal distance from the base (m); ``<= 0`` keeps every look-alike.
+
+    Returns:
+        the ids to take out: the look-alikes and what stands on them (empty when none).
+    """
+    if radius <= 0:
+        return set()
+    keep = {objects.pick.id, objects.target.id, objects.support.id}
+    categories = {objects.pick.category, objects.target.category}
+    out: set[str] = set()
+    for o in scene.objects:
+        if o.is_static or o.id in keep or o.category not in categories:
+            continue
+        if float(np.hypot(o.position.x - spot.x, o.position.y - spot.y)) >= radius:
+            continue
+        gone = scene.with_dependents({o.id})
+        if not gone & keep:
+            out |= gone
+    return out
 
 
 def far_objects(scene: Scene, placement: RobotPlacement, keep: set[str], radius: float) -> set[str]:
@@ -233,6 +274,7 @@ def setup_scene(
     ik: IKSolver | None = None,
     max_spots: int = 24,
     freeze_beyond: float = FREEZE_BEYOND,
+    lookalike_radius: float = LOOKALIKE_RADIUS,
 ) -> SceneSetup:
     """Chooses the robot's base spot and composes the scene with the robot there.
 
@@ -244,7 +286,11 @@ def setup_scene(
     (:func:`has_room`); where no spot has room, the objects crowding the support nearest to
     the robot are taken off it (:func:`clear_clutter`). The setup's ``cleared`` names every
     object taken out; its ``frozen`` the objects beyond ``freeze_beyond`` (m) of the base,
-    compiled static (:func:`far_objects`; ``<= 0``: none).
+    compiled static (:func:`far_objects`; ``<= 0``: none). Once the spot is chosen, the other
+    mugs and bowls (the pick's and the target's categories) within ``lookalike_radius`` (m,
+    horizontally) of the base are taken out too, with what stands on them
+    (:func:`lookalikes`; ``<= 0``: kept), and named in ``cleared``: near the robot, the
+    task's pick and target are the only objects of their categories.
 
     Raises:
         TaskError: the scene lacks task objects, or no spot around the support works.
@@ -271,6 +317,16 @@ def setup_scene(
     def done(spot: RobotPlacement, sc: Scene, cleared: set[str], why: str) -> SceneSetup:
         if cleared:
             log.info("scene %s: cleared %s %s", scene.id, sorted(cleared), why)
+        alike = lookalikes(sc, objects, spot, lookalike_radius)
+        if alike:
+            log.info(
+                "scene %s: took out look-alikes %s (within %.2f m of the base)",
+                scene.id,
+                sorted(alike),
+                lookalike_radius,
+            )
+            sc = replace(sc, objects=[o for o in sc.objects if o.id not in alike])
+            cleared = cleared | alike
         cams = aim_cameras(sc, assets_root, spot, rig)
         frozen = far_objects(sc, spot, {objects.pick.id, objects.target.id}, freeze_beyond)
         out = compose(sc, assets_root, spot, cams, frozen)
