@@ -52,7 +52,13 @@ LEROBOT_PRESET = {
 }
 """lerobot's own diffusion preset (282 M parameters with RGB-D of 3 cameras; a random 90 % crop
 of the 128 px images): the image recipe before ``factory/policy/recipe.py``."""
-OLD = {"options": LEROBOT_PRESET, "precision": "fp32", "aux_state": 0.0, "ema": 0.0}
+OLD = {
+    "options": LEROBOT_PRESET,
+    "precision": "fp32",
+    "aux_state": 0.0,
+    "ema": 0.0,
+    "compile": False,
+}
 BASELINE = {
     "name": "before: lerobot preset, DataLoader 8 workers, fp32, batch 64",
     **OLD,
@@ -63,41 +69,57 @@ BASELINE = {
 VARIANTS: dict[str, list[dict[str, Any]]] = {
     "rgbd-baseline": [BASELINE],
     "rgbd-recipe": [
-        {"name": "recipe, bf16, batch 256 (the default)", "loader": "device", "batch_size": 256},
+        {
+            "name": "recipe, bf16, batch 256",
+            "loader": "device",
+            "compile": False,
+            "batch_size": 256,
+        },
         {
             "name": "lerobot preset, device batches, fp32, batch 64",
             **OLD,
             "loader": "device",
+            "compile": False,
             "batch_size": 64,
         },
         {
             "name": "recipe, fp32, batch 256",
             "precision": "fp32",
             "loader": "device",
+            "compile": False,
             "batch_size": 256,
         },
-        {"name": "recipe, bf16, batch 512", "loader": "device", "batch_size": 512},
+        {
+            "name": "recipe, bf16, batch 512",
+            "loader": "device",
+            "compile": False,
+            "batch_size": 512,
+        },
         {
             "name": "recipe at 96 px, bf16, batch 256",
             "loader": "device",
+            "compile": False,
             "batch_size": 256,
             "options": {"diffusion": {"resize_shape": [96, 96]}},
         },
         {
             "name": "recipe, 2 observation steps, bf16, batch 256",
             "loader": "device",
+            "compile": False,
             "batch_size": 256,
             "n_obs_steps": 2,
         },
         {
             "name": "recipe, U-Net 256-512-1024, bf16, batch 256",
             "loader": "device",
+            "compile": False,
             "batch_size": 256,
             "options": {"diffusion": {"down_dims": [256, 512, 1024]}},
         },
         {
             "name": "recipe without the auxiliary loss and EMA, bf16, batch 256",
             "loader": "device",
+            "compile": False,
             "batch_size": 256,
             "aux_state": 0.0,
             "ema": 0.0,
@@ -106,12 +128,23 @@ VARIANTS: dict[str, list[dict[str, Any]]] = {
             "name": "recipe, rgb only, bf16, batch 256",
             "inputs": "rgb",
             "loader": "device",
+            "compile": False,
             "batch_size": 256,
         },
     ],
     "rgbd-speed": [
-        {"name": "recipe, bf16, batch 256 (the default)", "loader": "device", "batch_size": 256},
-        {"name": "recipe, bf16, batch 512", "loader": "device", "batch_size": 512},
+        {
+            "name": "recipe, bf16, batch 256",
+            "loader": "device",
+            "batch_size": 256,
+            "compile": False,
+        },
+        {
+            "name": "recipe, bf16, batch 512",
+            "loader": "device",
+            "batch_size": 512,
+            "compile": False,
+        },
         {
             "name": "recipe, compiled, bf16, batch 256",
             "loader": "device",
@@ -229,7 +262,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         aux_state=a.aux_state,
         ema=a.ema,
         n_obs_steps=a.n_obs_steps,
-        compile=a.compile == "true",
+        compile={"true": True, "false": False}.get(a.compile),
     )
     features = json.loads((root / "meta" / "info.json").read_text())["features"]
     spec = input_spec(a.inputs, features, tc.action)
@@ -272,7 +305,7 @@ def bench_train(a: argparse.Namespace, root: Path, tmp: Path) -> tuple[dict[str,
         "aux_state": trainer.aux_weight,
         "ema": trainer.ema_decay,
         "n_obs_steps": trainer.cfg.n_obs_steps,
-        "compile": tc.compile,
+        "compile": trainer.compiled,
         "image_size": list(getattr(trainer.cfg, "resize_shape", None) or spec.image_size)
         if spec.cameras
         else None,
@@ -457,7 +490,9 @@ def main() -> None:
     p.add_argument("--aux-state", type=float, default=None, help="train.aux_state (default: auto)")
     p.add_argument("--ema", type=float, default=None, help="train.ema (default: auto)")
     p.add_argument("--n-obs-steps", type=int, default=0)
-    p.add_argument("--compile", default="false", choices=["true", "false"], help="train.compile")
+    p.add_argument(
+        "--compile", default="auto", choices=["auto", "true", "false"], help="train.compile"
+    )
     p.add_argument("--variants", default="", help="a name in VARIANTS or a JSON file")
     p.add_argument("--episodes", type=int, default=4, help="rollouts per scene")
     p.add_argument("--max-steps", type=int, default=200, help="frames per rollout")

@@ -71,6 +71,7 @@ from factory.policy.recipe import (
     default_lr,
     diffusion_defaults,
     resolve_aux_state,
+    resolve_compile,
     resolve_ema,
     resolve_precision,
 )
@@ -703,7 +704,10 @@ class Trainer:
         encoder = getattr(getattr(self.policy, "diffusion", None), "rgb_encoder", None)
         if encoder is not None:
             encoder.to(memory_format=torch.channels_last)  # NHWC convolutions on tensor cores
-        if getattr(tc, "compile", False):
+        self.compiled = resolve_compile(
+            getattr(tc, "compile", False), tc.policy, spec.inputs, self.device
+        )
+        if self.compiled:
             compiled = _compile_modules(self.policy)
             log.info("train: torch.compile: %s", ", ".join(compiled) or "nothing to compile")
         self.aux_head: Any = None

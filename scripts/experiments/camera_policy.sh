@@ -2,14 +2,15 @@
 # The paper's camera policy in one GPU session (docs/POLICY.md, "The paper's setting"), every
 # step a call of the real command line, on one machine (16 cores, one GPU):
 #
-#   1. the image recipe's variants side by side (scripts/bench_policy.py --variants) on the
-#      small dataset BENCH_DATASET (skipped if empty): lerobot's preset with the DataLoader
-#      first, alone, then the rest beside step 2 (pinned to 3 cores);
+#   1. the recipe's speed (scripts/bench_policy.py --variants rgbd-speed) on the small dataset
+#      BENCH_DATASET (skipped if empty): lerobot's preset with the DataLoader first, alone,
+#      then the rest beside step 2 (pinned to 3 cores; a clean figure needs a machine doing
+#      nothing else: benchmarks/results/policy-speed-rgbd-h100-bare.json);
 #   2. data: TRAIN_SCENES generated kitchens x EPISODES demos with RGB-D rendering (CPU
 #      executor: a bare GPU machine would spend minutes compiling Warp kernels), the merged
 #      dataset, and HELDOUT_SCENES more kitchens (other seeds) that are not in it;
-#   3. the RGB-D policy with the default image recipe (factory/policy/recipe.py) for
-#      TRAIN_MINUTES, its steps set from the measured rate so that the cosine schedule ends
+#   3. the RGB-D policy with the default image recipe (factory/policy/recipe.py; compiled on
+#      CUDA, batch BATCH) for TRAIN_MINUTES, its steps set from the rate so that the schedule ends
 #      with the time, with the learning curve (train.eval_every_minutes) and, beside it, the
 #      planner on the same held-out configurations;
 #   4. the final evaluation: EVAL_EPISODES configurations per held-out kitchen.
@@ -28,7 +29,7 @@ TRAIN_SCENES=${TRAIN_SCENES:-16}
 HELDOUT_SCENES=${HELDOUT_SCENES:-3}
 EPISODES=${EPISODES:-20}
 INPUTS=${INPUTS:-rgbd}
-BATCH=${BATCH:-256}
+BATCH=${BATCH:-512}
 TRAIN_MINUTES=${TRAIN_MINUTES:-15}
 STEPS=${STEPS:-0}  # 0: from the measured rate of the recipe (step 1), else 12 steps/s
 CURVE_MINUTES=${CURVE_MINUTES:-3.5}
@@ -64,12 +65,12 @@ generate() {  # generate <count> <seed>: kitchens, one shard per core (the data'
 t0=$(date +%s)
 BENCH_PID=""
 if [ -n "$BENCH_DATASET" ]; then
-  log "1. the recipe's variants on $BENCH_DATASET (the baseline alone)"
+  log "1. the recipe's speed on $BENCH_DATASET (the baseline alone)"
   bench=($PY scripts/bench_policy.py --run-dir "$RUN" --dataset "$BENCH_DATASET" --inputs rgbd
     --device cuda --steps "$BENCH_STEPS" --tag "$TAG")
   "${bench[@]}" --variants rgbd-baseline --out "$OUT_DIR/variants-baseline.json" \
     > "$OUT_DIR/bench.log" 2>&1 || log "   the baseline failed: $OUT_DIR/bench.log"
-  pin 0-2 "${bench[@]}" --variants rgbd-recipe --out "$OUT_DIR/variants.json" \
+  pin 0-2 "${bench[@]}" --variants rgbd-speed --out "$OUT_DIR/variants.json" \
     >> "$OUT_DIR/bench.log" 2>&1 &
   BENCH_PID=$!
   DATA_CORES=$(( JOBS > 6 ? JOBS - 3 : JOBS ))
@@ -88,16 +89,19 @@ generate "$HELDOUT_SCENES" 100000
 echo "{\"data_seconds\": $(( $(date +%s) - t0 ))}" > "$OUT_DIR/data.json"
 [ -z "$BENCH_PID" ] || wait "$BENCH_PID" || log "   the variants failed: $OUT_DIR/bench.log"
 
-if [ "$STEPS" = 0 ]; then  # the recipe's measured steps/s, less a tenth for the curve's evaluations
-  STEPS=$($PY - "$OUT_DIR/variants.json" "$TRAIN_MINUTES" <<'EOF'
+if [ "$STEPS" = 0 ]; then  # the measured steps/s (else 17: the compiled recipe at batch 512 on
+  # one H100) over the minutes left after ~2 of compiling, less a tenth for the curve
+  STEPS=$($PY - "$OUT_DIR/variants.json" "$TRAIN_MINUTES" "$BATCH" <<'EOF'
 import json, sys
-rate = 12.0
+rate = 17.0
 try:
     rows = json.load(open(sys.argv[1]))["variants"]
-    rate = next(r["train"]["steps_per_s"] for r in rows if "default" in r["name"] and "train" in r)
+    rate = next(r["train"]["steps_per_s"] for r in rows if "train" in r
+                and r["train"]["compile"] and r["train"]["batch_size"] == int(sys.argv[3])
+                and r["train"]["image_size"] == [84, 84])
 except Exception:
     pass
-print(int(rate * 0.9 * 60 * float(sys.argv[2])))
+print(int(rate * 0.9 * 60 * max(float(sys.argv[2]) - 2.0, 0.5)))
 EOF
 )
 fi
