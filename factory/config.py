@@ -357,6 +357,10 @@ class DemosConfig:
             dozen, which is what makes the GPU executor fast (its cost grows with the degrees
             of freedom of every world, asleep or not). The task objects, and whatever stands
             on a movable object left free, stay free. ``0`` keeps every object free.
+        lookalike_radius: other movable objects of the pick object's or the target's category
+            within this distance of the robot's base (m, horizontally) leave the scene with
+            what stands on them (``task=pick_place``), so that "the mug" is the one mug near
+            the robot, as an image policy must see it. ``0`` keeps them.
     """
 
     episodes_per_scene: int = 4
@@ -384,6 +388,7 @@ class DemosConfig:
     grasp_facing: float = 1.0
     sleep: bool = True
     freeze_beyond: float = 1.0
+    lookalike_radius: float = 1.5
 
 
 @dataclass

@@ -86,6 +86,11 @@ def check_config(dc: DemosConfig, task: str) -> None:
             f"demos.freeze_beyond must be >= 0 m (0 keeps every object free), "
             f"got {dc.freeze_beyond}"
         )
+    if not dc.lookalike_radius >= 0:
+        raise ConfigError(
+            f"demos.lookalike_radius must be >= 0 m (0 keeps look-alikes), "
+            f"got {dc.lookalike_radius}"
+        )
     if dc.depth not in ("uint16_mm", "float32"):
         raise ConfigError(f"demos.depth must be uint16_mm or float32, got {dc.depth!r}")
     unknown = [c for c in dc.cameras if c not in ("left", "right", "wrist")]

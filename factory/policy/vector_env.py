@@ -205,6 +205,22 @@ class PickPlaceVecEnv:
         return self.sim.sample_qpos(seed)
 
     # ---- episodes
+    def _check_states(self, states: np.ndarray) -> None:
+        """Recorded integration states (n, nstate) must be of this scene's model."""
+        import mujoco
+
+        from factory.demos.record.payload import STATE_SPEC
+        from factory.schema.errors import PolicyError
+
+        size = mujoco.mj_stateSize(self.model, STATE_SPEC)
+        if states.ndim != 2 or states.shape[1] != size:
+            raise PolicyError(
+                f"recorded states of {states.shape[-1]} values do not fit this scene's model "
+                f"({size}): the episodes were recorded with another set-up of the scene (e.g. "
+                "before the task took look-alike objects out); re-record them with "
+                "stage=demos force=true"
+            )
+
     def reset(
         self,
         seeds: list[int] | None = None,
@@ -232,6 +248,8 @@ class PickPlaceVecEnv:
             raise ValueError("reset needs exactly one of seeds, states or qpos")
         if seeds is not None:
             qpos = np.stack([self.sample_qpos(int(s)) for s in seeds])
+        if states is not None:
+            self._check_states(states)
         self.sim.reset(ids, states, qpos, seeds is not None)
         for k, i in enumerate(ids):
             seed = None if seeds is None else int(seeds[k])

@@ -67,6 +67,8 @@ def test_executor_config() -> None:
         check_config(DemosConfig(gpu_retries="later"), "pick_place")
     with pytest.raises(ConfigError, match=r"gpu_tail=0\.5 is out of range"):
         check_config(DemosConfig(gpu_tail=0.5), "pick_place")
+    with pytest.raises(ConfigError, match="lookalike_radius must be >= 0"):
+        check_config(DemosConfig(lookalike_radius=-1.0), "pick_place")
 
 
 def test_the_longest_plans_go_to_the_cpu_in_parallel_items() -> None:

@@ -17,6 +17,7 @@ from factory.demos.record.slots import episode_seed
 from factory.policy.env import EVAL_SEED_OFFSET, PickPlaceEnv, eval_seed, make_vec_env
 from factory.policy.eval import Job, plan_actions, run_batch, scripted_actor
 from factory.policy.obs_spec import ObsSpec, obs_spec_of_dataset
+from factory.schema.errors import PolicyError
 
 
 def _store(run: Path) -> EpisodeStore:
@@ -159,6 +160,9 @@ def test_replay_of_recorded_episodes(policy_run: Path) -> None:
             return base(obs, steps)
 
         records, _ = run_batch(vec, jobs, actor)
+        # states of another set-up of the scene (a different model) are a clear error
+        with pytest.raises(PolicyError, match="stage=demos force=true"):
+            vec.reset(states=np.stack([j.state[:-3] for j in jobs]))
     finally:
         vec.close()
     assert [r["success"] for r in records] == [True] * len(ids), records

@@ -38,11 +38,16 @@ def scene_setup(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> SceneSet
     import mujoco
 
     from factory.store import RunStore
-    from factory.tasks.pick_place.plan import setup_scene
+    from factory.tasks.pick_place.plan import LOOKALIKE_RADIUS, setup_scene
 
     store = RunStore(run_dir)
     scene = store.load_scene(scene_id)
-    setup = setup_scene(scene, store.assets_dir, freeze_beyond=dc.freeze_beyond)
+    setup = setup_scene(
+        scene,
+        store.assets_dir,
+        freeze_beyond=dc.freeze_beyond,
+        lookalike_radius=getattr(dc, "lookalike_radius", LOOKALIKE_RADIUS),
+    )
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     return setup
