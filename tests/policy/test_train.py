@@ -255,6 +255,28 @@ def test_video_cache_samples_equal_lerobots_own(policy_run: Path) -> None:
             assert torch.allclose(fast[k].float(), v.float(), atol=tol), (idx, k)
 
 
+def test_videos_decoded_in_processes_equal_threads(
+    policy_run: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A large dataset's video files are decoded in worker processes (here forced on the small
+    one): the frames placed are those the threads place, depth packed to millimetres."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from factory.policy import video_frames
+    from factory.policy.inputs import input_spec
+
+    dataset = policy_run / "dataset" / "merged"
+    feats = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    keys = input_spec("rgbd", feats).visual_keys()
+    base = LeRobotDataset("factory/demos", root=dataset, video_backend="pyav")
+    threads = video_frames.decode_videos(base, keys, workers=2)
+    monkeypatch.setattr(video_frames, "PROCESS_MIN_FRAMES", 0)
+    procs = video_frames.decode_videos(base, keys, workers=2)
+    assert set(procs) == set(keys) and procs["observation.depth.left"].dtype == np.uint16
+    for k in keys:
+        assert np.array_equal(procs[k], threads[k]), k
+
+
 def test_loaded_policy_acts_on_env_observations(state_run: Path, policy_run: Path) -> None:
     from factory.policy.checkpoint import check_features, load_policy
 
