@@ -143,6 +143,6 @@ def decode_videos(base: Any, keys: list[str], workers: int = 0) -> dict[str, np.
         key, path = item
         place(key, path, _decode_key_file(str(path), key.startswith(DEPTH_PREFIX)))
 
-    with ThreadPoolExecutor(count) as pool:
-        list(pool.map(one, items))
+    with ThreadPoolExecutor(count) as threads:
+        list(threads.map(one, items))
     return out
