@@ -14,6 +14,8 @@
 #      with the time, with the learning curve (train.eval_every_minutes) and, beside it, the
 #      planner on the same held-out configurations;
 #   4. the final evaluation: EVAL_EPISODES configurations per held-out kitchen.
+# With SECOND_GPU (a two-GPU machine), the other input kind (rgb beside rgbd) trains and is
+# evaluated the same way at the same time on that GPU.
 #
 # A tiny dry run on a CPU:
 #   TRAIN_SCENES=1 HELDOUT_SCENES=1 EPISODES=2 TRAIN_MINUTES=0.2 STEPS=4 BATCH=2 \
@@ -37,6 +39,7 @@ CURVE_EPISODES=${CURVE_EPISODES:-10}
 EVAL_EPISODES=${EVAL_EPISODES:-90}
 DEVICE=${DEVICE:-auto}
 BENCH_DATASET=${BENCH_DATASET:-}
+SECOND_GPU=${SECOND_GPU:-}  # e.g. 1: the other input kind (rgb beside rgbd) trains on that GPU
 BENCH_STEPS=${BENCH_STEPS:-150}
 TAG=${TAG:-gpu}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
@@ -105,23 +108,55 @@ print(int(rate * 0.9 * 60 * max(float(sys.argv[2]) - 2.0, 0.5)))
 EOF
 )
 fi
-log "3. $INPUTS policy: $STEPS steps, at most $TRAIN_MINUTES min, batch $BATCH"
+POLICIES="$INPUTS"  # with SECOND_GPU: rgb (or rgbd) beside it on that GPU
+if [ -n "$SECOND_GPU" ]; then POLICIES="$INPUTS $([ "$INPUTS" = rgb ] && echo rgbd || echo rgb)"; fi
+log "3. $POLICIES: $STEPS steps, at most $TRAIN_MINUTES min, batch $BATCH"
 $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=planner eval.episodes_per_scene="$EVAL_EPISODES" \
   eval.name=planner eval.workers=3 eval.batch=8 eval.videos=0 > "$OUT_DIR/planner.log" 2>&1 &
 PLANNER=$!
+n_pol=$(echo $POLICIES | wc -w)
+curve_workers=$(( EVAL_WORKERS / 2 / n_pol > 0 ? EVAL_WORKERS / 2 / n_pol : 1 ))
+train_one() {  # train_one <inputs> <visible GPUs or empty>
+  local gpu_env=()
+  [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
+  "${gpu_env[@]}" $PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$1" train.inputs="$1" \
+    train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
+    train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
+    train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
+    eval.workers="$curve_workers" eval.batch=8 eval.device="$DEVICE"
+}
+evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers>
+  local gpu_env=()
+  [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
+  "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
+    eval.episodes_per_scene="$EVAL_EPISODES" eval.device="$DEVICE" eval.videos=2 \
+    eval.workers="$3" eval.batch=8
+}
+gpu_of() {  # the GPU a policy uses: empty (the default) without SECOND_GPU
+  if [ -z "$SECOND_GPU" ]; then echo ""; elif [ "$1" = "$INPUTS" ]; then echo 0; else echo "$SECOND_GPU"; fi
+}
 t1=$(date +%s)
-$PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$INPUTS" train.inputs="$INPUTS" \
-  train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
-  train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
-  train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
-  eval.workers=$(( EVAL_WORKERS / 2 > 0 ? EVAL_WORKERS / 2 : 1 )) eval.batch=8 eval.device="$DEVICE"
+pids=()
+for p in $POLICIES; do
+  gpu=$(gpu_of "$p")
+  if [ "$p" = "$INPUTS" ]; then train_one "$p" "$gpu" & else train_one "$p" "$gpu" > "$OUT_DIR/train-$p.log" 2>&1 & fi
+  pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid" || log "   a training failed (pid $pid)"; done
 log "   trained in $(( $(date +%s) - t1 )) s"
-cp "$RUN/policy/$INPUTS/train_log.jsonl" "$OUT_DIR/train_log-$INPUTS.jsonl"
-cp "$RUN/policy/$INPUTS/train.json" "$OUT_DIR/train-$INPUTS.json"
+for p in $POLICIES; do
+  cp "$RUN/policy/$p/train_log.jsonl" "$OUT_DIR/train_log-$p.jsonl" || true
+  cp "$RUN/policy/$p/train.json" "$OUT_DIR/train-$p.json" || true
+done
 
 log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
-$PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$INPUTS" eval.episodes_per_scene="$EVAL_EPISODES" \
-  eval.device="$DEVICE" eval.videos=2 eval.workers="$EVAL_WORKERS" eval.batch=8
+pids=()
+for p in $POLICIES; do
+  gpu=$(gpu_of "$p")
+  evaluate_one "$p" "$gpu" $(( EVAL_WORKERS / n_pol > 0 ? EVAL_WORKERS / n_pol : 1 )) &
+  pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid" || log "   an evaluation failed (pid $pid)"; done
 log "   evaluated in $(( $(date +%s) - t1 )) s"
 wait "$PLANNER" || log "   the planner evaluation failed: $OUT_DIR/planner.log"
 for d in "$RUN"/eval/*/; do
