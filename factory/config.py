@@ -563,6 +563,11 @@ class EvalConfig:
             (e.g. on the training scenes).
         out: the results folder itself (empty: ``<run_dir>/eval/<name>``); the learning curve
             of ``stage=train`` writes under ``policy/<name>/curve/<step>``.
+        executor: the env's simulation: ``cpu`` (MuJoCo on the cores, OpenGL cameras) or
+            ``warp`` (MuJoCo Warp on the GPU, a scene's episodes as the worlds of one model,
+            cameras drawn by its batch renderer; one worker process and ``eval.batch`` all
+            of a scene's episodes unless set; the task's checks stay the CPU's:
+            :mod:`factory.policy.warp_sim`).
     """
 
     policy: str = ""
@@ -580,6 +585,7 @@ class EvalConfig:
     device: str = "auto"
     name: str = ""
     out: str = ""
+    executor: str = "cpu"
 
 
 @dataclass

@@ -162,9 +162,9 @@ class BatchSim:
         return FrameRenderer(self.model, cfg)
 
     def draw(
-        self, renderer: FrameRenderer, data: mujoco.MjData
+        self, renderer: FrameRenderer, data: mujoco.MjData, i: int = -1
     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Camera -> (RGB, depth) of the state in ``data``."""
+        """Camera -> (RGB, depth) of the state in ``data`` (env ``i``'s, loaded)."""
         rgbs, depths = renderer.render(data)
         return dict(zip(renderer.cfg.cameras, zip(rgbs, depths, strict=True), strict=True))
 

@@ -86,6 +86,7 @@ def make_vec_env(
     interpolate: bool = True,
     dc: DemosConfig | None = None,
     task: str | None = None,
+    executor: str = "cpu",
 ) -> tuple[PickPlaceVecEnv, Any]:
     """A batched env of a scene of a run, and the scene's planner (the privileged agent), set
     up exactly as ``stage=demos task=<task>`` sets the scene up.
@@ -99,6 +100,8 @@ def make_vec_env(
         interpolate: the controller's first-order hold (see the task's env module).
         dc: the demos' settings (default: the run's, :func:`demos_config_of`).
         task: the task (default: ``spec``'s, else the default task).
+        executor: ``cpu`` (MuJoCo on a thread pool) or ``warp`` (MuJoCo Warp and its batch
+            renderer, :mod:`factory.policy.warp_sim`).
 
     Raises:
         StoreError: no such scene; TaskError: the scene cannot host the task.
@@ -113,7 +116,7 @@ def make_vec_env(
     dc = dc or demos_config_of(run_dir)
     setup, planner = t.env_scene(run_dir, scene_id, dc)
     spec = spec or obs_spec_of_demos(dc, task=name)
-    sim = task_sim(t, setup, planner, num_envs, spec, nthread, interpolate)
+    sim = task_sim(t, setup, planner, num_envs, spec, nthread, interpolate, executor)
     return PickPlaceVecEnv(sim, max_steps, t.env_instruction(setup)), planner
 
 

@@ -42,6 +42,10 @@ log = logging.getLogger(__name__)
 KINDS = ("replay", "planner")
 RUN_SCHEMA_VERSION = 1
 MAX_BATCH = 16
+"""Episodes of a scene stepped together when ``eval.batch`` is 0, on the CPU (with
+``eval.executor=warp``: all of a scene's, one world each)."""
+EXECUTORS = ("cpu", "warp")
+"""``eval.executor`` settings."""
 DEFAULT_MAX_STEPS = 400
 
 
@@ -52,6 +56,10 @@ def check_config(ec: Any) -> None:
     if min(ec.max_steps, ec.batch, ec.workers, ec.nthread, ec.videos) < 0:
         raise ConfigError(
             "eval.max_steps, eval.batch, eval.workers, eval.nthread and eval.videos must be >= 0"
+        )
+    if getattr(ec, "executor", "cpu") not in EXECUTORS:
+        raise ConfigError(
+            f"eval.executor={ec.executor!r} is unknown: use one of {', '.join(EXECUTORS)}"
         )
     scenes = ec.scenes
     if isinstance(scenes, str):
@@ -404,10 +412,16 @@ def run(ctx: StageContext) -> dict[str, Any]:
         len(jobs) - todo_total,
         max_steps,
     )
-    workers = ec.workers or max(1, cores // 4)
+    executor = getattr(ec, "executor", "cpu")
+    if executor == "warp":  # one process drives the device; a scene's episodes are its worlds
+        workers = ec.workers or 1
+        batch = ec.batch or max(1, len(jobs))
+    else:
+        workers = ec.workers or max(1, cores // 4)
+        batch = ec.batch or MAX_BATCH
     nthread = ec.nthread or max(1, cores // workers)
     todo_jobs = [j for j in jobs if j.key not in done]
-    units = make_units(todo_jobs, ec.batch or MAX_BATCH, want_videos, bases)
+    units = make_units(todo_jobs, batch, want_videos, bases)
     settings = UnitSettings(
         run_dir=run_dir,
         kind=kind,
@@ -421,6 +435,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         videos_dir=videos_dir,
         reseed_stride=RESEED_STRIDE,
         task=task.name,
+        executor=executor,
     )
     with tqdm(
         total=len(jobs),

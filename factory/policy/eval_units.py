@@ -45,6 +45,7 @@ class UnitSettings:
         videos_dir: where rollout videos go.
         reseed_stride: stride of :func:`usable_seed`'s retries.
         task: the evaluated task (a registered name).
+        executor: the env's simulation, ``cpu`` or ``warp`` (``eval.executor``).
     """
 
     run_dir: Path
@@ -59,6 +60,7 @@ class UnitSettings:
     videos_dir: Path
     reseed_stride: int
     task: str
+    executor: str = "cpu"
 
 
 @dataclass
@@ -172,6 +174,7 @@ class UnitRunner:
                 s.interpolate,
                 s.demos,
                 s.task,
+                s.executor,
             )
             self._key = (scene, size)
         return self._env, self._planner

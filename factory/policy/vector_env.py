@@ -128,8 +128,10 @@ class TaskSim(Protocol):
 
     def renderer(self, cameras: tuple[str, ...]) -> Renderer: ...
 
-    def draw(self, renderer: Any, data: mujoco.MjData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Camera -> (RGB, depth) of the state in ``data``."""
+    def draw(
+        self, renderer: Any, data: mujoco.MjData, i: int
+    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Camera -> (RGB, depth) of env ``i``'s state, loaded in ``data`` (:meth:`load`)."""
         ...
 
     def step_info(self) -> dict[str, np.ndarray]:
@@ -149,18 +151,35 @@ def task_sim(
     spec: ObsSpec,
     nthread: int = 0,
     interpolate: bool = True,
+    executor: str = "cpu",
 ) -> TaskSim:
     """The simulation of ``num_envs`` episodes of a scene of ``task``: the task's own
-    (:meth:`~factory.tasks.base.Task.env_sim`), else its worlds stepped together on one batch
-    by its rules (:meth:`~factory.tasks.base.Task.env_rules`; ``nthread`` simulation threads,
-    0: one per core)."""
-    sim: TaskSim | None = task.env_sim(setup, planner, num_envs, spec, interpolate)
-    if sim is None:
-        from factory.policy.batch_sim import BatchSim
+    (:meth:`~factory.tasks.base.Task.env_sim`), else its worlds stepped together by its rules
+    (:meth:`~factory.tasks.base.Task.env_rules`): on one CPU batch (``executor="cpu"``,
+    ``nthread`` simulation threads, 0: one per core) or on MuJoCo Warp (``"warp"``,
+    :class:`~factory.policy.warp_sim.WarpBatchSim`).
 
-        rules = task.env_rules(setup, planner, num_envs, spec, interpolate)
-        sim = BatchSim(rules, num_envs, spec, nthread)
-    return sim
+    Raises:
+        ConfigError: ``executor="warp"`` for a task that simulates its episodes itself.
+    """
+    sim: TaskSim | None = task.env_sim(setup, planner, num_envs, spec, interpolate)
+    if sim is not None:
+        if executor != "cpu":
+            from factory.errors import ConfigError
+
+            raise ConfigError(
+                f"eval.executor={executor} runs tasks stepped on one batch; task "
+                f"{task.name!r} simulates its episodes itself: use eval.executor=cpu"
+            )
+        return sim
+    rules = task.env_rules(setup, planner, num_envs, spec, interpolate)
+    if executor == "warp":
+        from factory.policy.warp_sim import WarpBatchSim
+
+        return WarpBatchSim(rules, num_envs, spec)
+    from factory.policy.batch_sim import BatchSim
+
+    return BatchSim(rules, num_envs, spec, nthread)
 
 
 class PickPlaceVecEnv:
@@ -263,7 +282,7 @@ class PickPlaceVecEnv:
         ends its episode when the task says so."""
         data = self.sim.load(i)
         if self.renderer is not None:
-            for c, (im, dp) in self.sim.draw(self.renderer, data).items():
+            for c, (im, dp) in self.sim.draw(self.renderer, data, i).items():
                 self._obs[f"observation.images.{c}"][i] = im
                 if self.spec.depth:
                     self._obs[f"observation.depth.{c}"][i] = dp
@@ -358,7 +377,7 @@ class PickPlaceVecEnv:
             if self._video is not None:
                 self._video.close()
             self._video = self.sim.renderer(cameras)
-        views = self.sim.draw(self._video, self.sim.load(i))
+        views = self.sim.draw(self._video, self.sim.load(i), i)
         ims = [views[c][0] for c in cameras]
         h = max(im.shape[0] for im in ims)
         ims = [np.pad(im, ((0, h - im.shape[0]), (0, 0), (0, 0))) for im in ims]

@@ -548,9 +548,9 @@ class MobileSim:
         )
 
     def draw(
-        self, renderer: MobileRenderer, data: mujoco.MjData
+        self, renderer: MobileRenderer, data: mujoco.MjData, i: int = -1
     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Camera -> (RGB, depth) of the state in ``data``."""
+        """Camera -> (RGB, depth) of the state in ``data`` (env ``i``'s, loaded)."""
         return renderer.render(data)
 
     def step_info(self) -> dict[str, np.ndarray]:
