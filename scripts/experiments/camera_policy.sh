@@ -15,7 +15,8 @@
 #      planner on the same held-out configurations;
 #   4. the final evaluation: EVAL_EPISODES configurations per held-out kitchen.
 # With SECOND_GPU (a two-GPU machine), the other input kind (rgb beside rgbd) trains and is
-# evaluated the same way at the same time on that GPU.
+# evaluated the same way at the same time on that GPU. With EVAL_WARP=1 the policy and the
+# planner are evaluated again on the same configurations with eval.executor=warp (timed).
 #
 # A tiny dry run on a CPU:
 #   TRAIN_SCENES=1 HELDOUT_SCENES=1 EPISODES=2 TRAIN_MINUTES=0.2 STEPS=4 BATCH=2 \
@@ -40,6 +41,7 @@ EVAL_EPISODES=${EVAL_EPISODES:-90}
 DEVICE=${DEVICE:-auto}
 BENCH_DATASET=${BENCH_DATASET:-}
 SECOND_GPU=${SECOND_GPU:-}  # e.g. 1: the other input kind (rgb beside rgbd) trains on that GPU
+EVAL_WARP=${EVAL_WARP:-}  # 1: evaluate the policy and the planner again on MuJoCo Warp
 BENCH_STEPS=${BENCH_STEPS:-150}
 TAG=${TAG:-gpu}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
@@ -159,6 +161,16 @@ done
 for pid in "${pids[@]}"; do wait "$pid" || log "   an evaluation failed (pid $pid)"; done
 log "   evaluated in $(( $(date +%s) - t1 )) s"
 wait "$PLANNER" || log "   the planner evaluation failed: $OUT_DIR/planner.log"
+if [ -n "$EVAL_WARP" ]; then  # the same configurations on MuJoCo Warp (eval.executor=warp)
+  for p in "$INPUTS" planner; do
+    t2=$(date +%s)
+    $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$p" eval.executor=warp \
+      eval.name="$p-warp" eval.episodes_per_scene="$EVAL_EPISODES" eval.device="$DEVICE" \
+      eval.videos=0 > "$OUT_DIR/eval-$p-warp.log" 2>&1 || log "   $p on warp failed"
+    echo "{\"policy\": \"$p\", \"seconds\": $(( $(date +%s) - t2 ))}" > "$OUT_DIR/time-$p-warp.json"
+    log "   $p on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
+  done
+fi
 for d in "$RUN"/eval/*/; do
   [ -f "$d/results.json" ] && cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"
 done
