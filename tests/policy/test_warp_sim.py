@@ -145,18 +145,18 @@ def test_eval_stage_on_warp(policy_run: Path, tmp_path: Path) -> None:
         stage="train",
         run_dir=str(run),
         train=TrainConfig(
-            name="tiny", inputs="rgbd", steps=1, batch_size=2, threads=1, options=tiny
+            name="warp_tiny", inputs="rgbd", steps=1, batch_size=2, threads=1, options=tiny
         ),
     )
     train_stage(StageContext(cfg, RunStore(run), Shard(0, 1)))
     got = {
         ex: _eval(
-            run, ex, policy="tiny", episodes_per_scene=2, max_steps=4, workers=1, device="cpu"
+            run, ex, policy="warp_tiny", episodes_per_scene=2, max_steps=4, workers=1, device="cpu"
         )
         for ex in ("cpu", "warp")
     }
     assert got["warp"]["episodes"] == got["cpu"]["episodes"] == 2
-    lines = (run / "eval" / "tiny_warp" / "episodes.jsonl").read_text().splitlines()
+    lines = (run / "eval" / "warp_tiny_warp" / "episodes.jsonl").read_text().splitlines()
     assert [json.loads(x)["steps"] for x in lines] == [4, 4]
 
 
