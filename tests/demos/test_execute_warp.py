@@ -324,8 +324,8 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
     plans = [p for p in (planner.plan_episode(s) for s in range(6)) if isinstance(p, EpisodePlan)]
     plans = sorted(plans, key=lambda p: len(p.ctrl))[:2]
     assert len(plans) == 2
-    # Short episodes: the first 1.2 s of each (the success checks may fail; images are compared).
-    plans = [dataclasses.replace(p, ctrl=p.ctrl[:600], targets=p.targets[:600]) for p in plans]
+    # Short episodes: the first 0.6 s of each (the success checks may fail; images are compared).
+    plans = [dataclasses.replace(p, ctrl=p.ctrl[:300], targets=p.targets[:300]) for p in plans]
     cfg = RecordConfig(width=24, height=24)
     plain = WarpExecutor(setup, cfg, device="cpu").execute(plans)
     pool = ArenaPool(1 << 24)
