@@ -351,8 +351,3 @@ class WarpBatchSim(BatchSim):
             c: (rgb[k, i].reshape(h, w, 3), depth[k, i].reshape(h, w))
             for k, c in enumerate(self._cams)
         }
-
-    def close(self) -> None:
-        """Frees the device buffers (the env closes its renderers itself)."""
-        self._captured = None
-        self.rc = None
