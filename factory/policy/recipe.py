@@ -6,8 +6,10 @@ The state recipe was chosen by a sweep of six recipes trained side by side
 (``benchmarks/results/policy-recipe-sweep-h100.json``; docs/POLICY.md). The image recipe
 (``train.inputs=rgb`` / ``rgbd``) was chosen for speed by the measurements of
 ``scripts/bench_policy.py --variants`` on one H100 (training samples per second of each
-variant on the same data, ``benchmarks/results/policy-recipe-rgbd-h100.json``); its held-out
-success within a fixed time is not measured yet (docs/POLICY.md, "The paper's setting").
+variant on the same data, ``benchmarks/results/policy-recipe-rgbd-h100.json`` and
+``policy-speed-rgbd-h100-bare.json``). Its held-out success is not established: the one run so
+far (H200, 13 minutes, before the scenes lost their look-alike mugs and bowls) acted on none of
+270 held-out configurations (docs/POLICY.md, "The paper's setting").
 """
 
 from __future__ import annotations
