@@ -459,6 +459,32 @@ def test_data_parallel_training_on_two_cpu_processes(policy_run: Path, tmp_path:
         _train(tmp_path, dataset, name="dp0", steps=2, gpus=0)
 
 
+@pytest.mark.gpu
+def test_image_recipe_on_cuda_compiled(policy_run: Path, tmp_path: Path) -> None:
+    """On CUDA an RGB-D diffusion policy trains compiled by default (inductor), in bf16 with
+    the device loader, and its checkpoint acts on the CPU like any lerobot policy."""
+    from factory.policy.checkpoint import load_policy
+
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(tmp_path, dataset, name="cuda", inputs="rgbd", steps=3, device="cuda")
+    assert result["steps"] == 3
+    policy = load_policy("cuda", tmp_path, device="cpu")
+    actions = policy.act(_frames(dataset, 2, list(policy.info.features)))
+    assert actions.shape == (2, 8) and np.isfinite(actions).all()
+
+
+@pytest.mark.gpu
+def test_data_parallel_on_two_gpus(policy_run: Path, tmp_path: Path) -> None:
+    """``train.gpus=2`` over NCCL on a machine with two GPUs."""
+    import torch
+
+    if torch.cuda.device_count() < 2:
+        pytest.skip("needs two GPUs")
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(tmp_path, dataset, name="dp2", inputs="rgbd", steps=4, device="cuda", gpus=2)
+    assert result["steps"] == 4 and result["finished"]
+
+
 def test_act_policy_by_name(policy_run: Path, tmp_path: Path) -> None:
     from lerobot.policies.act.modeling_act import ACTPolicy
 
