@@ -15,12 +15,14 @@ with the memory they use.
 On CUDA, ``nvidia-smi`` is sampled every 0.2 s during the warm steps (``gpu_busy_mean``: the
 mean utilisation, ``gpu_busy_samples``: how many samples).
 
-``--variants rgbd-recipe`` (or a JSON file: a list of ``{"name": ..., <setting>: ...}``)
-trains each variant of :data:`VARIANTS` in its own process on the same data, one after the
-other, and saves them side by side (``policy-variants-<tag>.json``): how the image recipe of
-``factory/policy/recipe.py`` was chosen. A variant's settings are those of the command line
-(``inputs``, ``batch_size``, ``loader``, ``workers``, ``options``, ``precision``,
-``aux_state``, ``ema``, ``n_obs_steps``).
+``--variants rgbd-recipe`` (or ``rgbd-speed``, ``rgbd-baseline``, or a JSON file: a list of
+``{"name": ..., <setting>: ...}``) trains each variant of :data:`VARIANTS` in its own process
+on the same data, one after the other, and saves them side by side
+(``policy-variants-<tag>.json``): how the image recipe of ``factory/policy/recipe.py`` was
+chosen (``rgbd-recipe``) and the speed target measured (``rgbd-baseline``, then
+``rgbd-speed``, on a machine doing nothing else). A variant's settings are those of the
+command line (``inputs``, ``batch_size``, ``loader``, ``workers``, ``options``,
+``precision``, ``aux_state``, ``ema``, ``n_obs_steps``, ``compile``).
 
 Prints and saves JSON to ``benchmarks/results/policy-<inputs>-<device>-<tag>.json``.
 """
