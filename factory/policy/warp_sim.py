@@ -96,12 +96,11 @@ class WarpBatchSim(BatchSim):
         from factory.demos.execute.warp import buffer_sizes, render_context, state_layout
         from factory.demos.execute.warp_kernels import to_images
         from factory.policy.warp_kernels import frame_ctrl
-        from factory.sim.backend import cuda_available
+        from factory.sim.backend import cuda_available, init_warp
         from factory.tasks.pick_place.objects import Outcome
 
         wp, mjw = _warp()
-        wp.config.quiet = True
-        wp.init()
+        init_warp()
         t0 = time.perf_counter()
         self.wp, self.mjw = wp, mjw
         self._outcome = Outcome

@@ -21,7 +21,7 @@ import logging
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -70,6 +70,21 @@ class Backend(Protocol):
         ``model`` is one model for all simulations, or one per simulation (same layout).
         """
         ...
+
+
+def init_warp() -> Any:
+    """Imports and initialises Warp with its per-module load and compile lines off (Warp
+    prints them to stdout, past the terminal's filter): ``config.log_level`` at warnings on
+    Warp versions that have it (1.19: ``config.quiet`` is gone and silences nothing), else
+    ``config.quiet``. Returns the ``warp`` module."""
+    import warp as wp
+
+    if hasattr(wp.config, "log_level") and hasattr(wp, "LOG_WARNING"):
+        wp.config.log_level = wp.LOG_WARNING
+    else:  # pragma: no cover - older Warp
+        wp.config.quiet = True  # type: ignore[attr-defined]
+    wp.init()
+    return wp
 
 
 def cuda_available() -> bool:

@@ -35,7 +35,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.sim.backend import Rollout, check_qpos, cuda_available, nonfinite_rows, one_model
+from factory.sim.backend import (
+    Rollout,
+    check_qpos,
+    cuda_available,
+    init_warp,
+    nonfinite_rows,
+    one_model,
+)
 
 log = logging.getLogger(__name__)
 
@@ -61,10 +68,7 @@ class WarpBackend:
         max_grow: int = 2,
         sleep: bool = True,
     ) -> None:
-        import warp as wp
-
-        wp.config.quiet = True  # type: ignore[attr-defined]
-        wp.init()
+        wp = init_warp()
         self.wp = wp
         self.device = device or ("cuda:0" if cuda_available() else "cpu")
         self.chunk = chunk

@@ -122,11 +122,10 @@ class WarpMobileRenderer:
         import warp as wp
 
         from factory.demos.execute.warp import state_layout
-        from factory.sim.backend import cuda_available
+        from factory.sim.backend import cuda_available, init_warp
         from factory.sim.fisheye import FisheyeSpec
 
-        wp.config.quiet = True  # type: ignore[attr-defined]
-        wp.init()
+        init_warp()
         self.wp, self.mjw = wp, mjw
         self.model = model
         self.cfg = cfg

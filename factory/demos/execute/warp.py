@@ -262,10 +262,9 @@ class WarpExecutor:
         import mujoco_warp as mjw
         import warp as wp
 
-        from factory.sim.backend import cuda_available
+        from factory.sim.backend import cuda_available, init_warp
 
-        wp.config.quiet = True  # type: ignore[attr-defined]
-        wp.init()
+        init_warp()
         self.wp, self.mjw = wp, mjw
         self.setup = setup
         self.cfg = cfg
