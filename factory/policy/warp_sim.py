@@ -165,7 +165,8 @@ class WarpBatchSim(BatchSim):
         self.images_cfg = RecordConfig(spec.fps, spec.width, spec.height, self._cams, "uint16_mm")
         log.info(
             "eval: MuJoCo Warp on %s: %d worlds, %d cameras, buffers of %d contacts and %d "
-            "constraint rows a world, set up in %.1f s",
+            "constraint rows a world, set up in %.1f s; the first frame builds its kernels "
+            "(minutes on a machine without Warp's kernel cache)",
             self.device,
             n,
             ncam,
