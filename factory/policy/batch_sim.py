@@ -75,6 +75,12 @@ class BatchSim:
     def __init__(self, rules: BatchRules, num_envs: int, spec: Any, nthread: int = 0) -> None:
         from mujoco.batch import Batch
 
+        self._bind(rules, num_envs, spec)
+        self.batch = Batch(self.model, num_envs, nthread, persistent=True)
+
+    def _bind(self, rules: BatchRules, num_envs: int, spec: Any) -> None:
+        """What every simulation of the rules' worlds holds, whatever steps them: the scene,
+        the observed spec, a scratch ``MjData``, the robot's geoms and the last actions."""
         self.rules = rules
         self.setup = rules.setup
         self.model = m = rules.setup.model
@@ -83,7 +89,6 @@ class BatchSim:
         self.num_envs = num_envs
         self.action_dim = rules.action_dim
         self.per_frame = rules.per_frame
-        self.batch = Batch(m, num_envs, nthread, persistent=True)
         self._data = mujoco.MjData(m)
         self._robot_geom = np.zeros(m.ngeom, bool)
         self._robot_geom[self.robot.geoms] = True

@@ -104,18 +104,8 @@ class WarpBatchSim(BatchSim):
         t0 = time.perf_counter()
         self.wp, self.mjw = wp, mjw
         self._outcome = Outcome
-        self.rules = rules
-        self.setup = rules.setup
-        self.model = m = rules.setup.model
-        self.robot = self.setup.robot
-        self.spec = spec
-        self.num_envs = n = num_envs
-        self.action_dim = rules.action_dim
-        self.per_frame = rules.per_frame
-        self._data = mujoco.MjData(m)
-        self._robot_geom = np.zeros(m.ngeom, bool)
-        self._robot_geom[self.robot.geoms] = True
-        self._prev = np.zeros((n, self.action_dim))
+        self._bind(rules, num_envs, spec)
+        m, n = self.model, num_envs
         self.device = device or ("cuda:0" if cuda_available() else "cpu")
         self.graph = graph and self.device.startswith("cuda")
         self.layout = state_layout(m)
