@@ -33,7 +33,8 @@ def factory_cli(*args: str) -> subprocess.CompletedProcess[str]:
 def policy_run(tmp_path_factory: pytest.TempPathFactory, make_kitchen) -> Path:
     """``run/`` with scenes ``kitchen_a`` (3 recorded demos at 32x32 px, left + wrist cameras,
     in ``dataset/merged``) and ``kitchen_b`` (the same room, added after the dataset: held out)."""
-    pytest.importorskip("robosuite")
+    if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
+        pytest.importorskip("robosuite")
     pytest.importorskip("lerobot")
     from factory.schema import scene_to_json
 
