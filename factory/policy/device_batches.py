@@ -17,7 +17,9 @@ steps (the DataLoader path uses lerobot's ``ImageTransforms`` per sample instead
 
 Samples are drawn without replacement, epoch after epoch, from the frames the sampler allows
 (lerobot's ``EpisodeAwareSampler``: the episodes trained on, without the frames the policy
-drops at episode ends), with a generator seeded by ``train.seed``.
+drops at episode ends), with a generator seeded by ``train.seed``; every batch is full (an
+epoch's last samples are topped up from the next epoch's order), so that a compiled model
+sees one shape.
 """
 
 from __future__ import annotations
@@ -163,17 +165,30 @@ class DeviceBatches:
         return self
 
     def __next__(self) -> dict[str, Any]:
-        """The next batch: the next ``batch_size`` frames of this epoch's order (the last batch
-        of an epoch may be smaller, as the DataLoader's)."""
+        """The next batch: the next ``batch_size`` frames of the epochs' orders. Every batch
+        has ``batch_size`` samples: an epoch's last frames are topped up with the first of the
+        next epoch's order (unlike the DataLoader, whose last batch is smaller). A compiled
+        model is built for one batch shape: a smaller batch at each epoch's end made
+        ``torch.compile`` build it again, for dynamic shapes (about 100 s at the first epoch's
+        end on one H200)."""
+        return self.gather(self._take(self.batch_size))
+
+    def _take(self, n: int) -> Any:
+        """The next ``n`` frame indices of the epochs' orders ((n,) int64 on the device); a new
+        order (a permutation of the pool) starts where the last one ends."""
         import torch
 
-        if self._order is None or self._pos >= len(self._order):
-            perm = torch.randperm(len(self.pool), generator=self.gen, device=self.device)
-            self._order = self.pool[perm]
-            self._pos = 0
-        idx = self._order[self._pos : self._pos + self.batch_size]
-        self._pos += self.batch_size
-        return self.gather(idx)
+        parts = []
+        while n > 0:
+            if self._order is None or self._pos >= len(self._order):
+                perm = torch.randperm(len(self.pool), generator=self.gen, device=self.device)
+                self._order = self.pool[perm]
+                self._pos = 0
+            part = self._order[self._pos : self._pos + n]
+            self._pos += len(part)
+            n -= len(part)
+            parts.append(part)
+        return parts[0] if len(parts) == 1 else torch.cat(parts)
 
     def _window(self, idx: Any, key: str, start: Any, end: Any) -> Any | None:
         """Frame indices (B, T) of ``key``'s window around each sample, clamped to the sample's

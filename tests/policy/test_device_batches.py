@@ -65,7 +65,8 @@ def test_epochs_draw_every_allowed_frame_once(
     policy_run: Path, tiny_options: dict[str, Any]
 ) -> None:
     """An epoch is a permutation of the sampler's frames (reproducible from the seed), served
-    in batches; the last batch of an epoch is smaller."""
+    in full batches: the last of an epoch is topped up with the next epoch's first frames (one
+    batch shape for a compiled model)."""
     import torch
 
     from factory.policy.device_batches import DeviceBatches
@@ -73,13 +74,18 @@ def test_epochs_draw_every_allowed_frame_once(
     _, trainset = _opened(policy_run, "state", "tool", tiny_options)
     pool = np.arange(3, 40)  # 37 frames
     a = DeviceBatches(trainset.frames, "cpu", batch_size=5, indices=pool, seed=1)
-    sizes = [next(a)["observation.state"].shape[0] for _ in range(8)]
-    assert sizes == [5] * 7 + [2] and sorted(a._order.tolist()) == pool.tolist()
+    drawn = [a._take(5) for _ in range(7)]
+    first = a._order.clone()
+    assert sorted(first.tolist()) == pool.tolist()  # epoch 1: a permutation of the pool
+    assert torch.equal(torch.cat(drawn), first[:35])
+    batch = next(a)  # 2 of epoch 1, 3 of epoch 2: one shape
+    assert batch["observation.state"].shape[0] == 5
+    assert not torch.equal(a._order, first) and sorted(a._order.tolist()) == pool.tolist()
+    assert a._pos == 3
+    small = DeviceBatches(trainset.frames, "cpu", batch_size=16, indices=np.arange(3, 9), seed=1)
+    assert next(small)["observation.state"].shape[0] == 16  # smaller pool than a batch
     b = DeviceBatches(trainset.frames, "cpu", batch_size=5, indices=pool, seed=1)
     next(b)
-    first = a._order.clone()
-    next(a)  # a new epoch, a new order
-    assert not torch.equal(a._order, first)
     c = DeviceBatches(trainset.frames, "cpu", batch_size=5, indices=pool, seed=1)
     next(c)
     assert torch.equal(c._order, b._order)
