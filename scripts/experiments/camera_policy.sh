@@ -14,8 +14,10 @@
 #      with the time, with the learning curve (train.eval_every_minutes) and, beside it, the
 #      planner on the same held-out configurations;
 #   4. the final evaluation: EVAL_EPISODES configurations per held-out kitchen.
-# With SECOND_GPU (a two-GPU machine), the other input kind (rgb beside rgbd) trains and is
-# evaluated the same way at the same time on that GPU. With EVAL_WARP=1 the policy and the
+# With SECOND_GPU (a two-GPU machine), a second policy trains and is evaluated the same way at
+# the same time on that GPU: the other input kind (rgb beside rgbd), or a variant of the recipe
+# (SECOND_NAME=rgbd128 SECOND_INPUTS=rgbd SECOND_ARGS='train.options={diffusion: {resize_shape:
+# [128, 128]}}'): two recipes for the device time of one on a machine that counts in full. With EVAL_WARP=1 the policy and the
 # planner are evaluated again on the same configurations with eval.executor=warp (timed).
 #
 # A tiny dry run on a CPU:
@@ -40,7 +42,10 @@ CURVE_EPISODES=${CURVE_EPISODES:-10}
 EVAL_EPISODES=${EVAL_EPISODES:-90}
 DEVICE=${DEVICE:-auto}
 BENCH_DATASET=${BENCH_DATASET:-}
-SECOND_GPU=${SECOND_GPU:-}  # e.g. 1: the other input kind (rgb beside rgbd) trains on that GPU
+SECOND_GPU=${SECOND_GPU:-}  # e.g. 1: a second policy trains on that GPU
+SECOND_INPUTS=${SECOND_INPUTS:-$([ "$INPUTS" = rgb ] && echo rgbd || echo rgb)}  # its inputs
+SECOND_NAME=${SECOND_NAME:-$SECOND_INPUTS}  # its name (policy/<name>, eval/<name>)
+SECOND_ARGS=${SECOND_ARGS:-}  # more train.* overrides of the second policy (shell-quoted words)
 EVAL_WARP=${EVAL_WARP:-}  # 1: evaluate the policy and the planner again on MuJoCo Warp
 BENCH_STEPS=${BENCH_STEPS:-150}
 TAG=${TAG:-gpu}
@@ -110,22 +115,23 @@ print(int(rate * 0.9 * 60 * max(float(sys.argv[2]) - 2.0, 0.5)))
 EOF
 )
 fi
-POLICIES="$INPUTS"  # with SECOND_GPU: rgb (or rgbd) beside it on that GPU
-if [ -n "$SECOND_GPU" ]; then POLICIES="$INPUTS $([ "$INPUTS" = rgb ] && echo rgbd || echo rgb)"; fi
+POLICIES="$INPUTS"  # with SECOND_GPU: the second policy beside it on that GPU
+if [ -n "$SECOND_GPU" ]; then POLICIES="$INPUTS $SECOND_NAME"; fi
 log "3. $POLICIES: $STEPS steps, at most $TRAIN_MINUTES min, batch $BATCH"
 $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=planner eval.episodes_per_scene="$EVAL_EPISODES" \
   eval.name=planner eval.workers=3 eval.batch=8 eval.videos=0 > "$OUT_DIR/planner.log" 2>&1 &
 PLANNER=$!
 n_pol=$(echo $POLICIES | wc -w)
 curve_workers=$(( EVAL_WORKERS / 2 / n_pol > 0 ? EVAL_WORKERS / 2 / n_pol : 1 ))
-train_one() {  # train_one <inputs> <visible GPUs or empty>
-  local gpu_env=()
+train_one() {  # train_one <name> <visible GPUs or empty>
+  local gpu_env=() extra=() inputs=$1
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
-  "${gpu_env[@]}" $PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$1" train.inputs="$1" \
+  if [ "$1" != "$INPUTS" ]; then inputs=$SECOND_INPUTS; eval "extra=($SECOND_ARGS)"; fi
+  "${gpu_env[@]}" $PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$1" train.inputs="$inputs" \
     train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
     train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
     train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
-    eval.workers="$curve_workers" eval.batch=8 eval.device="$DEVICE"
+    eval.workers="$curve_workers" eval.batch=8 eval.device="$DEVICE" "${extra[@]}"
 }
 evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers>
   local gpu_env=()
