@@ -87,6 +87,13 @@ class GenerateConfig:
         image: an image of a room; a VLM describes it and the description is the request.
         vlm_base_url, vlm_model: the OpenAI-compatible VLM endpoint; when set, the VLM also
             critiques each scene's renders and its suggestions are applied once.
+        final_check: the last step simulates the whole scene under ``stage=validate``'s
+            protocol and repairs it (removes the smaller of two colliding objects, settles or
+            removes unstable ones), so that the scene leaves generation valid
+            (:mod:`factory.scenes.finish`).
+        task_attempts: attempts (seeds ``seed + a * 7919``) at a scene made for a task until
+            the task's feasibility critic accepts it; when none does, the scene is not
+            written and its ``report.json`` lists each attempt's reason.
     """
 
     prompts: list[str] = field(default_factory=list)
@@ -106,6 +113,8 @@ class GenerateConfig:
     image: str | None = None
     vlm_base_url: str | None = None
     vlm_model: str | None = None
+    final_check: bool = True
+    task_attempts: int = 4
 
 
 @dataclass

@@ -309,7 +309,10 @@ def test_small_profile_main_job(small_run) -> None:
 _LOG_LINE = re.compile(r"^\d\d:\d\d:\d\d (?:DEBUG|INFO|WARNING|ERROR|CRITICAL) (\S+): ")
 _TQDM_BAR = re.compile(r"^(?:[a-z]+)(?: [^:|]*)?: +\d+%\|.*\|")
 """factory's bars are named after their stage (``demos``, ``dataset shard-0``)."""
-_VALIDATE_TABLE = re.compile(r"^(?:scene\s+#objects\b.*|\s*\S+\s+\d+\s+\d+\.\d(?:\s+\d+\.\d)*)$")
+_VALIDATE_TABLE = re.compile(
+    r"^(?:scene\s+#objects\b.*|\s*\S+\s+\d+\s+\d+\.\d(?:\s+\d+\.\d)*"
+    r"|\w+ check: \d+ passed.*|  \S+: [a-z_]+)$"  # the scene checks' lines (route, task)
+)
 
 
 def _lines_from_outside_factory(stdout: str, stderr: str) -> list[str]:

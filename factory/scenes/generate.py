@@ -132,8 +132,9 @@ def _apply_vlm_critic(session: Any, prompt: str, gcfg: Any, limit: int = 8) -> d
 def run(ctx: Any) -> dict[str, Any]:
     """Stage entry point: ``stage=generate``."""
     from factory.context import run_items
-    from factory.errors import ConfigError
+    from factory.errors import ConfigError, TaskError
     from factory.scenes.build import compile_one
+    from factory.scenes.finish import attempt_seed, finish_scene
     from factory.schema import scene_to_json, validate
 
     store = ctx.require_store()
@@ -159,6 +160,8 @@ def run(ctx: Any) -> dict[str, Any]:
         raise ConfigError(f"generate.agent={gcfg.agent!r} must be heuristic or llm")
     if gcfg.transport not in ("direct", "mcp"):
         raise ConfigError(f"generate.transport={gcfg.transport!r} must be direct or mcp")
+    if gcfg.task_attempts < 1:
+        raise ConfigError(f"generate.task_attempts={gcfg.task_attempts} must be at least 1")
     library = AssetLibrary.from_config(ctx.cfg.assets, store.assets_dir)
     agent_cfg = AgentConfig(physics_critic=gcfg.physics_critic, max_objects=gcfg.max_objects)
 
@@ -166,13 +169,43 @@ def run(ctx: Any) -> dict[str, Any]:
         _, prompt, seed = by_id[scene_id]
         if store.scene_json(scene_id).is_file() and not ctx.cfg.force:
             return "skipped"
-        try:
-            scene, report = _generate_with(gcfg, prompt, library, seed, agent_cfg, scene_id)
-        except ValueError as e:
-            raise ConfigError(f"prompt {prompt!r}: {e}") from None
-        validate(scene)
         from factory.store import atomic_write_json, atomic_write_text
 
+        failed: list[dict[str, Any]] = []
+        for attempt in range(gcfg.task_attempts):
+            s = attempt_seed(seed, attempt)
+            try:
+                scene, report = _generate_with(gcfg, prompt, library, s, agent_cfg, scene_id)
+            except ValueError as e:
+                raise ConfigError(f"prompt {prompt!r}: {e}") from None
+            validate(scene)
+            scene, checks = finish_scene(scene, store.assets_dir, ctx.cfg, gcfg.final_check)
+            report.update(checks)
+            verdict = checks.get("task_check")
+            if verdict is None or not verdict["reason"]:
+                break
+            failed.append({"seed": s, "reason": verdict["reason"], "detail": verdict["detail"]})
+            log.info(
+                "scene %s: attempt %d of %d cannot host its task (%s: %s)",
+                scene_id,
+                attempt + 1,
+                gcfg.task_attempts,
+                verdict["reason"],
+                verdict["detail"],
+            )
+        else:
+            atomic_write_json(
+                store.report_json(scene_id),
+                {"schema_version": 1, "generate": {"request": prompt, "rejected": failed}},
+            )
+            raise TaskError(
+                f"scene {scene_id}: none of {len(failed)} attempts can host its task "
+                f"({', '.join(sorted({f['reason'] for f in failed}))}; "
+                f"{store.report_json(scene_id)} lists them): raise generate.task_attempts or "
+                "name a larger support in the request"
+            )
+        if failed:
+            report["rejected_attempts"] = failed
         atomic_write_json(store.report_json(scene_id), {"schema_version": 1, "generate": report})
         atomic_write_text(store.scene_json(scene_id), scene_to_json(scene))
         compile_one(store, scene_id, ctx.cfg.compile, force=True)

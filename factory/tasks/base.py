@@ -60,6 +60,15 @@ class Task:
         task; the scene agent writes the matching task's name as the scene's ``task.kind``."""
         return False
 
+    def feasibility(self, scene: Scene, assets_root: Path | None) -> dict[str, Any] | None:
+        """The task's feasibility critic: whether ``scene``, made for this task, can host its
+        episodes, as ``{"reason": "" (it can) or why not, "detail": one line, ...}``; None:
+        the task has no such critic (by default; a task that drives its base is judged by
+        its route, :mod:`factory.nav.route`). ``stage=generate``'s last step makes another
+        attempt with another seed when it fails (:mod:`factory.scenes.finish`), and
+        ``stage=validate`` reports it (``validate.checks.task``)."""
+        return None
+
     example_request: ClassVar[str | None] = None
     """A request whose generated scene suits the task (``stage=generate``), or None."""
 

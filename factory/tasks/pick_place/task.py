@@ -27,6 +27,13 @@ class PickPlaceTask(Task):
         """A request without a source support ("put the mug in the bowl")."""
         return not spec.get("source")
 
+    def feasibility(self, scene: Any, assets_root: Any) -> dict[str, Any] | None:
+        """A free base spot and room for the task objects within reach
+        (:func:`factory.tasks.pick_place.feasibility.feasibility`)."""
+        from factory.tasks.pick_place.feasibility import feasibility
+
+        return feasibility(scene, assets_root)
+
     # -- demos ----------------------------------------------------------------------------------
     # set-up, planner and stored episode: factory.tasks.pick_place.demos (demo_scene)
 

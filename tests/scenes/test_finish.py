@@ -1,0 +1,129 @@
+"""The last step of ``stage=generate`` (:mod:`factory.scenes.finish`): the strict whole-scene
+check with repair, and the task's feasibility critic with another attempt when it fails."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from factory.config import FactoryConfig
+from factory.context import StageContext
+from factory.errors import StageFailed
+from factory.schema import Placement, Task, Vec3
+from factory.store import RunStore, Shard
+
+pytest.importorskip("ompl")
+
+REQUEST = "a kitchen where the robot picks up a mug and puts it in the bowl"
+
+
+def test_final_check_leaves_what_validate_finds_valid(tmp_path: Path, make_kitchen) -> None:
+    """A second bowl inside the bowl and a mug hanging in the air: the final check removes
+    one of the colliding pair and settles or removes the mug; ``stage=validate``'s protocol
+    then measures 0 % colliding and 100 % stable."""
+    from factory.scenes.finish import strict_check
+    from factory.sim.validate import make_backend, validate_scene
+
+    scene = make_kitchen(tmp_path / "assets")
+    bowl, mug = (next(o for o in scene.objects if o.id.startswith(k)) for k in ("bowl", "mug"))
+    twin = replace(bowl, id="bowl_9", task_role=None)
+    twin.position = Vec3(bowl.position.x + 0.03, bowl.position.y, bowl.position.z)
+    floating = replace(
+        mug,
+        id="mug_9",
+        task_role=None,
+        position=Vec3(mug.position.x, mug.position.y - 0.25, mug.position.z + 0.4),
+        placement=Placement(kind="on_top", support_id=mug.placement.support_id),
+    )
+    scene.objects += [twin, floating]
+    cfg = FactoryConfig()
+    _, before = validate_scene(
+        replace(scene, objects=list(scene.objects)), tmp_path / "assets", cfg, make_backend(cfg.sim)
+    )
+    assert before["metrics"]["collision"]["ratio"] > 0
+    assert before["metrics"]["stability"]["ratio"] < 1
+    scene, out = strict_check(scene, tmp_path / "assets", cfg)
+    acted = {c["object"]: c["action"] for c in out["changes"]}
+    assert "bowl_9" in acted or bowl.id in acted, out
+    assert "mug_9" in acted, out
+    assert out["collision_ratio"] == 0.0 and out["stability_ratio"] == 1.0, out
+    _, report = validate_scene(scene, tmp_path / "assets", cfg, make_backend(cfg.sim))
+    metrics = report["metrics"]
+    assert metrics["collision"]["ratio"] == 0.0 and metrics["stability"]["ratio"] == 1.0
+
+
+def test_pick_place_feasibility_reasons(tmp_path: Path, make_kitchen) -> None:
+    """The fixed task's critic: a kitchen with its mug and bowl on a table can host it; one
+    without its pick object cannot (``no_task_objects``); the share of placements asked for
+    decides ``no_room``."""
+    from factory.tasks.pick_place.feasibility import NO_ROOM, NO_TASK_OBJECTS, feasibility
+
+    assets = tmp_path / "assets"
+    scene = make_kitchen(assets)
+    ok = feasibility(scene, assets)
+    assert ok["reason"] == "" and ok["placed"] >= 5, ok
+    strict = feasibility(scene, assets, seeds=4, share=1.5)  # more than every seed: never
+    assert strict["reason"] == NO_ROOM and strict["seeds"] == 4, strict
+    no_mug = replace(scene, objects=[o for o in scene.objects if o.task_role != "pick"])
+    assert feasibility(no_mug, assets)["reason"] == NO_TASK_OBJECTS
+
+
+def _generate(run: Path, **generate: object) -> dict:
+    from factory.scenes.generate import run as generate_stage
+
+    cfg = FactoryConfig()
+    cfg.run_dir = str(run)
+    cfg.generate = replace(
+        cfg.generate, prompts=[REQUEST], render=False, physics_critic=False, **generate
+    )
+    return generate_stage(StageContext(cfg, RunStore(run), Shard(0, 1)))
+
+
+def test_generate_tries_another_seed_when_the_task_does_not_fit(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, make_kitchen
+) -> None:
+    """A first attempt that the task's critic refuses is generated again with the next seed,
+    and the report keeps why; when every attempt is refused the scene is not written, the
+    stage fails naming the reason, and ``report.json`` lists the attempts. (The agent is
+    replaced by a fixed kitchen: the stage's loop is what is tested.)"""
+    import factory.scenes.generate as generate
+
+    def agent(gcfg, prompt, library, seed, agent_cfg, scene_id):
+        scene = make_kitchen(library.assets_dir, scene_id=scene_id)
+        scene.task = Task(kind="pick_place", instruction="put the mug in the bowl")
+        return scene, {"request": prompt, "seed": seed, "objects": len(scene.objects)}
+
+    monkeypatch.setattr(generate, "_generate_with", agent)
+    from factory.tasks.pick_place.task import PickPlaceTask
+
+    calls: list[int] = []
+
+    def refuse_first(self, scene, assets_root):
+        calls.append(len(scene.objects))
+        if len(calls) == 1:
+            return {"reason": "no_room", "detail": "refused by the test"}
+        return {"reason": "", "detail": "accepted"}
+
+    monkeypatch.setattr(PickPlaceTask, "feasibility", refuse_first)
+    _generate(tmp_path / "a")
+    (report_path,) = (tmp_path / "a" / "scenes").glob("*/report.json")
+    report = json.loads(report_path.read_text())["generate"]
+    assert len(calls) == 2 and report["seed"] == 7919, report["seed"]
+    assert report["rejected_attempts"] == [
+        {"seed": 0, "reason": "no_room", "detail": "refused by the test"}
+    ]
+    assert report["task_check"]["reason"] == "" and report["final_check"]["objects"] == 4
+    assert (report_path.parent / "scene.json").is_file()
+
+    monkeypatch.setattr(
+        PickPlaceTask, "feasibility", lambda self, s, a: {"reason": "no_base_spot", "detail": "x"}
+    )
+    with pytest.raises(StageFailed, match=r"none of 2 attempts can host its task \(no_base_spot"):
+        _generate(tmp_path / "b", task_attempts=2)
+    (report_path,) = (tmp_path / "b" / "scenes").glob("*/report.json")
+    rejected = json.loads(report_path.read_text())["generate"]["rejected"]
+    assert [r["seed"] for r in rejected] == [0, 7919]
+    assert not (report_path.parent / "scene.json").exists()
