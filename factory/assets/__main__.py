@@ -44,15 +44,16 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.list and args.markdown:
         print(
-            "| category | group | placement | typical size (m) | materials | mass (kg) | synonyms |"
+            "| category | group | placement | typical size (m) | materials | mass (kg) | synonyms "
+            "| description |"
         )
-        print("|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|")
         for name, cat in CATEGORIES.items():
             dims = " x ".join(f"{v:g}" for v in cat.dims)
             print(
                 f"| {name} | {cat.group} | {cat.placement} | {dims} | "
                 f"{', '.join(dict.fromkeys(cat.materials))} | {cat.mass[0]:g}-{cat.mass[1]:g} | "
-                f"{', '.join(cat.synonyms)} |"
+                f"{', '.join(cat.synonyms)} | {cat.description} |"
             )
         return 0
     if args.list:

@@ -1,21 +1,60 @@
 """The procedural category registry: what each category is, its sizes, materials and mass.
 
-``CATEGORIES`` is a literal dict, category name -> :class:`Category`. ``dims`` are typical
-extents (width x, length y, height z; m), ``mass`` the documented plausible range (kg) that
-generated assets fall in, ``placement`` where such an object usually goes, ``rooms`` the room
-types that hold it, ``synonyms`` words that name it, ``fill`` the solid fraction of the
-shape's volume (a box standing in for a hollow appliance, a frame or a cushion is mostly air;
-calibrated so that the typical size falls inside the documented mass range).
+The catalogue is data: ``factory/data/catalog/categories_*.yaml`` (read in file-name order),
+one entry per category. ``CATEGORIES`` (category name -> :class:`Category`) is built from it
+when this module is imported, through :data:`TEMPLATE_KINDS` (template kind -> builder).
+``dims`` are typical extents (width x, length y, height z; m), ``mass`` the documented
+plausible range (kg) that generated assets fall in, ``placement`` where such an object usually
+goes, ``rooms`` the room types that hold it (those of ``rooms.yaml``), ``synonyms`` words that
+name it, ``fill`` the solid fraction of the shape's volume (a box standing in for a hollow
+appliance, a frame or a cushion is mostly air; calibrated so that the typical size falls
+inside the documented mass range).
+
+A bad entry raises :class:`CatalogError`, naming the category, the field and the valid
+choices.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+import yaml
+
+from factory.assets import grammar
 from factory.assets import templates as T
+from factory.assets.physics import MATERIALS
+from factory.errors import ConfigError
 
 RGBA = tuple[float, float, float, float]
+
+DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "catalog"
+"""The catalogue's data files (inside the package)."""
+
+PLACEMENTS = ("floor", "wall", "on_top")
+GROUPS = ("furniture", "appliance", "electronics", "decor", "manipulable")
+FIELDS = (
+    "template",
+    "dims",
+    "materials",
+    "mass",
+    "placement",
+    "rooms",
+    "synonyms",
+    "colors",
+    "group",
+    "fill",
+    "extra",
+    "description",
+)
+REQUIRED = ("template", "dims", "materials", "mass")
+
+
+class CatalogError(ConfigError):
+    """A catalogue entry is invalid (unknown template kind, bad field or value)."""
 
 
 @dataclass(frozen=True)
@@ -33,1036 +72,249 @@ class Category:
     group: str = "furniture"
     fill: float = 1.0
     extra: dict[str, str] = field(default_factory=dict)
+    description: str = ""
 
 
-def _c(*args: Any, **kw: Any) -> Category:
-    return Category(*args, **kw)
+@dataclass(frozen=True)
+class TemplateKind:
+    """A template kind of the data: its builder and parameters.
+
+    Attributes:
+        build: the template itself (no parameters) or a factory called with the parameters.
+        params: parameter name -> type (``number``, ``bool``, ``int_pair`` or ``any``, which
+            the factory validates); empty for a plain template.
+        required: the parameters that must be given.
+    """
+
+    build: Callable[..., Any]
+    params: Mapping[str, str] = field(default_factory=dict)
+    required: tuple[str, ...] = ()
 
 
-_LIV = ("living room",)
-_BED = ("bedroom", "children's room")
-_KIT = ("kitchen", "dining room")
-_OFF = ("office", "meeting room", "classroom")
-_BATH = ("bathroom", "restroom")
-_ANY = ("living room", "bedroom", "office", "kitchen", "dining room", "game den")
-
-CATEGORIES: dict[str, Category] = {
-    # ---- tables and desks
-    "dining_table": _c(
-        T.table,
-        (1.6, 0.9, 0.75),
-        ("oak", "oak"),
-        (15, 80),
-        rooms=_KIT,
-        synonyms=("table", "kitchen table"),
-    ),
-    "coffee_table": _c(T.table, (1.1, 0.6, 0.45), ("walnut", "walnut"), (8, 40), rooms=_LIV),
-    "side_table": _c(
-        T.table,
-        (0.5, 0.5, 0.55),
-        ("oak", "oak"),
-        (2, 20),
-        rooms=_LIV + _BED,
-        synonyms=("end table",),
-    ),
-    "console_table": _c(T.table, (1.2, 0.4, 0.8), ("walnut", "metal"), (8, 45), rooms=_LIV),
-    "desk": _c(
-        T.desk,
-        (1.4, 0.7, 0.75),
-        ("oak", "wood"),
-        (20, 80),
-        rooms=(*_OFF, "bedroom"),
-        synonyms=("writing desk", "computer desk", "workstation"),
-    ),
-    "school_desk": _c(T.table, (0.7, 0.5, 0.72), ("pine", "metal"), (5, 30), rooms=("classroom",)),
-    "conference_table": _c(
-        T.table,
-        (3.0, 1.2, 0.75),
-        ("walnut", "metal"),
-        (40, 220),
-        rooms=("meeting room",),
-        synonyms=("meeting table",),
-    ),
-    "kitchen_island": _c(
-        T.case((0, 1), False), (1.8, 0.9, 0.92), ("mdf", "mdf"), (40, 160), rooms=("kitchen",)
-    ),
-    "pool_table": _c(
-        T.table,
-        (2.5, 1.4, 0.8),
-        ("walnut", "walnut"),
-        (40, 350),
-        rooms=("game den",),
-        synonyms=("billiard table",),
-        colors=((0.1, 0.45, 0.2, 1), (0.36, 0.24, 0.15, 1)),
-    ),
-    "workbench": _c(T.table, (1.8, 0.75, 0.9), ("pine", "metal"), (20, 120), rooms=("garage",)),
-    # ---- seating
-    "chair": _c(
-        T.chair,
-        (0.45, 0.5, 0.9),
-        ("wood", "wood"),
-        (2, 12),
-        rooms=_KIT + _OFF,
-        synonyms=("dining chair", "seat", "kitchen chair"),
-    ),
-    "office_chair": _c(
-        T.chair,
-        (0.6, 0.6, 1.05),
-        ("fabric", "metal"),
-        (6, 25),
-        rooms=_OFF,
-        synonyms=("desk chair", "swivel chair"),
-    ),
-    "armchair": _c(
-        T.sofa,
-        (0.9, 0.85, 0.9),
-        ("fabric", "fabric"),
-        (12, 50),
-        rooms=_LIV + _BED,
-        synonyms=("lounge chair", "recliner", "accent chair"),
-    ),
-    "sofa": _c(
-        T.sofa,
-        (2.1, 0.9, 0.85),
-        ("fabric", "fabric"),
-        (30, 110),
-        rooms=(*_LIV, "game den"),
-        synonyms=("couch", "settee", "sectional"),
-    ),
-    "loveseat": _c(T.sofa, (1.5, 0.85, 0.85), ("leather", "leather"), (20, 80), rooms=_LIV),
-    "ottoman": _c(
-        T.block(0.25),
-        (0.6, 0.6, 0.42),
-        ("fabric", "fabric"),
-        (3, 25),
-        rooms=_LIV,
-        synonyms=("pouf", "footstool"),
-    ),
-    "stool": _c(T.stool, (0.35, 0.35, 0.45), ("wood", "wood"), (1, 8), rooms=(*_KIT, "bathroom")),
-    "bar_stool": _c(T.stool, (0.4, 0.4, 0.75), ("metal", "metal"), (3, 15), rooms=_KIT),
-    "bench": _c(
-        T.stool,
-        (1.2, 0.4, 0.45),
-        ("oak", "oak"),
-        (6, 40),
-        rooms=("gym", "hallway"),
-        synonyms=("weight bench",),
-    ),
-    # ---- beds
-    "bed": _c(
-        T.bed,
-        (1.6, 2.1, 1.0),
-        ("fabric", "wood"),
-        (40, 120),
-        rooms=("bedroom",),
-        synonyms=("double bed", "queen bed", "king bed", "single bed"),
-    ),
-    "crib": _c(
-        T.bed,
-        (0.7, 1.3, 0.9),
-        ("fabric", "pine"),
-        (10, 40),
-        rooms=("children's room",),
-        synonyms=("cot", "baby bed"),
-    ),
-    # ---- storage
-    "bookshelf": _c(
-        T.case((3, 5), True),
-        (0.9, 0.32, 1.8),
-        ("oak", "oak"),
-        (20, 90),
-        rooms=_LIV + _OFF + _BED,
-        synonyms=("bookcase", "shelf", "shelves"),
-    ),
-    "wall_shelf": _c(
-        T.case((0, 1), True),
-        (0.8, 0.22, 0.3),
-        ("oak", "oak"),
-        (1.5, 10),
-        placement="wall",
-        rooms=_ANY,
-        synonyms=("floating shelf",),
-    ),
-    "cabinet": _c(
-        T.case((1, 2), True),
-        (0.8, 0.45, 0.9),
-        ("mdf", "mdf"),
-        (15, 70),
-        rooms=_KIT + _OFF + _BATH,
-        synonyms=("cupboard", "storage cabinet"),
-    ),
-    "kitchen_cabinet": _c(
-        T.case((1, 1), True),
-        (0.6, 0.6, 0.9),
-        ("mdf", "mdf"),
-        (15, 60),
-        rooms=("kitchen",),
-        synonyms=("counter", "kitchen counter"),
-    ),
-    "wardrobe": _c(
-        T.case((1, 2), False),
-        (1.2, 0.6, 2.0),
-        ("oak", "oak"),
-        (40, 150),
-        rooms=("bedroom",),
-        synonyms=("closet", "armoire"),
-    ),
-    "dresser": _c(
-        T.case((2, 3), False),
-        (1.2, 0.5, 0.85),
-        ("walnut", "walnut"),
-        (25, 90),
-        rooms=("bedroom",),
-        synonyms=("chest of drawers", "commode"),
-    ),
-    "nightstand": _c(
-        T.case((1, 1), True),
-        (0.45, 0.4, 0.55),
-        ("oak", "oak"),
-        (5, 25),
-        rooms=("bedroom",),
-        synonyms=("bedside table", "night table"),
-    ),
-    "tv_stand": _c(
-        T.case((1, 1), True),
-        (1.5, 0.45, 0.5),
-        ("walnut", "walnut"),
-        (15, 60),
-        rooms=_LIV,
-        synonyms=("media console", "tv cabinet"),
-    ),
-    "sideboard": _c(
-        T.case((1, 1), False),
-        (1.6, 0.45, 0.8),
-        ("walnut", "walnut"),
-        (30, 100),
-        rooms=_KIT + _LIV,
-        synonyms=("buffet", "credenza"),
-    ),
-    "filing_cabinet": _c(
-        T.case((2, 3), False), (0.45, 0.6, 1.3), ("steel", "steel"), (30, 150), rooms=("office",)
-    ),
-    "locker": _c(
-        T.case((1, 2), False),
-        (0.4, 0.5, 1.8),
-        ("steel", "steel"),
-        (25, 150),
-        rooms=("gym", "classroom"),
-    ),
-    "shoe_rack": _c(
-        T.case((2, 3), True),
-        (0.8, 0.3, 0.8),
-        ("pine", "pine"),
-        (3, 25),
-        rooms=("hallway", "bedroom"),
-    ),
-    "toy_box": _c(
-        T.basin(0.85),
-        (0.8, 0.45, 0.5),
-        ("pine", "pine"),
-        (5, 30),
-        rooms=("children's room",),
-        colors=((0.9, 0.4, 0.3, 1), (0.3, 0.5, 0.9, 1)),
-    ),
-    "crate": _c(
-        T.basin(0.9),
-        (0.5, 0.4, 0.3),
-        ("pine", "pine"),
-        (2, 12),
-        rooms=("garage",),
-        synonyms=("wooden crate",),
-    ),
-    "basket": _c(
-        T.vessel(0.85, 0.08),
-        (0.4, 0.4, 0.3),
-        ("pine", "pine"),
-        (0.3, 5),
-        placement="floor",
-        rooms=_ANY,
-        synonyms=("laundry basket", "hamper", "bucket"),
-        colors=((0.76, 0.6, 0.4, 1), (0.7, 0.55, 0.35, 1)),
-    ),
-    "cardboard_box": _c(
-        T.basin(0.92),
-        (0.4, 0.3, 0.3),
-        ("cardboard", "cardboard"),
-        (0.2, 3),
-        rooms=_ANY,
-        synonyms=("box", "carton", "package"),
-    ),
-    # ---- appliances and electronics
-    "refrigerator": _c(
-        T.refrigerator,
-        (0.75, 0.7, 1.8),
-        ("steel", "plastic"),
-        (50, 140),
-        rooms=("kitchen",),
-        synonyms=("fridge", "freezer"),
-    ),
-    "oven": _c(
-        T.oven,
-        (0.6, 0.6, 0.9),
-        ("steel", "plastic"),
-        (30, 90),
-        rooms=("kitchen",),
-        synonyms=("stove", "range", "cooker"),
-    ),
-    "dishwasher": _c(
-        T.dishwasher, (0.6, 0.6, 0.85), ("steel", "plastic"), (30, 70), rooms=("kitchen",)
-    ),
-    "washing_machine": _c(
-        T.washing_machine,
-        (0.6, 0.6, 0.85),
-        ("plastic", "steel"),
-        (50, 100),
-        rooms=("bathroom", "laundry room"),
-        synonyms=("washer", "dryer"),
-    ),
-    "microwave": _c(
-        T.microwave,
-        (0.5, 0.38, 0.3),
-        ("steel", "plastic"),
-        (8, 25),
-        placement="on_top",
-        rooms=("kitchen",),
-        group="appliance",
-    ),
-    "tv": _c(
-        T.screen,
-        (1.2, 0.25, 0.75),
-        ("plastic", "metal"),
-        (8, 35),
-        placement="on_top",
-        rooms=(*_LIV, "game den", "bedroom"),
-        synonyms=("television", "flat screen"),
-        colors=((0.05, 0.05, 0.06, 1), (0.2, 0.2, 0.22, 1)),
-        group="electronics",
-    ),
-    "monitor": _c(
-        T.screen,
-        (0.6, 0.2, 0.45),
-        ("plastic", "metal"),
-        (2.5, 10),
-        placement="on_top",
-        rooms=_OFF,
-        synonyms=("computer screen", "display"),
-        colors=((0.05, 0.05, 0.06, 1), (0.2, 0.2, 0.22, 1)),
-        group="electronics",
-    ),
-    "laptop": _c(
-        T.laptop,
-        (0.34, 0.24, 0.22),
-        ("aluminium", "aluminium"),
-        (0.9, 3),
-        placement="on_top",
-        rooms=(*_OFF, "bedroom"),
-        synonyms=("notebook computer",),
-        group="electronics",
-    ),
-    "computer_tower": _c(
-        T.block(0.15),
-        (0.2, 0.45, 0.45),
-        ("steel", "steel"),
-        (5, 15),
-        rooms=("office", "game den"),
-        synonyms=("pc", "desktop computer"),
-        colors=((0.1, 0.1, 0.12, 1), (0.1, 0.1, 0.12, 1)),
-        group="electronics",
-    ),
-    "keyboard": _c(
-        T.block(0.3),
-        (0.44, 0.14, 0.03),
-        ("plastic", "plastic"),
-        (0.3, 1.5),
-        placement="on_top",
-        rooms=_OFF,
-        group="electronics",
-        colors=((0.12, 0.12, 0.13, 1), (0.12, 0.12, 0.13, 1)),
-    ),
-    "printer": _c(
-        T.block(0.25),
-        (0.45, 0.4, 0.25),
-        ("plastic", "plastic"),
-        (4, 15),
-        placement="on_top",
-        rooms=("office",),
-        group="electronics",
-    ),
-    "speaker": _c(
-        T.block(0.5),
-        (0.2, 0.22, 0.35),
-        ("wood", "plastic"),
-        (2, 10),
-        placement="on_top",
-        rooms=(*_LIV, "game den"),
-        group="electronics",
-        colors=((0.1, 0.1, 0.1, 1), (0.2, 0.2, 0.2, 1)),
-    ),
-    "game_console": _c(
-        T.block(0.4),
-        (0.3, 0.25, 0.08),
-        ("plastic", "plastic"),
-        (1.5, 5),
-        placement="on_top",
-        rooms=("game den", "living room"),
-        group="electronics",
-        colors=((0.1, 0.1, 0.12, 1), (0.9, 0.9, 0.9, 1)),
-    ),
-    "arcade_machine": _c(
-        T.appliance,
-        (0.7, 0.8, 1.8),
-        ("wood", "plastic"),
-        (60, 150),
-        rooms=("game den",),
-        colors=((0.15, 0.1, 0.4, 1), (0.9, 0.8, 0.1, 1)),
-    ),
-    "radiator": _c(
-        T.block(0.12),
-        (0.9, 0.1, 0.6),
-        ("steel", "steel"),
-        (8, 40),
-        placement="wall",
-        rooms=_ANY,
-        colors=((0.95, 0.95, 0.95, 1), (0.9, 0.9, 0.9, 1)),
-    ),
-    # ---- lighting and decor
-    "floor_lamp": _c(
-        T.lamp,
-        (0.45, 0.45, 1.6),
-        ("fabric", "metal"),
-        (2, 15),
-        rooms=_LIV + _BED,
-        synonyms=("standing lamp",),
-    ),
-    "table_lamp": _c(
-        T.lamp,
-        (0.3, 0.3, 0.5),
-        ("fabric", "ceramic"),
-        (0.6, 5),
-        placement="on_top",
-        rooms=_LIV + _BED + _OFF,
-        synonyms=("lamp", "desk lamp", "bedside lamp"),
-        group="decor",
-    ),
-    "painting": _c(
-        T.panel,
-        (0.9, 0.04, 0.6),
-        ("wood", "fabric"),
-        (1, 10),
-        placement="wall",
-        rooms=_ANY,
-        synonyms=("picture", "artwork", "poster", "canvas"),
-        colors=((0.5, 0.35, 0.2, 1), (0.3, 0.5, 0.7, 1)),
-        group="decor",
-    ),
-    "mirror": _c(
-        T.panel,
-        (0.6, 0.03, 0.9),
-        ("wood", "glass"),
-        (3, 20),
-        placement="wall",
-        rooms=_BATH + _BED,
-        group="decor",
-    ),
-    "whiteboard": _c(
-        T.panel,
-        (1.8, 0.03, 1.0),
-        ("aluminium", "plastic"),
-        (5, 25),
-        placement="wall",
-        rooms=_OFF,
-        synonyms=("blackboard", "chalkboard"),
-        colors=((0.7, 0.7, 0.72, 1), (0.97, 0.97, 0.97, 1)),
-        group="decor",
-    ),
-    "clock": _c(
-        T.clock,
-        (0.35, 0.05, 0.35),
-        ("plastic", "glass"),
-        (0.3, 2.5),
-        placement="wall",
-        rooms=_ANY,
-        synonyms=("wall clock",),
-        group="decor",
-    ),
-    "vase": _c(
-        T.vessel(0.7, 0.08),
-        (0.16, 0.16, 0.3),
-        ("ceramic", "ceramic"),
-        (0.3, 2.5),
-        placement="on_top",
-        rooms=_LIV + _KIT,
-        group="decor",
-    ),
-    "potted_plant": _c(
-        T.plant,
-        (0.45, 0.45, 1.0),
-        ("ceramic", "plant"),
-        (3, 30),
-        rooms=_ANY,
-        synonyms=("plant", "houseplant", "ficus", "monstera"),
-        group="decor",
-    ),
-    "small_plant": _c(
-        T.plant,
-        (0.15, 0.15, 0.25),
-        ("ceramic", "plant"),
-        (0.3, 2.5),
-        placement="on_top",
-        rooms=_ANY,
-        synonyms=("succulent", "cactus"),
-        group="decor",
-    ),
-    "candle": _c(
-        T.can,
-        (0.07, 0.07, 0.12),
-        ("wax", "wax"),
-        (0.2, 0.6),
-        placement="on_top",
-        rooms=_LIV + _KIT,
-        group="decor",
-    ),
-    "rug": _c(
-        T.block(1.0),
-        (2.0, 1.4, 0.01),
-        ("fabric", "fabric"),
-        (3, 15),
-        rooms=_LIV + _BED,
-        synonyms=("carpet", "mat"),
-    ),
-    "cushion": _c(
-        T.pillow,
-        (0.45, 0.45, 0.15),
-        ("fabric", "fabric"),
-        (0.2, 2),
-        placement="on_top",
-        rooms=_LIV + _BED,
-        synonyms=("pillow", "throw pillow"),
-        group="decor",
-    ),
-    "curtain": _c(
-        T.curtain,
-        (1.4, 0.12, 2.2),
-        ("fabric", "metal"),
-        (1.5, 20),
-        rooms=_LIV + _BED,
-        synonyms=("curtains", "drapes", "drape"),
-        group="decor",
-    ),
-    "picture_frame": _c(
-        T.panel,
-        (0.2, 0.03, 0.25),
-        ("wood", "paper"),
-        (0.2, 1.2),
-        placement="on_top",
-        rooms=_LIV + _BED + _OFF,
-        synonyms=("photo frame",),
-        group="decor",
-    ),
-    "coat_rack": _c(
-        T.rack,
-        (0.5, 0.5, 1.8),
-        ("wood", "metal"),
-        (2, 12),
-        rooms=("hallway",),
-        synonyms=("hat stand",),
-    ),
-    "trash_can": _c(
-        T.vessel(0.85, 0.06),
-        (0.35, 0.35, 0.6),
-        ("plastic", "plastic"),
-        (0.5, 8),
-        rooms=_ANY,
-        synonyms=("trash bin", "bin", "garbage can", "wastebasket", "dustbin"),
-        colors=((0.5, 0.5, 0.52, 1),) * 2,
-    ),
-    # ---- kitchenware and tabletop
-    "mug": _c(
-        T.vessel(1.0, 0.08, handle=True),
-        (0.11, 0.085, 0.1),
-        ("ceramic", "ceramic"),
-        (0.25, 0.45),
-        placement="on_top",
-        rooms=_KIT + _OFF,
-        synonyms=("coffee mug", "tea mug"),
-        group="manipulable",
-    ),
-    "cup": _c(
-        T.vessel(0.75, 0.08),
-        (0.08, 0.08, 0.1),
-        ("ceramic", "ceramic"),
-        (0.08, 0.3),
-        placement="on_top",
-        rooms=_KIT + _OFF,
-        synonyms=("tumbler", "beaker"),
-        group="manipulable",
-    ),
-    "glass": _c(
-        T.vessel(0.8, 0.06),
-        (0.075, 0.075, 0.12),
-        ("glass", "glass"),
-        (0.12, 0.4),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("drinking glass", "wine glass"),
-        group="manipulable",
-    ),
-    "bowl": _c(
-        T.vessel(0.55, 0.05),
-        (0.18, 0.18, 0.08),
-        ("ceramic", "ceramic"),
-        (0.2, 0.8),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("salad bowl", "soup bowl", "fruit bowl"),
-        group="manipulable",
-    ),
-    "plate": _c(
-        T.plate,
-        (0.26, 0.26, 0.025),
-        ("ceramic", "ceramic"),
-        (0.25, 0.9),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("dish", "dinner plate", "saucer"),
-        group="manipulable",
-    ),
-    "pot": _c(
-        T.vessel(1.0, 0.05),
-        (0.26, 0.26, 0.16),
-        ("steel", "steel"),
-        (0.8, 3.5),
-        placement="on_top",
-        rooms=("kitchen",),
-        synonyms=("cooking pot", "saucepan"),
-        group="manipulable",
-    ),
-    "pan": _c(
-        T.plate,
-        (0.3, 0.3, 0.05),
-        ("steel", "steel"),
-        (0.6, 2.5),
-        placement="on_top",
-        rooms=("kitchen",),
-        synonyms=("frying pan", "skillet"),
-        group="manipulable",
-    ),
-    "bottle": _c(
-        T.bottle,
-        (0.075, 0.075, 0.28),
-        ("glass", "plastic"),
-        (0.3, 1.6),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("wine bottle", "water bottle"),
-        group="manipulable",
-    ),
-    "milk_carton": _c(
-        T.block(1.0),
-        (0.07, 0.07, 0.2),
-        ("cardboard", "cardboard"),
-        (0.1, 1.5),
-        placement="on_top",
-        rooms=("kitchen",),
-        synonyms=("milk", "carton of milk", "juice carton"),
-        colors=((0.96, 0.96, 0.94, 1), (0.2, 0.4, 0.8, 1)),
-        group="manipulable",
-        fill=3.0,
-    ),
-    "cereal_box": _c(
-        T.block(1.0),
-        (0.19, 0.07, 0.28),
-        ("cardboard", "cardboard"),
-        (0.05, 1.2),
-        placement="on_top",
-        rooms=("kitchen",),
-        synonyms=("cereal", "box of cereal", "cereals"),
-        colors=((0.9, 0.7, 0.15, 1), (0.8, 0.2, 0.15, 1)),
-        group="manipulable",
-        fill=0.45,
-    ),
-    "can": _c(
-        T.can,
-        (0.066, 0.066, 0.12),
-        ("aluminium", "aluminium"),
-        (0.02, 0.45),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("soda can", "tin", "tin can", "coke can", "cola can", "coke", "cola", "soda"),
-        group="manipulable",
-    ),
-    "jar": _c(
-        T.can,
-        (0.09, 0.09, 0.13),
-        ("glass", "metal"),
-        (0.2, 1.4),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("mason jar", "cookie jar"),
-        group="manipulable",
-    ),
-    "kettle": _c(
-        T.vessel(1.0, 0.05, handle=True),
-        (0.22, 0.16, 0.22),
-        ("steel", "plastic"),
-        (0.5, 2.0),
-        placement="on_top",
-        rooms=("kitchen",),
-        group="manipulable",
-    ),
-    "cutting_board": _c(
-        T.block(1.0),
-        (0.4, 0.28, 0.02),
-        ("wood", "wood"),
-        (0.6, 2.5),
-        placement="on_top",
-        rooms=("kitchen",),
-        group="manipulable",
-    ),
-    "tray": _c(
-        T.basin(0.6),
-        (0.45, 0.32, 0.04),
-        ("wood", "wood"),
-        (0.4, 2.5),
-        placement="on_top",
-        rooms=_KIT + _LIV,
-        group="manipulable",
-    ),
-    # ---- produce
-    "apple": _c(
-        T.fruit(),
-        (0.075, 0.075, 0.075),
-        ("organic", "organic"),
-        (0.1, 0.3),
-        placement="on_top",
-        rooms=_KIT,
-        group="manipulable",
-        colors=((0.78, 0.12, 0.1, 1), (0.3, 0.2, 0.1, 1)),
-    ),
-    "orange": _c(
-        T.fruit(),
-        (0.075, 0.075, 0.072),
-        ("organic", "organic"),
-        (0.1, 0.3),
-        placement="on_top",
-        rooms=_KIT,
-        group="manipulable",
-        synonyms=("tangerine",),
-        colors=((0.95, 0.55, 0.1, 1), (0.3, 0.4, 0.1, 1)),
-    ),
-    "lemon": _c(
-        T.fruit(1.2),
-        (0.055, 0.055, 0.07),
-        ("organic", "organic"),
-        (0.05, 0.2),
-        placement="on_top",
-        rooms=_KIT,
-        group="manipulable",
-        synonyms=("lime",),
-        colors=((0.95, 0.85, 0.2, 1), (0.95, 0.85, 0.2, 1)),
-    ),
-    "bread": _c(
-        T.fruit(1.5),
-        (0.25, 0.12, 0.1),
-        ("organic", "organic"),
-        (0.01, 1.2),
-        placement="on_top",
-        rooms=_KIT,
-        synonyms=("loaf", "bread loaf", "loaf of bread", "toast", "slice of bread", "bread slice"),
-        colors=((0.78, 0.55, 0.3, 1), (0.78, 0.55, 0.3, 1)),
-        group="manipulable",
-        fill=0.4,
-    ),
-    "tomato": _c(
-        T.fruit(),
-        (0.07, 0.07, 0.06),
-        ("organic", "organic"),
-        (0.05, 0.25),
-        placement="on_top",
-        rooms=_KIT,
-        group="manipulable",
-        colors=((0.85, 0.15, 0.1, 1), (0.2, 0.5, 0.1, 1)),
-    ),
-    "egg": _c(
-        T.fruit(1.3),
-        (0.045, 0.045, 0.058),
-        ("organic", "organic"),
-        (0.04, 0.08),
-        placement="on_top",
-        rooms=_KIT,
-        group="manipulable",
-        colors=((0.96, 0.92, 0.84, 1), (0.96, 0.92, 0.84, 1)),
-    ),
-    "banana": _c(
-        T.banana,
-        (0.19, 0.04, 0.06),
-        ("organic", "organic"),
-        (0.08, 0.25),
-        placement="on_top",
-        rooms=_KIT,
-        group="manipulable",
-        colors=((0.98, 0.85, 0.25, 1), (0.98, 0.85, 0.25, 1)),
-    ),
-    # ---- small objects
-    "book": _c(
-        T.book,
-        (0.16, 0.24, 0.035),
-        ("cardboard", "paper"),
-        (0.15, 1.2),
-        placement="on_top",
-        rooms=_LIV + _OFF + _BED,
-        synonyms=("novel", "textbook", "notebook", "magazine"),
-        colors=((0.55, 0.12, 0.15, 1), (0.95, 0.93, 0.86, 1)),
-        group="manipulable",
-    ),
-    "pen": _c(
-        T.can,
-        (0.012, 0.012, 0.14),
-        ("plastic", "plastic"),
-        (0.005, 0.04),
-        placement="on_top",
-        rooms=_OFF,
-        synonyms=("pencil", "marker"),
-        group="manipulable",
-        colors=((0.1, 0.2, 0.7, 1), (0.1, 0.1, 0.1, 1)),
-    ),
-    "remote": _c(
-        T.block(0.6),
-        (0.05, 0.18, 0.022),
-        ("plastic", "plastic"),
-        (0.06, 0.25),
-        placement="on_top",
-        rooms=_LIV,
-        synonyms=("remote control", "tv remote"),
-        group="manipulable",
-        colors=((0.1, 0.1, 0.11, 1),) * 2,
-    ),
-    "phone": _c(
-        T.block(1.0),
-        (0.075, 0.15, 0.009),
-        ("glass", "aluminium"),
-        (0.12, 0.25),
-        placement="on_top",
-        rooms=_ANY,
-        synonyms=("smartphone", "cellphone"),
-        group="manipulable",
-        colors=((0.05, 0.05, 0.06, 1),) * 2,
-    ),
-    "tissue_box": _c(
-        T.block(0.12),
-        (0.24, 0.12, 0.1),
-        ("cardboard", "cardboard"),
-        (0.05, 0.3),
-        placement="on_top",
-        rooms=_BATH + _LIV,
-        group="manipulable",
-    ),
-    "toy_block": _c(
-        T.block(1.0),
-        (0.05, 0.05, 0.05),
-        ("pine", "pine"),
-        (0.03, 0.15),
-        placement="on_top",
-        rooms=("children's room",),
-        synonyms=("block", "cube", "lego"),
-        group="manipulable",
-        colors=((0.9, 0.2, 0.2, 1),) * 2,
-    ),
-    "ball": _c(
-        T.ball,
-        (0.22, 0.22, 0.22),
-        ("rubber", "rubber"),
-        (0.1, 0.8),
-        placement="floor",
-        rooms=("children's room", "gym"),
-        synonyms=("football", "basketball", "soccer ball"),
-        group="manipulable",
-        colors=((0.9, 0.45, 0.1, 1),) * 2,
-    ),
-    "teddy_bear": _c(
-        T.teddy,
-        (0.25, 0.2, 0.32),
-        ("fabric", "fabric"),
-        (0.1, 1.0),
-        placement="on_top",
-        rooms=("children's room",),
-        synonyms=("stuffed animal", "plush toy"),
-        group="manipulable",
-        colors=((0.6, 0.42, 0.25, 1), (0.35, 0.22, 0.12, 1)),
-    ),
-    "towel": _c(
-        T.block(0.25),
-        (0.3, 0.2, 0.05),
-        ("fabric", "fabric"),
-        (0.1, 0.8),
-        placement="on_top",
-        rooms=_BATH,
-        group="manipulable",
-    ),
-    "soap_dispenser": _c(
-        T.bottle,
-        (0.07, 0.07, 0.18),
-        ("plastic", "steel"),
-        (0.1, 0.6),
-        placement="on_top",
-        rooms=(*_BATH, "kitchen"),
-        group="manipulable",
-    ),
-    "dumbbell": _c(
-        T.dumbbell,
-        (0.3, 0.11, 0.11),
-        ("steel", "steel"),
-        (2, 25),
-        rooms=("gym",),
-        synonyms=("weight", "free weight"),
-        group="manipulable",
-    ),
-    # ---- bathroom and fixtures
-    "toilet": _c(
-        T.toilet,
-        (0.4, 0.7, 0.78),
-        ("porcelain", "porcelain"),
-        (15, 50),
-        rooms=_BATH,
-        synonyms=("wc",),
-    ),
-    "sink": _c(
-        T.basin(0.25),
-        (0.6, 0.45, 0.85),
-        ("porcelain", "porcelain"),
-        (15, 60),
-        rooms=(*_BATH, "kitchen"),
-        synonyms=("washbasin", "basin", "vanity"),
-    ),
-    "bathtub": _c(
-        T.basin(0.8),
-        (1.7, 0.75, 0.58),
-        ("porcelain", "porcelain"),
-        (30, 140),
-        rooms=("bathroom",),
-        synonyms=("tub", "bath"),
-    ),
-    "urinal": _c(
-        T.basin(0.5),
-        (0.4, 0.35, 0.6),
-        ("porcelain", "porcelain"),
-        (10, 35),
-        placement="wall",
-        rooms=("restroom",),
-    ),
-    "hand_dryer": _c(
-        T.block(0.2),
-        (0.28, 0.2, 0.3),
-        ("steel", "plastic"),
-        (2, 8),
-        placement="wall",
-        rooms=("restroom",),
-    ),
-    # ---- gym, music, misc
-    "treadmill": _c(
-        T.block(0.12),
-        (0.8, 1.8, 0.35),
-        ("rubber", "steel"),
-        (50, 160),
-        rooms=("gym",),
-        synonyms=("running machine",),
-    ),
-    "exercise_bike": _c(
-        T.appliance,
-        (0.55, 1.1, 1.2),
-        ("steel", "plastic"),
-        (20, 80),
-        rooms=("gym",),
-        synonyms=("stationary bike", "spin bike"),
-    ),
-    "yoga_mat": _c(
-        T.block(1.0),
-        (0.6, 1.8, 0.006),
-        ("rubber", "rubber"),
-        (0.8, 3),
-        rooms=("gym", "living room"),
-        synonyms=("exercise mat",),
-        colors=((0.4, 0.3, 0.7, 1),) * 2,
-    ),
-    "punching_bag": _c(
-        T.can,
-        (0.35, 0.35, 1.2),
-        ("leather", "leather"),
-        (15, 60),
-        rooms=("gym",),
-        synonyms=("heavy bag",),
-    ),
-    "piano": _c(
-        T.piano,
-        (1.5, 0.6, 1.25),
-        ("walnut", "plastic"),
-        (120, 300),
-        rooms=_LIV,
-        synonyms=("upright piano", "keyboard instrument"),
-        colors=((0.08, 0.06, 0.05, 1), (0.97, 0.97, 0.95, 1)),
-    ),
-    "fireplace": _c(
-        T.case((0, 0), True),
-        (1.4, 0.5, 1.1),
-        ("stone", "stone"),
-        (80, 600),
-        rooms=_LIV,
-        synonyms=("hearth",),
-    ),
+TEMPLATE_KINDS: dict[str, TemplateKind] = {
+    "table": TemplateKind(T.table),
+    "desk": TemplateKind(T.desk),
+    "chair": TemplateKind(T.chair),
+    "stool": TemplateKind(T.stool),
+    "sofa": TemplateKind(T.sofa),
+    "bed": TemplateKind(T.bed),
+    "pillow": TemplateKind(T.pillow),
+    "case": TemplateKind(
+        T.case,
+        {"boards": "int_pair", "open_front": "bool", "open_top": "bool"},
+        ("boards", "open_front"),
+    ),
+    "basin": TemplateKind(T.basin, {"depth_ratio": "number"}, ("depth_ratio",)),
+    "vessel": TemplateKind(
+        T.vessel,
+        {"r_ratio": "number", "wall": "number", "handle": "bool", "lid": "bool"},
+        ("r_ratio", "wall"),
+    ),
+    "block": TemplateKind(T.block, {"fill": "number"}),
+    "fruit": TemplateKind(T.fruit, {"elong": "number"}),
+    "refrigerator": TemplateKind(T.refrigerator),
+    "oven": TemplateKind(T.oven),
+    "dishwasher": TemplateKind(T.dishwasher),
+    "washing_machine": TemplateKind(T.washing_machine),
+    "microwave": TemplateKind(T.microwave),
+    "appliance": TemplateKind(T.appliance),
+    "screen": TemplateKind(T.screen),
+    "laptop": TemplateKind(T.laptop),
+    "panel": TemplateKind(T.panel),
+    "clock": TemplateKind(T.clock),
+    "lamp": TemplateKind(T.lamp),
+    "plant": TemplateKind(T.plant),
+    "curtain": TemplateKind(T.curtain),
+    "rack": TemplateKind(T.rack),
+    "book": TemplateKind(T.book),
+    "plate": TemplateKind(T.plate),
+    "bottle": TemplateKind(T.bottle),
+    "can": TemplateKind(T.can),
+    "banana": TemplateKind(T.banana),
+    "ball": TemplateKind(T.ball),
+    "teddy": TemplateKind(T.teddy),
+    "dumbbell": TemplateKind(T.dumbbell),
+    "piano": TemplateKind(T.piano),
+    "toilet": TemplateKind(T.toilet),
+    "parts": TemplateKind(grammar.parts, {"parts": "any", "containers": "any"}, ("parts",)),
 }
+"""Template kind (the data's ``template: {kind: ...}``) -> builder and parameters."""
 
-FILL: dict[str, float] = {
-    "desk": 0.25,
-    "conference_table": 0.49,
-    "kitchen_island": 0.41,
-    "chair": 0.37,
-    "office_chair": 0.53,
-    "loveseat": 0.57,
-    "bar_stool": 0.09,
-    "bed": 0.64,
-    "bookshelf": 0.46,
-    "wall_shelf": 0.42,
-    "wardrobe": 0.37,
-    "dresser": 0.58,
-    "tv_stand": 0.53,
-    "sideboard": 0.56,
-    "filing_cabinet": 0.09,
-    "locker": 0.073,
-    "refrigerator": 0.15,
-    "oven": 0.27,
-    "dishwasher": 0.25,
-    "washing_machine": 3.0,
-    "microwave": 0.43,
-    "tv": 0.3,
-    "monitor": 0.26,
-    "laptop": 0.2,
-    "computer_tower": 0.18,
-    "arcade_machine": 1.7,
-    "radiator": 0.35,
-    "floor_lamp": 0.14,
-    "mirror": 0.29,
-    "whiteboard": 0.23,
-    "clock": 0.17,
-    "vase": 0.35,
-    "potted_plant": 0.12,
-    "trash_can": 0.22,
-    "pot": 0.14,
-    "pan": 0.33,
-    "bottle": 0.32,
-    "can": 0.088,
-    "jar": 0.22,
-    "kettle": 0.14,
-    "phone": 0.68,
-    "toilet": 0.61,
-    "sink": 0.13,
-    "bathtub": 0.17,
-    "urinal": 0.27,
-    "hand_dryer": 0.15,
-    "exercise_bike": 0.09,
-    "yoga_mat": 0.22,
-    "punching_bag": 0.3,
-}
-"""Solid fraction (mass calibration) of categories whose shape is mostly air or, for a few
-appliances whose body is already a low-fill box, denser than the template assumes."""
 
-CATEGORIES = {k: replace(v, fill=FILL.get(k, v.fill)) for k, v in CATEGORIES.items()}
+def _fail(name: str, fld: str, why: str) -> CatalogError:
+    return CatalogError(f"catalogue entry {name!r}, field {fld!r}: {why}")
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _numbers(name: str, fld: str, value: Any, n: int) -> tuple[float, ...]:
+    if not isinstance(value, list | tuple) or len(value) != n or not all(map(_is_number, value)):
+        raise _fail(name, fld, f"expected a list of {n} numbers, got {value!r}")
+    return tuple(float(v) for v in value)
+
+
+def _strings(name: str, fld: str, value: Any) -> tuple[str, ...]:
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) and v for v in value):
+        raise _fail(name, fld, f"expected a list of non-empty strings, got {value!r}")
+    return tuple(value)
+
+
+def _choice(name: str, fld: str, value: Any, choices: tuple[str, ...] | list[str]) -> str:
+    if value not in choices:
+        raise _fail(name, fld, f"{value!r} is not one of: {', '.join(choices)}")
+    return str(value)
+
+
+def _param(name: str, fld: str, value: Any, kind: str) -> Any:
+    if kind == "number" and _is_number(value):
+        return float(value)
+    if kind == "bool" and isinstance(value, bool):
+        return value
+    if kind == "int_pair" and (
+        isinstance(value, list | tuple)
+        and len(value) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+    ):
+        return (int(value[0]), int(value[1]))
+    if kind == "any":
+        return value
+    raise _fail(name, fld, f"expected a {kind.replace('_', ' ')}, got {value!r}")
+
+
+def build_template(name: str, spec: Any) -> T.Template:
+    """The template an entry's ``template`` field names, built with its parameters.
+
+    Raises:
+        CatalogError: unknown kind, unknown or missing parameter, bad value.
+    """
+    if not isinstance(spec, Mapping) or "kind" not in spec:
+        raise _fail(name, "template", f"expected a mapping with a 'kind', got {spec!r}")
+    kind = _choice(name, "template.kind", spec["kind"], sorted(TEMPLATE_KINDS))
+    tk = TEMPLATE_KINDS[kind]
+    params = {k: v for k, v in spec.items() if k != "kind"}
+    for key in params:
+        if key not in tk.params:
+            valid = ", ".join(tk.params) or "none"
+            raise _fail(
+                name, f"template.{key}", f"unknown parameter of {kind!r}; valid parameters: {valid}"
+            )
+    for key in tk.required:
+        if key not in params:
+            raise _fail(
+                name, f"template.{key}", f"missing: {kind!r} needs {', '.join(tk.required)}"
+            )
+    if not tk.params:
+        return tk.build
+    args = {k: _param(name, f"template.{k}", v, tk.params[k]) for k, v in params.items()}
+    try:
+        return tk.build(**args)
+    except grammar.GrammarError as e:
+        fld, _, why = str(e).partition(": ")
+        raise _fail(name, f"template.{fld}", why) from None
+
+
+def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> Category:
+    """One :class:`Category` from its data entry (a mapping of :data:`FIELDS`).
+
+    Args:
+        name: the category name (snake_case).
+        entry: the entry's fields.
+        room_types: the valid room types (empty: any).
+
+    Raises:
+        CatalogError: naming the category, the field and the valid choices.
+    """
+    if not isinstance(name, str) or not name.replace("_", "").isalnum() or name != name.lower():
+        raise _fail(str(name), "name", "expected a lower-case snake_case name")
+    if not isinstance(entry, Mapping):
+        raise _fail(name, "entry", f"expected a mapping of fields, got {entry!r}")
+    for key in entry:
+        if key not in FIELDS:
+            raise _fail(name, str(key), f"unknown field; valid fields: {', '.join(FIELDS)}")
+    for key in REQUIRED:
+        if key not in entry:
+            raise _fail(name, key, f"missing; required fields: {', '.join(REQUIRED)}")
+    dims = _numbers(name, "dims", entry["dims"], 3)
+    if min(dims) <= 0:
+        raise _fail(name, "dims", f"extents must be positive (m), got {dims}")
+    mats = _strings(name, "materials", entry["materials"])
+    if len(mats) != 2:
+        raise _fail(name, "materials", f"expected [primary, secondary], got {list(mats)}")
+    for m in mats:
+        _choice(name, "materials", m, list(MATERIALS))
+    lo, hi = _numbers(name, "mass", entry["mass"], 2)
+    if not 0 < lo < hi:
+        raise _fail(name, "mass", f"expected [lo, hi] with 0 < lo < hi (kg), got {[lo, hi]}")
+    rooms = _strings(name, "rooms", entry.get("rooms", []))
+    if room_types:
+        for r in rooms:
+            _choice(name, "rooms", r, room_types)
+    colors = None
+    if entry.get("colors") is not None:
+        raw = entry["colors"]
+        if not isinstance(raw, list | tuple) or len(raw) != 2:
+            raise _fail(name, "colors", f"expected two [r, g, b, a] colours, got {raw!r}")
+        c0, c1 = (_numbers(name, "colors", c, 4) for c in raw)
+        if not all(0 <= v <= 1 for v in c0 + c1):
+            raise _fail(name, "colors", "colour channels must be within 0..1")
+        colors = (c0, c1)
+    fill = entry.get("fill", 1.0)
+    if not _is_number(fill) or fill <= 0:
+        raise _fail(name, "fill", f"expected a positive number, got {fill!r}")
+    extra = entry.get("extra", {})
+    if not isinstance(extra, Mapping) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in extra.items()
+    ):
+        raise _fail(name, "extra", "expected a mapping of strings to strings")
+    description = entry.get("description", "")
+    if not isinstance(description, str):
+        raise _fail(name, "description", "expected a string")
+    return Category(
+        template=build_template(name, entry["template"]),
+        dims=(dims[0], dims[1], dims[2]),
+        materials=(mats[0], mats[1]),
+        mass=(lo, hi),
+        placement=_choice(name, "placement", entry.get("placement", "floor"), PLACEMENTS),
+        rooms=rooms,
+        synonyms=_strings(name, "synonyms", entry.get("synonyms", [])),
+        colors=colors,  # type: ignore[arg-type]
+        group=_choice(name, "group", entry.get("group", "furniture"), GROUPS),
+        fill=float(fill),
+        extra=dict(extra),
+        description=description,
+    )
+
+
+def _read(path: Path) -> Any:
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    try:
+        return yaml.load(path.read_text(encoding="utf-8"), Loader=loader)
+    except yaml.YAMLError as e:
+        raise CatalogError(f"catalogue file {path.name}: not valid YAML ({e})") from None
+
+
+def load_catalog(folder: Path = DATA_DIR) -> dict[str, Category]:
+    """Every category of the catalogue's data files, in file then entry order.
+
+    Raises:
+        CatalogError: a bad entry, a file that is not a mapping, or a name defined twice.
+    """
+    rooms_doc = _read(folder / "rooms.yaml")
+    if not isinstance(rooms_doc, Mapping) or not isinstance(rooms_doc.get("room_types"), list):
+        raise CatalogError("catalogue file rooms.yaml: expected a 'room_types' list")
+    room_types = tuple(str(r) for r in rooms_doc["room_types"])
+    out: dict[str, Category] = {}
+    for path in sorted(folder.glob("categories_*.yaml")):
+        doc = _read(path)
+        if not isinstance(doc, Mapping):
+            raise CatalogError(f"catalogue file {path.name}: expected a mapping of categories")
+        for name, entry in doc.items():
+            if name in out:
+                raise _fail(str(name), "name", f"defined twice (again in {path.name})")
+            out[name] = build_category(name, entry, room_types)
+    return out
+
+
+CATEGORIES: dict[str, Category] = load_catalog()

@@ -180,7 +180,7 @@ def stool(
     return s
 
 
-def case(boards_range: tuple[int, int], open_front: bool, open_top: bool = False) -> Template:
+def case(boards: tuple[int, int], open_front: bool, open_top: bool = False) -> Template:
     """A panel case with softened (bevelled) edges: shelves and bookcases (open front,
     boards), cabinets, wardrobes and dressers (closed front: doors or drawers with handles,
     standing proud of the case within the requested depth)."""
@@ -190,10 +190,10 @@ def case(boards_range: tuple[int, int], open_front: bool, open_top: bool = False
     ) -> Shape:
         w, ln, h = d
         t = float(np.clip(0.02 * max(w, h), 0.012, 0.03))
-        boards = int(rng.integers(boards_range[0], boards_range[1] + 1))
+        n_boards = int(rng.integers(boards[0], boards[1] + 1))
         hd = 0.0 if open_front else float(min(0.03, 0.08 * ln))
         parts, supports, containers = frame_box(
-            (w, ln - hd, h), t, mats[0], cols[0], open_front, open_top, boards
+            (w, ln - hd, h), t, mats[0], cols[0], open_front, open_top, n_boards
         )
         s = Shape([_bevelled(p, 0.3 * t, hd / 2) for p in parts])  # top and sides rounded
         s.supports = [

@@ -53,7 +53,7 @@ def test_every_category_every_seed(category: str) -> None:
 
 
 def test_enough_categories_for_rooms_and_manipulation() -> None:
-    assert len(CATEGORIES) >= 80
+    assert len(CATEGORIES) >= 300
     for needed in (
         "mug",
         "cup",
@@ -89,6 +89,43 @@ def test_enough_categories_for_rooms_and_manipulation() -> None:
         "game den",
     ):
         assert room in rooms, room
+
+
+def test_catalogue_data_rejects_a_bad_entry_naming_the_field() -> None:
+    from factory.assets.catalog import CatalogError, build_category
+    from factory.errors import ConfigError
+
+    good = {"template": {"kind": "table"}, "dims": [1, 1, 1], "materials": ["oak", "oak"]}
+    good["mass"] = [1, 9]
+    assert build_category("t", good).dims == (1.0, 1.0, 1.0)
+    bad = [
+        ({"template": {"kind": "tabel"}}, r"'t', field 'template.kind'.*table"),
+        ({"template": {"kind": "vessel", "r_ratio": 1}}, r"field 'template.wall': missing"),
+        (
+            {"template": {"kind": "block", "fil": 1}},
+            r"field 'template.fil'.*valid parameters: fill",
+        ),
+        ({"materials": ["oak", "cheese"]}, r"field 'materials'.*'cheese'.*walnut"),
+        ({"placement": "ceiling"}, r"field 'placement'.*floor, wall, on_top"),
+        ({"group": "toys"}, r"field 'group'.*manipulable"),
+        ({"mass": [9, 1]}, r"field 'mass'"),
+        ({"dims": [1, 1]}, r"field 'dims'.*3 numbers"),
+        ({"colour": [0, 0, 0, 1]}, r"field 'colour': unknown field.*colors"),
+        (
+            {"template": {"kind": "parts", "parts": [{"box": [0, 0, 0, 1, 1, 1], "axis": "w"}]}},
+            r"field 'template.parts\[0\].axis'.*valid keys",
+        ),
+        (
+            {"template": {"kind": "parts", "parts": [{"cyl": [0, 0, 0, 1, 1, 1], "axis": "w"}]}},
+            r"field 'template.parts\[0\].axis'.*x, y, z",
+        ),
+    ]
+    for change, message in bad:
+        with pytest.raises(CatalogError, match=message) as err:
+            build_category("t", good | change)
+        assert isinstance(err.value, ConfigError)
+    with pytest.raises(CatalogError, match=r"field 'rooms'.*'moon base' is not one of.*kitchen"):
+        build_category("t", good | {"rooms": ["moon base"]}, ("kitchen", "office"))
 
 
 def test_concave_objects_are_concave() -> None:
