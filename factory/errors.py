@@ -15,6 +15,11 @@ class ConfigError(FactoryError):
     """The configuration is invalid (unknown stage or key, missing ``run_dir``, bad shard)."""
 
 
+class RoomDataError(ConfigError):
+    """A room type of the room-type data file is invalid (it names the room type, the field
+    and the allowed values)."""
+
+
 class StoreError(FactoryError):
     """The run directory is unusable (wrong manifest version, unwritable, missing inputs)."""
 
@@ -47,6 +52,7 @@ __all__ = [
     "MixedLayoutError",
     "PolicyError",
     "RenderError",
+    "RoomDataError",
     "SchemaError",
     "SchemaVersionError",
     "StageFailed",

@@ -91,7 +91,7 @@ ROOMS_BY_COUNT: tuple[str, ...] = (
 """The rooms of an "N-room" home, first needed first (one room: a studio)."""
 
 _ORDER = ("living room", "kitchen", "dining room", "office", "bathroom")
-_SLEEPING = frozenset({"bedroom", "children's room", "nursery"})
+_SLEEPING = frozenset({"bedroom", "children's room", "nursery", "guest room"})
 
 _NOT_HOME_AFTER = frozenset(
     {

@@ -42,15 +42,59 @@ WIDE_OPENING = 1.6
 DOOR_MARGIN = 0.15
 """Wall kept between a door and the end of the shared wall (m)."""
 
-NIGHT: frozenset[str] = frozenset({"bedroom", "children's room", "nursery", "bathroom", "restroom"})
+NIGHT: frozenset[str] = frozenset(
+    {
+        "bedroom",
+        "children's room",
+        "nursery",
+        "guest room",
+        "bathroom",
+        "restroom",
+        "walk-in closet",
+    }
+)
 """Room types that go north of the spine (the night zone)."""
-SLEEPING: frozenset[str] = frozenset({"bedroom", "children's room", "nursery"})
+SLEEPING: frozenset[str] = frozenset({"bedroom", "children's room", "nursery", "guest room"})
 BATHS: frozenset[str] = frozenset({"bathroom", "restroom"})
 FLEXIBLE: frozenset[str] = frozenset(
-    {"office", "library", "game den", "gym", "laundry room", "home bar", "classroom"}
+    {
+        "office",
+        "library",
+        "game den",
+        "gym",
+        "laundry room",
+        "home bar",
+        "classroom",
+        "playroom",
+        "music room",
+        "home theater",
+        "craft room",
+        "sewing room",
+        "art studio",
+        "yoga studio",
+        "japanese room",
+        "sunroom",
+        "workshop",
+        "utility room",
+        "storage room",
+        "wine cellar",
+    }
 )
-"""Room types that may go to either band, to even out the bands' widths."""
-SMALL: frozenset[str] = frozenset({"bathroom", "restroom", "laundry room", "hallway"})
+"""Room types that may go to either band, to even out the bands' widths (the other rooms
+of a home that are neither night rooms nor these, a pantry or a mudroom, go to the day
+band)."""
+SMALL: frozenset[str] = frozenset(
+    {
+        "bathroom",
+        "restroom",
+        "laundry room",
+        "hallway",
+        "pantry",
+        "walk-in closet",
+        "mudroom",
+        "utility room",
+    }
+)
 """Room types that keep their width when a band is stretched (a larger room takes it)."""
 HUBS: tuple[str, ...] = ("hallway", "living room", "studio", "kitchen", "dining room")
 """Room types that can be the spine, first preferred."""

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 
 from factory.scenes.homes import find_home, home_rooms
+from factory.scenes.room_meaning import RoomGuess, nearest_room_type
 from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
 from factory.scenes.style_words import CONDITIONS, STYLE_WORDS, read_style
 from factory.scenes.translate import translate
@@ -94,8 +95,10 @@ class ParsedRequest:
             :data:`factory.assets.physics.MATERIALS`).
         translated: (foreign word, English) for each word translated.
         unknown: words not understood (foreign words no table knows).
-        notes: what was approximated and why ("no pantry type: a kitchen ...").
+        notes: what was approximated and why ("'veterinary clinic': nearest room type by
+            meaning: exam room (score 0.85)").
         warnings: what the user should know (words not understood, no room named).
+        guess: the room type chosen by meaning when no room word matched (``None`` if none).
     """
 
     text: str
@@ -113,11 +116,13 @@ class ParsedRequest:
     unknown: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
+    guess: RoomGuess | None = None
 
     @property
     def names_a_room(self) -> bool:
-        """The request names a room or a home (else :data:`DEFAULT_ROOM` stands in)."""
-        return bool(self.home or self.rooms)
+        """The request names a room or a home, or a room type is near its words in meaning
+        (else :data:`DEFAULT_ROOM` stands in)."""
+        return bool(self.home or self.rooms or self.guess)
 
     @property
     def task(self) -> TaskSpec | None:
@@ -184,6 +189,22 @@ def _is_object(word: str) -> bool:
     return word in _object_words()
 
 
+@cache
+def _look_words() -> frozenset[str]:
+    """Style, condition and material words: they say how a room looks, not what it is."""
+    from factory.assets.physics import MATERIALS
+
+    phrases = [*STYLE_WORDS, *CONDITIONS, *MATERIALS]
+    return frozenset(w for p in phrases for w in re.split(r"[\s-]+", p.lower()) if w)
+
+
+def _guess_room(english: str, unknown: tuple[str, ...]) -> RoomGuess | None:
+    """The nearest room type by meaning to a request that names no room; object, style and
+    untranslated words are left out."""
+    skip = {w.lower() for w in unknown}
+    return nearest_room_type(english, lambda w: w in skip or _is_object(w) or w in _look_words())
+
+
 @lru_cache(maxsize=512)
 def parse_request(text: str) -> ParsedRequest:
     """Reads a request (cached: the result is frozen).
@@ -200,15 +221,22 @@ def parse_request(text: str) -> ParsedRequest:
     rooms = find_rooms(english)
     home = find_home(english, rooms, _is_object)
     notes = [f"{r.phrase!r}: {r.note}" for r in rooms if r.note]
+    guess = None if home is not None or rooms else _guess_room(english, tr.unknown)
     if home is not None:
         named = [r for r in rooms if r.end <= home.start or r.start >= home.end]
         room_types = tuple(home_rooms(home, named))
     elif rooms:
         room_types = (_main_room(rooms).room_type,)
+    elif guess is not None:
+        room_types = (guess.room_type,)
+        notes.append(
+            f"{' '.join(guess.words)!r}: no room type of that name; nearest by meaning: "
+            f"{guess.room_type} (score {guess.score:.2f})"
+        )
     else:
         room_types = (DEFAULT_ROOM,)
     warnings = [tr.warning] if tr.unknown else []
-    if home is None and not rooms:
+    if home is None and not rooms and guess is None:
         warnings.append(
             f"no known room type in {text!r} (another language?); built a {DEFAULT_ROOM}"
         )
@@ -229,6 +257,7 @@ def parse_request(text: str) -> ParsedRequest:
         unknown=tr.unknown,
         notes=tuple(notes),
         warnings=tuple(warnings),
+        guess=guess,
     )
     for note in notes:
         log.info("request %r: %s", text, note)

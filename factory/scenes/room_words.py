@@ -2,9 +2,11 @@
 
 Literal registries read by :mod:`.room_mentions`:
 
-* ``ROOM_WORDS``: purpose words and everyday names ("home office", "den", "pantry", "dorm")
-  -> a room type of :data:`~factory.scenes.rooms.ROOM_TYPES`, with a note when the project has
-  no such room and the closest type stands in for it (a pantry is built as a kitchen);
+* ``ROOM_WORDS``: purpose words and everyday names ("home office", "den", "dorm") -> a room
+  type of :data:`~factory.scenes.rooms.ROOM_TYPES`, with a note when the project has no such
+  room and the closest type stands in for it (the names and aliases of the room types are
+  read as well; a room no word names goes to the nearest type by meaning:
+  :mod:`.room_meaning`);
 * ``OWNERS``: who a room belongs to ("a child's room", "a room for a teenager", "the guest
   bedroom") -> the room type;
 * ``OBJECT_HEADS``: nouns after a room word that make it an object's kind ("a bar stool", "a
@@ -38,26 +40,17 @@ class Owner:
     possessive_only: bool = False
 
 
-_STORAGE = "no storage room type: a garage (shelves, boxes, crates) is the closest"
-
 ROOM_WORDS: dict[str, RoomWord] = {
     # sleeping
     "bed room": RoomWord("bedroom"),
     "sleeping room": RoomWord("bedroom"),
     "bedchamber": RoomWord("bedroom"),
-    "spare room": RoomWord("bedroom"),
-    "spare bedroom": RoomWord("bedroom"),
-    "guest room": RoomWord("bedroom"),
     "master suite": RoomWord("bedroom"),
     "dorm room": RoomWord("bedroom"),
     "dorm": RoomWord("bedroom"),
     "dormitory": RoomWord("bedroom"),
-    "walk-in closet": RoomWord("bedroom", "no dressing room type: a bedroom is the closest"),
-    "dressing room": RoomWord("bedroom", "no dressing room type: a bedroom is the closest"),
     "kids room": RoomWord("children's room"),
     "kid room": RoomWord("children's room"),
-    "playroom": RoomWord("children's room"),
-    "play room": RoomWord("children's room"),
     "baby room": RoomWord("nursery"),
     "nursery room": RoomWord("nursery"),
     # work and study
@@ -67,24 +60,12 @@ ROOM_WORDS: dict[str, RoomWord] = {
     "workroom": RoomWord("office"),
     "work room": RoomWord("office"),
     "office space": RoomWord("office"),
-    "craft room": RoomWord("office", "no craft room type: an office (desk, shelves) stands in"),
-    "sewing room": RoomWord("office", "no sewing room type: an office (desk, shelves) stands in"),
-    "hobby room": RoomWord("office", "no hobby room type: an office (desk, shelves) stands in"),
-    "art studio": RoomWord("office", "no art studio type: an office (desk, shelves) stands in"),
-    "artist's studio": RoomWord(
-        "office", "no art studio type: an office (desk, shelves) stands in"
-    ),
     "library": RoomWord("library"),
     "home library": RoomWord("library"),
-    "staff room": RoomWord("meeting room"),
-    "break room": RoomWord("meeting room"),
     # living
     "den": RoomWord("game den"),
     "media room": RoomWord("game den"),
     "tv room": RoomWord("game den"),
-    "home theater": RoomWord("game den"),
-    "home theatre": RoomWord("game den"),
-    "home cinema": RoomWord("game den"),
     "living area": RoomWord("living room"),
     "front room": RoomWord("living room"),
     "drawing room": RoomWord("living room"),
@@ -92,31 +73,14 @@ ROOM_WORDS: dict[str, RoomWord] = {
     "parlour": RoomWord("living room"),
     "great room": RoomWord("living room"),
     "common room": RoomWord("living room"),
-    "sunroom": RoomWord("living room", "no sunroom type: a living room is the closest"),
-    "conservatory": RoomWord("living room", "no sunroom type: a living room is the closest"),
-    "music room": RoomWord("living room", "no music room type: a living room (piano) stands in"),
     "breakfast room": RoomWord("dining room"),
     "breakfast nook": RoomWord("dining room"),
     # service rooms
     "laundry": RoomWord("laundry room"),
     "laundry room": RoomWord("laundry room"),
-    "utility room": RoomWord("laundry room"),
     "washhouse": RoomWord("laundry room"),
-    "pantry": RoomWord("kitchen", "no pantry type: a kitchen (shelves, jars) is the closest"),
-    "larder": RoomWord("kitchen", "no pantry type: a kitchen (shelves, jars) is the closest"),
-    "scullery": RoomWord("kitchen", "no scullery type: a kitchen is the closest"),
-    "mudroom": RoomWord("hallway", "no mudroom type: a hallway (coats, shoes) is the closest"),
-    "mud room": RoomWord("hallway", "no mudroom type: a hallway (coats, shoes) is the closest"),
     "entrance hall": RoomWord("hallway"),
     "hall": RoomWord("hallway"),
-    "storage room": RoomWord("garage", _STORAGE),
-    "storeroom": RoomWord("garage", _STORAGE),
-    "store room": RoomWord("garage", _STORAGE),
-    "stockroom": RoomWord("garage", _STORAGE),
-    "attic": RoomWord("garage", _STORAGE),
-    "basement": RoomWord("garage", _STORAGE),
-    "cellar": RoomWord("garage", _STORAGE),
-    "wine cellar": RoomWord("home bar", "no wine cellar type: a home bar is the closest"),
     # washing
     "en-suite": RoomWord("bathroom"),
     "ensuite": RoomWord("bathroom"),
@@ -128,8 +92,6 @@ ROOM_WORDS: dict[str, RoomWord] = {
     "dining hall": RoomWord("dining room"),
     # exercise
     "exercise room": RoomWord("gym"),
-    "yoga studio": RoomWord("gym"),
-    "dance studio": RoomWord("gym"),
     "fitness studio": RoomWord("gym"),
 }
 """Purpose word -> room type (names and aliases of ``ROOM_TYPES`` are read as well)."""
@@ -166,8 +128,10 @@ OWNERS: dict[str, Owner] = {
     "teenager": Owner("bedroom"),
     "teenagers": Owner("bedroom"),
     "teenage": Owner("bedroom"),
-    "guest": Owner("bedroom"),
-    "guests": Owner("bedroom"),
+    "guest": Owner("guest room"),
+    "guests": Owner("guest room"),
+    "patient": Owner("patient room"),
+    "patients": Owner("patient room"),
     "master": Owner("bedroom"),
     "parent": Owner("bedroom"),
     "parents": Owner("bedroom"),
