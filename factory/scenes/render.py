@@ -15,6 +15,10 @@ Cameras are free cameras computed from the scene (no camera is added to the mode
   corner of that room nearest to its first door where no tall object (a wardrobe) stands
   within 1 m, looking at the centre of its floor.
 
+Where rays in the compiled scene find a corner or room view blocked (an object within 1 m in
+its frustum: a lamp shade, a cabinet) or showing less than half of its room's objects, its eye
+moves towards the room's centre or lower (:mod:`factory.scenes.view_rays`).
+
 MuJoCo's offscreen renderer draws them with the model's lights and materials, on EGL (GPU or
 Mesa) or OSMesa (see :mod:`factory.sim.gl`).
 """
@@ -24,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from factory.errors import RenderError
 from factory.schema import Room, Scene
@@ -98,12 +103,6 @@ def _corners(room: Room) -> list[tuple[float, float]]:
     return [(x0 + i, y0 + i), (x1 - i, y0 + i), (x1 - i, y1 - i), (x0 + i, y1 - i)]
 
 
-def _inside(room: Room, eye: tuple[float, float], eye_z: float) -> ViewCamera:
-    cx = room.position.x + room.dimensions.width / 2
-    cy = room.position.y + room.dimensions.length / 2
-    return _looking((eye[0], eye[1], eye_z), (cx, cy, 0.45), 70.0)
-
-
 def _door_point(room: Room) -> tuple[float, float] | None:
     walls = {w.id: w for w in room.walls}
     for door in room.doors:
@@ -114,8 +113,48 @@ def _door_point(room: Room) -> tuple[float, float] | None:
     return None
 
 
+ROOM_FOVY = 70.0
+"""Vertical field of view of the corner and room views (deg)."""
+
+
+def _room_eyes(scene: Scene) -> dict[str, tuple[Room, tuple[float, float, float]]]:
+    """The views that look into one room (``corner_k``; ``room_<id>`` in a home): the room and
+    the eye (m, world) that :func:`view_cameras` gives them."""
+    xmin, ymin, xmax, ymax = scene.bounds_xy()
+    height = max(r.ceiling_height for r in scene.rooms)
+    eye_z = max(1.2, min(height - 0.25, 2.4))
+    box = [(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)]
+    eyes: dict[str, tuple[Room, tuple[float, float, float]]] = {}
+    for k, (bx, by) in enumerate(box):
+        room = min(
+            scene.rooms,
+            key=lambda r: math.hypot(_corners(r)[k][0] - bx, _corners(r)[k][1] - by),
+        )
+        eyes[f"corner_{k}"] = (room, (*_corners(room)[k], eye_z))
+    if len(scene.rooms) > 1:
+        for room in scene.rooms:
+            corners = _corners(room)
+            room_eye_z = max(1.2, min(room.ceiling_height - 0.25, 2.4))
+            door = _door_point(room)
+            order = sorted(range(4), key=lambda j: math.dist(corners[j], door) if door else j)
+            free = [j for j in order if not _blocked(scene, room, corners[j], room_eye_z)]
+            eyes[room_view(room.id)] = (room, (*corners[(free or order)[0]], room_eye_z))
+    return eyes
+
+
+def _room_target(room: Room) -> tuple[float, float, float]:
+    """Where a view into ``room`` looks: the middle of its floor, 0.45 m up (m, world)."""
+    return (
+        room.position.x + room.dimensions.width / 2,
+        room.position.y + room.dimensions.length / 2,
+        0.45,
+    )
+
+
 def view_cameras(scene: Scene, aspect: float = 4 / 3) -> dict[str, ViewCamera]:
-    """The cameras of a scene: every view of :func:`scene_views`.
+    """The cameras of a scene: every view of :func:`scene_views` (the corner and room views
+    from the scene alone; :func:`render_views` moves their eyes where rays find them blocked:
+    :mod:`factory.scenes.view_rays`).
 
     Args:
         scene: the scene (its rooms' footprints and ceiling heights frame the views).
@@ -128,24 +167,46 @@ def view_cameras(scene: Scene, aspect: float = 4 / 3) -> dict[str, ViewCamera]:
     half_h = max((ymax - ymin) / 2, (xmax - xmin) / 2 / aspect) * 1.08 + 0.2
     dist_top = half_h / math.tan(math.radians(fovy_top / 2)) + height
     cams = {"top": ViewCamera((cx, cy, 0.0), dist_top, 90.0, -89.99, fovy_top)}
-    eye_z = max(1.2, min(height - 0.25, 2.4))
-    box = [(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)]
-    for k, (bx, by) in enumerate(box):
-        room = min(
-            scene.rooms,
-            key=lambda r: math.hypot(_corners(r)[k][0] - bx, _corners(r)[k][1] - by),
-        )
-        cams[f"corner_{k}"] = _inside(room, _corners(room)[k], eye_z)
+    eyes = _room_eyes(scene)
+    for view, (room, eye) in eyes.items():
+        if view.startswith("corner_"):
+            cams[view] = _looking(eye, _room_target(room), ROOM_FOVY)
     cams[PLAN] = ViewCamera((cx, cy, 0.0), height + 10.0, 90.0, -90.0, 2 * half_h, True)
-    if len(scene.rooms) > 1:
-        for room in scene.rooms:
-            corners = _corners(room)
-            room_eye_z = max(1.2, min(room.ceiling_height - 0.25, 2.4))
-            door = _door_point(room)
-            order = sorted(range(4), key=lambda j: math.dist(corners[j], door) if door else j)
-            free = [j for j in order if not _blocked(scene, room, corners[j], room_eye_z)]
-            cams[room_view(room.id)] = _inside(room, corners[(free or order)[0]], room_eye_z)
+    for view, (room, eye) in eyes.items():
+        if view.startswith(ROOM_PREFIX):
+            cams[view] = _looking(eye, _room_target(room), ROOM_FOVY)
     return cams
+
+
+def clear_view_cameras(
+    model: mujoco.MjModel, scene: Scene, views: Sequence[str], aspect: float = 4 / 3
+) -> tuple[dict[str, ViewCamera], dict[str, Any]]:
+    """:func:`view_cameras`, with the eyes of the named corner and room views moved where
+    nothing within 1 m blocks them and they show at least half of the room's objects
+    (:func:`factory.scenes.view_rays.clear_eye`, rays in the compiled ``model``).
+
+    Returns:
+        the cameras and, per checked view, ``{"blocked", "seen", "objects", "moved_m"}``.
+    """
+    from factory.scenes.view_rays import clear_eye, rays_in
+
+    cams = view_cameras(scene, aspect)
+    eyes = {v: e for v, e in _room_eyes(scene).items() if v in views}
+    checks: dict[str, Any] = {}
+    if not eyes:
+        return cams, checks
+    rays = rays_in(model, scene)
+    for view, (room, eye) in eyes.items():
+        target = _room_target(room)
+        v = clear_eye(rays, scene, room, eye, target, ROOM_FOVY, aspect)
+        cams[view] = _looking(v.eye, target, ROOM_FOVY)
+        checks[view] = {
+            "blocked": v.blocked,
+            "seen": v.seen,
+            "objects": v.objects,
+            "moved_m": round(math.dist(v.eye, eye), 2),
+        }
+    return cams, checks
 
 
 def _blocked(scene: Scene, room: Room, eye: tuple[float, float], eye_z: float) -> bool:
@@ -209,7 +270,7 @@ def render_views(
         model.vis.global_.offheight = max(model.vis.global_.offheight, size)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    cams = view_cameras(scene, width / height)
+    cams, _ = clear_view_cameras(model, scene, views, width / height)
     try:
         renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as e:  # GL errors come in several types
@@ -257,6 +318,7 @@ __all__ = [
     "ROOMS",
     "VIEWS",
     "ViewCamera",
+    "clear_view_cameras",
     "contact_sheet",
     "expand_views",
     "png_bytes",
