@@ -3,7 +3,9 @@ scene generated (``stage=generate``, its last step the strict check with repair 
 critic), then ``stage=validate``; per scene the objects, collision and stability as
 ``stage=validate`` measures them, the final check's changes, the task critic's verdict and
 the corner views (blocked within 1 m, share of the room's objects seen:
-:mod:`factory.scenes.view_rays`).
+:mod:`factory.scenes.view_rays`), and an independent check with plain MuJoCo on each
+``model.xml`` (contacts deeper than 1 cm at rest; free bodies that move more than 0.2 m or
+turn more than 8 degrees in 2 s).
 
     python scripts/bench_breadth.py --requests-file reqs.txt --scenes-per-request 2 --shards 2
     python scripts/bench_breadth.py --run-dir R        # summarise a run already generated
@@ -78,6 +80,30 @@ def generate(run: Path, requests_file: Path, per_request: int, shards: int) -> f
     return seconds
 
 
+def plain_mujoco_check(model_xml: Path, seconds: float = 2.0) -> dict[str, Any]:
+    """An independent check with nothing but MuJoCo: the free bodies of ``model.xml`` at
+    rest, any contact deeper than 1 cm at the first step, then ``seconds`` of simulation:
+    bodies that moved more than 0.2 m or turned more than 8 degrees (the paper's thresholds)."""
+    import numpy as np
+
+    m = mujoco.MjModel.from_xml_path(str(model_xml))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    deep = sum(1 for c in d.contact[: d.ncon] if c.dist < -0.01)
+    free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    adr = [int(m.jnt_qposadr[j]) for j in free]
+    q0 = d.qpos.copy()
+    for _ in range(int(seconds / m.opt.timestep)):
+        mujoco.mj_step(m, d)
+    moved = 0
+    for a in adr:
+        shift = float(np.linalg.norm(d.qpos[a : a + 3] - q0[a : a + 3]))
+        dot = abs(float(np.dot(d.qpos[a + 3 : a + 7], q0[a + 3 : a + 7])))
+        turn = 2 * np.degrees(np.arccos(min(1.0, dot)))
+        moved += int(shift > 0.2 or turn > 8.0)
+    return {"free_bodies": len(adr), "deep_contacts": deep, "moved": moved}
+
+
 def summarise(run: Path) -> list[dict[str, Any]]:
     store = RunStore(run)
     rows = []
@@ -105,6 +131,7 @@ def summarise(run: Path) -> list[dict[str, Any]]:
                 "task_check": (gen.get("task_check") or {}).get("reason"),
                 "rejected_attempts": [r["reason"] for r in gen.get("rejected_attempts", [])],
                 "views": views,
+                "plain_mujoco": plain_mujoco_check(store.model_xml(sid)),
             }
         )
     return rows
@@ -153,6 +180,10 @@ def main() -> None:
         "views": len(views),
         "views_blocked": sum(v["blocked"] for v in views),
         "views_under_half": sum(v["seen"] < v["objects"] / 2 for v in views),
+        "plain_mujoco_scenes_with_deep_contacts": sum(
+            r["plain_mujoco"]["deep_contacts"] > 0 for r in rows
+        ),
+        "plain_mujoco_scenes_with_moved_bodies": sum(r["plain_mujoco"]["moved"] > 0 for r in rows),
         "generate_wall_seconds": None if seconds is None else round(seconds, 1),
     }
     for r in rows:
@@ -165,6 +196,7 @@ def main() -> None:
                 for v in r["views"].values()
             )
         )
+    total = {k: v if v is None or isinstance(v, float) else int(v) for k, v in total.items()}
     print(json.dumps(total, indent=1))
     result = {
         "schema_version": 1,
