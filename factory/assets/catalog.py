@@ -5,7 +5,8 @@ one entry per category. ``CATEGORIES`` (category name -> :class:`Category`) is b
 when this module is imported, through :data:`TEMPLATE_KINDS` (template kind -> builder).
 ``dims`` are typical extents (width x, length y, height z; m), ``mass`` the documented
 plausible range (kg) that generated assets fall in, ``placement`` where such an object usually
-goes, ``rooms`` the room types that hold it (those of ``rooms.yaml``), ``synonyms`` words that
+goes, ``rooms`` the room types that hold it (the keys of ``factory/data/rooms/room_types.yaml``,
+the room programs' file: one list of room types for both floors), ``synonyms`` words that
 name it, ``fill`` the solid fraction of the shape's volume (a box standing in for a hollow
 appliance, a frame or a cushion is mostly air; calibrated so that the typical size falls
 inside the documented mass range).
@@ -295,16 +296,21 @@ def _read(path: Path) -> Any:
         raise CatalogError(f"catalogue file {path.name}: not valid YAML ({e})") from None
 
 
-def load_catalog(folder: Path = DATA_DIR) -> dict[str, Category]:
+ROOMS_FILE = DATA_DIR.parent / "rooms" / "room_types.yaml"
+"""The room programs' data file (read by :mod:`factory.scenes.rooms`): its keys are the room
+types a category may name."""
+
+
+def load_catalog(folder: Path = DATA_DIR, rooms_file: Path = ROOMS_FILE) -> dict[str, Category]:
     """Every category of the catalogue's data files, in file then entry order.
 
     Raises:
         CatalogError: a bad entry, a file that is not a mapping, or a name defined twice.
     """
-    rooms_doc = _read(folder / "rooms.yaml")
-    if not isinstance(rooms_doc, Mapping) or not isinstance(rooms_doc.get("room_types"), list):
-        raise CatalogError("catalogue file rooms.yaml: expected a 'room_types' list")
-    room_types = tuple(str(r) for r in rooms_doc["room_types"])
+    rooms_doc = _read(rooms_file)
+    if not isinstance(rooms_doc, Mapping) or not rooms_doc:
+        raise CatalogError(f"room types file {rooms_file.name}: expected a mapping of room types")
+    room_types = tuple(str(r) for r in rooms_doc)
     out: dict[str, Category] = {}
     for path in sorted(folder.glob("categories_*.yaml")):
         doc = _read(path)
