@@ -1,6 +1,7 @@
 """Asset command line.
 
     python -m factory.assets --list                      # categories
+    python -m factory.assets --rooms                     # room types and their categories
     python -m factory.assets "small blue ceramic bowl" --out bowl.png
     python -m factory.assets "king-size bed" --seed 3 --assets runs/a/assets --out bed.png
 
@@ -27,6 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("text", nargs="?", help="what to make, e.g. 'a tall oak bookshelf'")
     p.add_argument("--list", action="store_true", help="list the categories")
     p.add_argument("--markdown", action="store_true", help="with --list: a Markdown table")
+    p.add_argument(
+        "--rooms", action="store_true", help="list the room types and the categories they hold"
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--dims", type=float, nargs=3, metavar=("W", "L", "H"), default=None)
     p.add_argument("--assets", default=None, help="asset cache folder (default: a temp folder)")
@@ -56,6 +60,21 @@ def main(argv: list[str] | None = None) -> int:
                 f"{', '.join(cat.synonyms)} | {cat.description} |"
             )
         return 0
+    if args.rooms:
+        from factory.assets.catalog import ROOMS_FILE, read_yaml
+
+        rooms = read_yaml(ROOMS_FILE)
+        width = max(map(len, rooms))
+        for room, program in rooms.items():
+            held = [n for n, c in CATEGORIES.items() if room in c.rooms]
+            (w0, w1), (l0, l1) = program["size"]
+            print(
+                f"{room:<{width}}  {w0:g}-{w1:g} x {l0:g}-{l1:g} m  "
+                f"{len(program.get('items', [])):>2} items  {len(held):>3} categories: "
+                f"{', '.join(held[:6])}{', ...' if len(held) > 6 else ''}"
+            )
+        print(f"{len(rooms)} room types ({ROOMS_FILE.name})")
+        return 0
     if args.list:
         width = max(map(len, CATEGORIES))
         for name, cat in CATEGORIES.items():
@@ -67,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{len(CATEGORIES)} categories")
         return 0
     if not args.text:
-        p.error("give a text request or --list")
+        p.error("give a text request, --list or --rooms")
     assets = Path(args.assets) if args.assets else Path(tempfile.mkdtemp(prefix="assets-"))
     trellis = TrellisConfig(url=args.trellis_url) if args.trellis_url else None
     try:

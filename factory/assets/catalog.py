@@ -288,7 +288,12 @@ def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> C
     )
 
 
-def _read(path: Path) -> Any:
+def read_yaml(path: Path) -> Any:
+    """A data file (YAML, safe loader) of the catalogue or the room programs.
+
+    Raises:
+        CatalogError: the file is not valid YAML.
+    """
     loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     try:
         return yaml.load(path.read_text(encoding="utf-8"), Loader=loader)
@@ -307,13 +312,13 @@ def load_catalog(folder: Path = DATA_DIR, rooms_file: Path = ROOMS_FILE) -> dict
     Raises:
         CatalogError: a bad entry, a file that is not a mapping, or a name defined twice.
     """
-    rooms_doc = _read(rooms_file)
+    rooms_doc = read_yaml(rooms_file)
     if not isinstance(rooms_doc, Mapping) or not rooms_doc:
         raise CatalogError(f"room types file {rooms_file.name}: expected a mapping of room types")
     room_types = tuple(str(r) for r in rooms_doc)
     out: dict[str, Category] = {}
     for path in sorted(folder.glob("categories_*.yaml")):
-        doc = _read(path)
+        doc = read_yaml(path)
         if not isinstance(doc, Mapping):
             raise CatalogError(f"catalogue file {path.name}: expected a mapping of categories")
         for name, entry in doc.items():

@@ -518,6 +518,15 @@ def test_assets_cli(tmp_path: Path) -> None:
         timeout=120,
     )
     assert listing.returncode == 0 and f"{len(CATEGORIES)} categories" in listing.stdout
+    rooms = subprocess.run(
+        [sys.executable, "-m", "factory.assets", "--rooms"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert rooms.returncode == 0, rooms.stderr
+    count = int(rooms.stdout.strip().splitlines()[-1].split()[0])
+    assert count >= 50 and "japanese room" in rooms.stdout
     bad = subprocess.run(
         [sys.executable, "-m", "factory.assets", "mug", "--dims", "0", "1", "1"],
         capture_output=True,
