@@ -57,6 +57,7 @@ from factory.nav.errors import NavError
 from factory.nav.footprint import Footprint
 from factory.nav.goals import BasePose
 from factory.nav.grid import OccupancyGrid
+from factory.nav.support_gap import MIN_SUPPORT_GAP, footprint_gap
 from factory.nav.task_poses import (
     GRID_RESOLUTION,
     MOBILE_FOOTPRINT,
@@ -114,6 +115,7 @@ class RouteCheck:
         detail: the failure in words, naming the fix ("" when it passes).
         pick_support, place_support: the supports' ids ("" when unknown).
         separation: horizontal distance between the supports' centres (m), or None.
+        gap: horizontal distance between the supports' footprints' nearest edges (m), or None.
         spawn_area: floor area (m²) where the base's footprint fits at some heading, or None.
         pick_poses, place_poses: free base poses within reach of the object / of the top.
         clear: light floor objects whose removal cures a blocked route (asked for).
@@ -129,6 +131,7 @@ class RouteCheck:
     pick_support: str = ""
     place_support: str = ""
     separation: float | None = None
+    gap: float | None = None
     spawn_area: float | None = None
     pick_poses: int = 0
     place_poses: int = 0
@@ -149,7 +152,7 @@ class RouteCheck:
         out: dict[str, Any] = {f: getattr(self, f) for f in names}
         out["clear"] = list(self.clear)
         out["passed"] = self.ok
-        for key in ("separation", "spawn_area", "seconds"):
+        for key in ("separation", "gap", "spawn_area", "seconds"):
             if out[key] is not None:
                 out[key] = round(float(out[key]), 3)
         return out
@@ -162,6 +165,17 @@ def is_mobile_task(scene: Scene) -> bool:
     from factory.tasks import tasks
 
     return any(task.drives_base and task.claims(scene) for task in tasks())
+
+
+def support_gap(objects: MobileTaskObjects) -> float:
+    """Horizontal distance (m) between the two supports' footprints' nearest edges
+    (:func:`~factory.nav.support_gap.footprint_gap`)."""
+
+    def box(o: SceneObject) -> tuple[float, float, float, float, float]:
+        d = o.dimensions
+        return (o.position.x, o.position.y, d.width / 2, d.length / 2, math.radians(o.rotation.z))
+
+    return footprint_gap(box(objects.pick_support), box(objects.place_support))
 
 
 def support_separation(objects: MobileTaskObjects) -> float:
@@ -577,6 +591,7 @@ def check_route(
     footprint: Footprint = MOBILE_FOOTPRINT,
     resolution: float = GRID_RESOLUTION,
     min_separation: float = MIN_SUPPORT_SEPARATION,
+    min_gap: float = 0.0,
     suggest_clear: bool = False,
     qpos: np.ndarray | None = None,
 ) -> RouteCheck:
@@ -590,6 +605,9 @@ def check_route(
         footprint: the base's outline (the mobile robot's by default).
         resolution: occupancy grid cell (m).
         min_separation: least distance between the supports' centres (m).
+        min_gap: least distance between the supports' nearest edges (m): generation asks for
+            :data:`~factory.nav.support_gap.MIN_SUPPORT_GAP`, so that the base must travel;
+            0 (the default) checks the centres only, as scenes made before were.
         suggest_clear: on a blocked route, name the light floor objects whose removal opens
             it (``clear``).
         qpos: positions (nq,) of ``model`` to judge instead of its ``qpos0`` (a
@@ -613,13 +631,16 @@ def check_route(
         return verdict(e.reason, str(e))
     ids = {"pick_support": objects.pick_support.id, "place_support": objects.place_support.id}
     sep = support_separation(objects)
-    if sep < min_separation:
+    gap = support_gap(objects)
+    if sep < min_separation or gap < min_gap:
         return verdict(
             PLACE_SUPPORT_TOO_CLOSE,
-            f"{objects.place_support.id!r} stands {sep:.2f} m from {objects.pick_support.id!r}: "
-            f"put it at least {min_separation:.1f} m away (another part of the room, or another "
-            "room)",
+            f"{objects.place_support.id!r} stands {sep:.2f} m from {objects.pick_support.id!r} "
+            f"({gap:.2f} m between their edges): put it at least {min_separation:.1f} m away"
+            + (f", {min_gap:.1f} m between the edges" if min_gap else "")
+            + " (another part of the room, or another room)",
             separation=sep,
+            gap=gap,
             **ids,
         )
     if model is None:
@@ -646,6 +667,7 @@ def check_route(
             f"the top of {objects.place_support.id!r} ({size}) cannot hold {objects.pick.id!r} "
             f"({2 * object_radius(objects.pick):.2f} m across): choose a larger support",
             separation=sep,
+            gap=gap,
             **ids,
         )
     grid = task_grid(model, data, resolution=resolution)
@@ -655,6 +677,7 @@ def check_route(
             NO_SPAWN_AREA,
             "the base's footprint (0.78 x 0.58 m) fits nowhere on the floor: free some floor",
             separation=sep,
+            gap=gap,
             spawn_area=area,
             **ids,
         )
@@ -673,6 +696,7 @@ def check_route(
         reason,
         detail,
         separation=sep,
+        gap=gap,
         spawn_area=area,
         clear=clear,
         route=route,
@@ -692,6 +716,7 @@ def route_scene_check(scene: Scene, model: mujoco.MjModel) -> dict[str, Any] | N
 __all__ = [
     "BLOCKED",
     "HEADINGS",
+    "MIN_SUPPORT_GAP",
     "MIN_SUPPORT_SEPARATION",
     "NO_PICK_POSE",
     "NO_PLACE_POSE",
@@ -713,6 +738,7 @@ __all__ = [
     "route_scene_check",
     "se2_labels",
     "spawn_area",
+    "support_gap",
     "support_separation",
     "task_route",
 ]

@@ -157,40 +157,46 @@ class Brain:
         self.state.keyed = {k: [i for i in v if i in alive] for k, v in self.state.keyed.items()}
 
     def task_objects(self, request: str, task: str | None) -> TaskSpec | None:
-        """Step 3: the task's objects first, on the largest table-like surface."""
+        """Step 3: the task's objects first: on the support the request picks from, else on
+        the largest table-like surface; a travelling task's place support apart
+        (:meth:`two_supports`)."""
         spec = None
         if self.cfg.task_objects:  # the request's own task is read from its English reading
             spec = parse_task(task) if task else parse_request(request).task
         if spec is None:
             return None
         objects = self.call("get_scene_info")["objects"]
-        if spec.source:
+        if spec.travel:
             self.two_supports(spec, objects)
             return spec
+        table = self.pick_support(spec, objects)
+        if table is not None:
+            for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
+                self.place(text=text, placement="on_top", target=table["id"], task_role=role)
+        return spec
+
+    def pick_support(self, spec: TaskSpec, objects: list[dict[str, Any]]) -> dict[str, Any] | None:
+        """The support the object is picked from: the one "from the <source>" names (placed
+        against a wall when the room has none), else the largest table-like surface (a dining
+        table placed in the middle when there is none)."""
+        if spec.source:
+            found = _named(spec.source, objects)
+            if found is not None:
+                return found
+            res = self.place(text=spec.source, placement="floor", rule="wall")
+            if res.get("ok"):
+                return {"id": res["placed"][0], "size": [1, 1, 1]}
         tables = [o for o in objects if o["category"] in TABLES]
         if not tables:
             res = self.place(text="dining table", placement="floor", rule="center")
             tables = [{"id": res["placed"][0], "size": [1, 1, 1]}] if res.get("ok") else []
-        if tables:
-            table = max(tables, key=lambda o: o["size"][0] * o["size"][1])
-            for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
-                self.place(text=text, placement="on_top", target=table["id"], task_role=role)
-        return spec
+        return max(tables, key=lambda o: o["size"][0] * o["size"][1]) if tables else None
 
     def two_supports(self, spec: TaskSpec, objects: list[dict[str, Any]]) -> None:
         """ "Move X from A to B": X on support A, and B a support of its own away from A,
         marked ``place_support`` for the mobile task, where the route check passes
         (:meth:`keep_route`)."""
-
-        def named(text: str) -> dict[str, Any] | None:
-            key = text.replace(" ", "_")
-            hits = [o for o in objects if o["category"] == key or o["category"].endswith(key)]
-            return max(hits, key=lambda o: o["size"][0] * o["size"][1]) if hits else None
-
-        source = named(spec.source)
-        if source is None:
-            res = self.place(text=spec.source, placement="floor", rule="wall")
-            source = {"id": res["placed"][0]} if res.get("ok") else None
+        source = self.pick_support(spec, objects)
         if source is None:
             return
         self.place(text=spec.pick, placement="on_top", target=source["id"], task_role="pick")
@@ -211,8 +217,9 @@ class Brain:
         """Where the place support (``text``) may go, best first, as ``(room id, rule)``: in a
         home, first the other rooms whose furniture it is (a desk in the study: the route
         then passes a door), against a wall, facing the source, or anywhere about 2.5 m from
-        it; then the source's own room: facing the source from a wall (about 2.5 m away),
-        anywhere about 2.5 m away, against a wall, or anywhere free."""
+        it; then the source's own room: anywhere about 2.4 m between the edges (out of the pick
+        pose's reach: :data:`~factory.nav.support_gap.MIN_SUPPORT_GAP`), facing the source
+        from a wall (about 2.5 m away), against a wall, or anywhere free."""
         info = self.call("get_scene_info")
         rooms = info.get("rooms", [])
         home = next(
@@ -271,6 +278,13 @@ class Brain:
                     return verdict
             if verdict.get("reason") == PLACE_SUPPORT_TOO_CLOSE:
                 verdict = self.make_room(place, source, [r for r, _ in spots], verdict)
+            if verdict.get("reason") == NO_PICK_POSE and source in objects:
+                # the place support moved next to the pick's support: free the pick's side
+                for rule in ("center", "free"):
+                    room = objects[source].get("room_id")
+                    verdict = self.move_support(source, room, rule, None, verdict)
+                    if not verdict.get("reason"):
+                        return verdict
         if verdict.get("reason") in BLOCKED:
             verdict = self.call("route_critic", clear=True)
             for oid in verdict.get("clear", []):
@@ -379,6 +393,14 @@ class Brain:
                 placement="floor",
                 rule="corner" if st.rng.uniform() < 0.5 else "wall",
             )
+
+
+def _named(text: str, objects: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The largest object whose category is ``text`` or ends with it ("table": a coffee
+    table), or None."""
+    key = text.replace(" ", "_")
+    hits = [o for o in objects if o["category"] == key or o["category"].endswith(key)]
+    return max(hits, key=lambda o: o["size"][0] * o["size"][1]) if hits else None
 
 
 TABLES = (

@@ -11,6 +11,8 @@ translated only in a request written in that language, never inside an English o
 
 from __future__ import annotations
 
+from factory.scenes.foreign_looks import LOOK_WORDS
+
 _ES: dict[str, str] = {
     # grammar
     "el": "the",
@@ -68,6 +70,8 @@ _ES: dict[str, str] = {
     "colocala": "put it",
     "colocalo": "put it",
     "métela": "put it",
+    "la pone": "puts it",
+    "lo pone": "puts it",
     "mételo": "put it",
     # size, style, condition, colour, material
     "pequeño": "small",
@@ -1008,8 +1012,12 @@ _ZH: dict[str, str] = {
     "王子": "prince",
 }
 
-FOREIGN_WORDS: dict[str, dict[str, str]] = {"es": _ES, "fr": _FR, "de": _DE, "zh": _ZH}
-"""Language code -> (word or phrase -> English)."""
+FOREIGN_WORDS: dict[str, dict[str, str]] = {
+    lang: {**LOOK_WORDS[lang], **own}
+    for lang, own in (("es", _ES), ("fr", _FR), ("de", _DE), ("zh", _ZH))
+}
+"""Language code -> (word or phrase -> English): the words above, and the colour, material
+and condition words of :data:`~.foreign_looks.LOOK_WORDS`."""
 
 LANGUAGE_NAMES: dict[str, str] = {
     "en": "English",
@@ -1023,6 +1031,14 @@ FALSE_FRIENDS: frozenset[str] = frozenset(
     {
         "alt",
         "bad",
+        "rose",
+        "sale",
+        "violet",
+        "brun",
+        "stein",
+        "lana",
+        "pino",
+        "granit",
         "bank",
         "bol",
         "bureau",

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from factory.assets import AssetLibrary, Resolution
+from factory.nav.support_gap import footprint_gap
 from factory.scenes.footprint import Footprint, inside, overlaps
 from factory.schema import (
     AssetMeta,
@@ -39,6 +40,10 @@ DOOR_DEPTH = 0.9
 AWAY_DISTANCE = 2.5
 """Distance (m) from the target that the ``facing`` and ``away`` floor rules aim at (the
 mobile task's place support from the pick's support: at least 1.5 m is required)."""
+AWAY_GAP = 2.2
+"""Gap (m) between the footprints' nearest edges that the ``away`` rule aims at: the mobile
+task's place support out of reach of the pick's base pose (at least
+:data:`~factory.nav.support_gap.MIN_SUPPORT_GAP`, 2.0 m, is required at generation)."""
 
 
 @dataclass
@@ -293,12 +298,16 @@ def place_floor(
             dist = math.hypot(dx, dy)
             cands.append((-abs(dist - AWAY_DISTANCE) + rng.uniform(0, 0.2), x, y, yaw))
     elif rule == "away" and tgt is not None:
-        # anywhere free, about AWAY_DISTANCE from the target, turned to face it
+        # anywhere free, about AWAY_GAP between the edges, turned to face the target
+        tfp = state.footprint(tgt)
+        tbox = (tfp.x, tfp.y, tfp.hx, tfp.hy, tfp.yaw)
         for gx in np.arange(x0 + 0.3, x1 - 0.3 + 1e-9, 0.2):
             for gy in np.arange(y0 + 0.3, y1 - 0.3 + 1e-9, 0.2):
                 dx, dy = tgt.position.x - float(gx), tgt.position.y - float(gy)
-                score = -abs(math.hypot(dx, dy) - AWAY_DISTANCE) + rng.uniform(0, 0.2)
-                cands.append((score, float(gx), float(gy), math.atan2(dx, -dy)))
+                yaw = math.atan2(dx, -dy)
+                gap = footprint_gap((float(gx), float(gy), w / 2, ln / 2, yaw), tbox)
+                score = -abs(gap - AWAY_GAP) + rng.uniform(0, 0.2)
+                cands.append((score, float(gx), float(gy), yaw))
     elif rule == "near" and tgt is not None:
         tfp = state.footprint(tgt)
         c, s = math.cos(tfp.yaw), math.sin(tfp.yaw)

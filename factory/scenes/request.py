@@ -17,7 +17,8 @@ from functools import cache, lru_cache
 from factory.scenes.homes import find_home, home_rooms
 from factory.scenes.room_meaning import RoomGuess, nearest_room_type
 from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
-from factory.scenes.style_words import CONDITIONS, STYLE_WORDS, read_style
+from factory.scenes.style_words import COLOURS, CONDITIONS, STYLE_WORDS, read_style
+from factory.scenes.task_read import TaskSpec, read_task
 from factory.scenes.translate import translate
 
 log = logging.getLogger(__name__)
@@ -39,39 +40,10 @@ __all__ = [
 ]
 
 
-@dataclass
-class TaskSpec:
-    """A pick-and-place task read from text: what to pick and where to put it.
-
-    ``source`` is the support named by "from the <source>" ("move the can from the coffee
-    table to the desk"): the object starts there and goes to ``target``, another support (the
-    mobile task's two places); empty when the text names no start.
-    """
-
-    pick: str
-    target: str
-    relation: str = "in"
-    instruction: str = ""
-    source: str = ""
-
-
 def parse_task(text: str) -> TaskSpec | None:
-    """Reads "pick up the mug and put it in the bowl" style instructions (English)."""
-    m = re.search(
-        r"(?:pick(?:s)?(?: up)?|grab(?:s)?|move(?:s)?|take(?:s)?)\s+(?:the|a|an)\s+([a-z ]+?)"
-        r"\s+(?:and\s+(?:put|place|drop)s?\s+it\s+|from\s+(?:the|a|an)\s+([a-z ]+?)\s+)?"
-        r"(in|into|on|onto|to)\s+(?:the|a|an)\s+([a-z ]+)",
-        text.lower(),
-    )
-    if not m:
-        return None
-    return TaskSpec(
-        pick=m.group(1).strip(),
-        target=m.group(4).strip().rstrip("."),
-        relation=m.group(3),
-        instruction=text,
-        source=(m.group(2) or "").strip(),
-    )
+    """Reads "pick up the mug [from the table] and put it in the bowl" style instructions
+    (English; the rules: :mod:`.task_read`)."""
+    return read_task(text)
 
 
 @dataclass(frozen=True)
@@ -93,6 +65,7 @@ class ParsedRequest:
         condition_words: the condition words as written (in English).
         materials: materials named or brought by a condition (names of
             :data:`factory.assets.physics.MATERIALS`).
+        colours: colour words named (English: :data:`~.style_words.COLOURS`).
         translated: (foreign word, English) for each word translated.
         unknown: words not understood (foreign words no table knows).
         notes: what was approximated and why ("'veterinary clinic': nearest room type by
@@ -112,6 +85,7 @@ class ParsedRequest:
     conditions: tuple[str, ...] = ()
     condition_words: tuple[str, ...] = ()
     materials: tuple[str, ...] = ()
+    colours: tuple[str, ...] = ()
     translated: tuple[tuple[str, str], ...] = ()
     unknown: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
@@ -138,6 +112,7 @@ class ParsedRequest:
             "style": self.style,
             "conditions": list(self.conditions),
             "materials": list(self.materials),
+            "colours": list(self.colours),
             "english": self.english if self.english != self.text else "",
             "translated": [list(w) for w in self.translated],
             "unknown": list(self.unknown),
@@ -160,6 +135,7 @@ def _english_vocabulary() -> frozenset[str]:
         *PHRASES,
         *STYLE_WORDS,
         *CONDITIONS,
+        *COLOURS,
         *MATERIALS,
         *ALIASES,
     ]
@@ -253,6 +229,7 @@ def parse_request(text: str) -> ParsedRequest:
         conditions=looks.conditions,
         condition_words=looks.condition_words,
         materials=looks.materials,
+        colours=looks.colours,
         translated=tr.words,
         unknown=tr.unknown,
         notes=tuple(notes),

@@ -40,6 +40,28 @@ STYLE_WORDS: tuple[str, ...] = (
 """Design styles, in the order :func:`read_style` prefers them for ``style``."""
 
 
+COLOURS: tuple[str, ...] = (
+    "red",
+    "blue",
+    "green",
+    "white",
+    "black",
+    "yellow",
+    "grey",
+    "gray",
+    "brown",
+    "pink",
+    "orange",
+    "purple",
+    "beige",
+    "silver",
+    "navy",
+    "teal",
+    "turquoise",
+    "cream",
+)
+"""Colour words (English; :mod:`.foreign_looks` reads them from the other languages)."""
+
 _NOT_WORDS = frozenset({"plant", "organic", "soil"})
 """Material names that are internal to the asset library, not words people use for one."""
 
@@ -55,6 +77,7 @@ class StyleRead:
         condition_words: the condition words as written.
         materials: material names (canonical, of :data:`~factory.assets.physics.MATERIALS`)
             named directly or brought by a condition, in request order.
+        colours: colour words of :data:`COLOURS`, in request order ("gray" read as "grey").
     """
 
     style: str = ""
@@ -62,6 +85,7 @@ class StyleRead:
     conditions: tuple[str, ...] = ()
     condition_words: tuple[str, ...] = ()
     materials: tuple[str, ...] = ()
+    colours: tuple[str, ...] = ()
 
 
 _AGE = re.compile(r"\byears?[\s-]+olds?\b")
@@ -113,8 +137,12 @@ def read_style(text: str) -> StyleRead:
     for _, m in sorted(mats, key=lambda pm: pm[0]):
         if m not in materials:
             materials.append(m)
+    colours = tuple(
+        dict.fromkeys("grey" if c == "gray" else c for _, c in _find(low, list(COLOURS)))
+    )
     return StyleRead(
         style=styles[0] if styles else "",
+        colours=colours,
         styles=styles,
         conditions=tuple(kinds),
         condition_words=tuple(w for _, w in conds),
@@ -122,4 +150,4 @@ def read_style(text: str) -> StyleRead:
     )
 
 
-__all__ = ["CONDITIONS", "STYLE_WORDS", "Condition", "StyleRead", "read_style"]
+__all__ = ["COLOURS", "CONDITIONS", "STYLE_WORDS", "Condition", "StyleRead", "read_style"]

@@ -334,7 +334,8 @@ class ToolSession:
     @_safe
     def route_critic(self, clear: bool = False) -> dict[str, Any]:
         """The mobile task's route: whether the robot's base can stand within reach of the
-        object to pick and of the place support (at least 1.5 m apart) and drive between them
+        object to pick and of the place support (at least 1.5 m apart; ``gap``: between their
+        edges) and drive between them
         (``reason`` "" when it can, else no_route, no_pick_pose, no_place_pose, no_spawn_area,
         no_place_support, place_support_too_close, place_support_too_small; ``applies`` is
         false for a scene without a mobile task). With ``clear``, ``clear`` names the light

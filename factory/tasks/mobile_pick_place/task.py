@@ -32,8 +32,9 @@ class MobilePickPlaceTask(Task):
         return super().claims(scene) or any(o.task_role == "place_support" for o in scene.objects)
 
     def matches_request(self, spec: dict[str, Any]) -> bool:
-        """ "Move X from A to B": a request with a source support."""
-        return bool(spec.get("source"))
+        """A request where the robot must travel ("move X from A to B", "bring X to the
+        kitchen": ``travel``, :mod:`factory.scenes.task_read`)."""
+        return bool(spec.get("travel"))
 
     # -- demos ----------------------------------------------------------------------------------
     # set-up, planner, simulation and stored episode: factory.tasks.mobile_pick_place.demos

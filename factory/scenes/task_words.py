@@ -1,0 +1,193 @@
+"""The words of a pick-and-place request, as data: which verbs pick, which say the robot
+travels, which prepositions name a destination, which words name a support.
+
+:func:`factory.scenes.task_read.read_task` reads a request with these tables; the rules that
+use them are written there. A request is the mobile task (the base drives) only when the
+robot must travel:
+
+* a travel verb (:data:`TRAVEL_VERBS`: "carry", "bring", "deliver", "fetch", ...) moves it;
+* or a destination phrase (:data:`DESTINATION_PREPOSITIONS`: "to", "onto", "over to", ...)
+  names a support that is not the one it is picked from (:data:`SUPPORT_WORDS`: "the desk",
+  "the shelf"), or a room;
+* or the place is in another room than the rest of the request names ("... on the shelf in
+  the hallway" in a living room).
+
+"picks up the mug from the table and puts it in the bowl" names the pick support ("from the
+table") and nothing else: the fixed task, both on the table.
+"""
+
+from __future__ import annotations
+
+PICK_VERBS: tuple[str, ...] = (
+    "pick up",
+    "picks up",
+    "picked up",
+    "pick",
+    "picks",
+    "grab",
+    "grabs",
+    "take",
+    "takes",
+    "lift",
+    "lifts",
+    "move",
+    "moves",
+    "carry",
+    "carries",
+    "bring",
+    "brings",
+    "deliver",
+    "delivers",
+    "fetch",
+    "fetches",
+    "transport",
+    "transports",
+    "relocate",
+    "relocates",
+)
+"""Verbs that start a task: "<verb> the <object> ..." (longest tried first)."""
+
+PLACE_VERBS: tuple[str, ...] = (
+    "put",
+    "puts",
+    "place",
+    "places",
+    "drop",
+    "drops",
+    "set",
+    "sets",
+    "leave",
+    "leaves",
+    "stack",
+    "stacks",
+    "carry",
+    "carries",
+    "bring",
+    "brings",
+    "take",
+    "takes",
+    "move",
+    "moves",
+    "deliver",
+    "delivers",
+)
+"""Verbs of the second clause: "... and <verb> it in the bowl"."""
+
+TRAVEL_VERBS: frozenset[str] = frozenset(
+    {
+        "carry",
+        "carries",
+        "bring",
+        "brings",
+        "deliver",
+        "delivers",
+        "fetch",
+        "fetches",
+        "transport",
+        "transports",
+        "relocate",
+        "relocates",
+    }
+)
+"""Verbs that say the robot takes the object somewhere else: always the mobile task."""
+
+RELATIONS: dict[str, str] = {
+    "back into": "in",
+    "back in": "in",
+    "back onto": "on",
+    "back on": "on",
+    "back to": "on",
+    "over to": "on",
+    "across to": "on",
+    "on top of": "on",
+    "inside": "in",
+    "into": "in",
+    "in": "in",
+    "onto": "on",
+    "on": "on",
+    "to": "on",
+}
+"""Place prepositions -> the task's relation (``in`` a container, ``on`` a surface)."""
+
+DESTINATION_PREPOSITIONS: frozenset[str] = frozenset(
+    {"to", "onto", "over to", "across to", "back to", "back onto"}
+)
+"""Prepositions that name a destination: with a support other than the pick support, or a
+room, the robot travels."""
+
+SUPPORT_WORDS: tuple[str, ...] = (
+    "table",
+    "desk",
+    "shelf",
+    "shelves",
+    "bookshelf",
+    "bookcase",
+    "counter",
+    "countertop",
+    "island",
+    "cabinet",
+    "dresser",
+    "nightstand",
+    "bedside table",
+    "sideboard",
+    "workbench",
+    "bench",
+    "cart",
+    "trolley",
+    "stand",
+    "console",
+    "chest",
+    "vanity",
+)
+"""Last words of floor furniture that holds things: a destination support, not a container
+on the table ("to the desk", "onto the shelf")."""
+
+ARTICLES: tuple[str, ...] = (
+    "the",
+    "a",
+    "an",
+    "some",
+    "this",
+    "that",
+    "my",
+    "our",
+    "its",
+    "his",
+    "her",
+)
+"""Words dropped before an object or support name."""
+
+PLACE_ENDS: tuple[str, ...] = (
+    "in the",
+    "in a",
+    "in my",
+    "in our",
+    "of the",
+    "at the",
+    "near the",
+    "next to",
+    "by the",
+    "beside",
+    "across the",
+    "which",
+    "that",
+    "so",
+    "where",
+    "while",
+    "and",
+    "then",
+    "with",
+    "for",
+)
+"""Words that end a support's name ("the desk in the study": the desk, then its room)."""
+
+__all__ = [
+    "ARTICLES",
+    "DESTINATION_PREPOSITIONS",
+    "PICK_VERBS",
+    "PLACE_ENDS",
+    "PLACE_VERBS",
+    "RELATIONS",
+    "SUPPORT_WORDS",
+    "TRAVEL_VERBS",
+]
