@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from factory.scenes.homes import OPEN_PLAN_ROOMS
 from factory.scenes.plan_layout import (
     DOOR_MARGIN,
     DOOR_WIDTH,
@@ -198,7 +199,7 @@ def init_scene(
     for t in types:
         (w0, w1), (l0, l1) = ROOM_TYPES[t].size
         sizes.append((forced_width or float(rng.uniform(w0, w1)), float(rng.uniform(l0, l1))))
-    plan = plan_layout(types, sizes)
+    plan = plan_layout(types, sizes, OPEN_PLAN_ROOMS if parsed.open_plan else frozenset())
     rooms: list[Room] = []
     used: dict[str, int] = {}
     for t, box in zip(types, plan.boxes, strict=True):

@@ -78,6 +78,27 @@ HOMES: dict[str, HomeProgram] = {
 }
 """Home word -> its room program."""
 
+OPEN_PLAN_WORDS: tuple[str, ...] = (
+    "open-plan",
+    "open plan",
+    "open-concept",
+    "open concept",
+    "open space",
+    "open living",
+    "loft",
+)
+"""Words that ask for an open plan: the day rooms of the home are one open space."""
+OPEN_PLAN_ROOMS: frozenset[str] = frozenset({"living room", "kitchen", "dining room", "studio"})
+"""The room types an open plan joins into one space (zones of it): no wall between them but
+short stubs at the ends of the wall they share."""
+
+
+def is_open_plan(text: str) -> bool:
+    """Whether an (English) request asks for an open plan (:data:`OPEN_PLAN_WORDS`)."""
+    low = text.lower()
+    return any(re.search(rf"\b{re.escape(w)}\b", low) for w in OPEN_PLAN_WORDS)
+
+
 ROOMS_BY_COUNT: tuple[str, ...] = (
     "bedroom",
     "kitchen",

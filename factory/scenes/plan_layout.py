@@ -296,7 +296,7 @@ def _stretch(band: list[int], widths: list[float], types: list[str], total: floa
     return [widths[k] + (extra * widths[k] / share if k in takers else 0.0) for k in band]
 
 
-def _row(sizes: list[tuple[float, float]]) -> PlanLayout:
+def _row(sizes: list[tuple[float, float]], open_link: bool = False) -> PlanLayout:
     length = max(ln for _, ln in sizes) if len(sizes) > 1 else sizes[0][1]
     boxes: list[Box] = []
     x = 0.0
@@ -307,7 +307,10 @@ def _row(sizes: list[tuple[float, float]]) -> PlanLayout:
     for k in range(len(boxes) - 1):
         seg = shared_segment(boxes[k], boxes[k + 1])
         assert seg is not None
-        links.append(Link(k, k + 1, seg, DOOR_WIDTH))
+        if open_link:  # an open plan: the shared wall is open but for short stubs
+            links.append(Link(k, k + 1, seg, seg.length - 2 * DOOR_MARGIN, True))
+        else:
+            links.append(Link(k, k + 1, seg, DOOR_WIDTH))
     return PlanLayout(
         "row",
         tuple(boxes),
@@ -318,7 +321,11 @@ def _row(sizes: list[tuple[float, float]]) -> PlanLayout:
     )
 
 
-def plan_layout(types: list[str], sizes: list[tuple[float, float]]) -> PlanLayout:
+def plan_layout(
+    types: list[str],
+    sizes: list[tuple[float, float]],
+    open_rooms: frozenset[str] = frozenset(),
+) -> PlanLayout:
     """Lays out the rooms of a home (see the module's description).
 
     Args:
@@ -326,6 +333,9 @@ def plan_layout(types: list[str], sizes: list[tuple[float, float]]) -> PlanLayou
             :func:`with_circulation` added, if any).
         sizes: each room's drawn ``(width, length)`` (m): its extents along x and y when it
             stands alone; in a band, width runs along the band and length is its depth.
+        open_rooms: an open plan's room types (:data:`~.homes.OPEN_PLAN_ROOMS`; empty: none):
+            two of them that share a wall meet through an opening as wide as that wall but
+            for :data:`DOOR_MARGIN` at each end, so that they are zones of one open space.
 
     Returns:
         the plan; rooms keep their order.
@@ -340,7 +350,7 @@ def plan_layout(types: list[str], sizes: list[tuple[float, float]]) -> PlanLayou
             f"{len(sizes)} sizes"
         )
     if len(types) <= 2:
-        return _row(sizes)
+        return _row(sizes, len(types) == 2 and set(types) <= open_rooms)
     spine = next((types.index(t) for t in HUBS if t in types), None)
     if spine is None:
         raise FloorPlanError(
@@ -387,15 +397,16 @@ def plan_layout(types: list[str], sizes: list[tuple[float, float]]) -> PlanLayou
             seg = shared_segment(done[k], done[spine])
             if seg is None:  # pragma: no cover - every band room spans its part of the spine
                 raise FloorPlanError(f"room {k} ({types[k]}) does not touch the spine")
-            wide = spine_open and frozenset({types[k], types[spine]}) in OPEN_PAIRS
-            links.append(_link(spine, k, seg, wide, types))
+            whole = {types[k], types[spine]} <= open_rooms
+            wide = whole or (spine_open and frozenset({types[k], types[spine]}) in OPEN_PAIRS)
+            links.append(_link(spine, k, seg, wide, types, whole))
     south = bands["south"]
-    if types[spine] == "hallway":  # an open living-kitchen in the day band
-        for a, b in itertools.pairwise(south):
-            if frozenset({types[a], types[b]}) in OPEN_PAIRS:
-                seg = shared_segment(done[a], done[b])
-                if seg is not None:
-                    links.append(_link(a, b, seg, True, types))
+    for a, b in itertools.pairwise(south):  # an open living-kitchen in the day band
+        whole = {types[a], types[b]} <= open_rooms
+        if whole or (types[spine] == "hallway" and frozenset({types[a], types[b]}) in OPEN_PAIRS):
+            seg = shared_segment(done[a], done[b])
+            if seg is not None:
+                links.append(_link(a, b, seg, True, types, whole))
     return PlanLayout(
         "spine",
         done,
@@ -406,9 +417,9 @@ def plan_layout(types: list[str], sizes: list[tuple[float, float]]) -> PlanLayou
     )
 
 
-def _link(a: int, b: int, seg: Segment, wide: bool, types: list[str]) -> Link:
+def _link(a: int, b: int, seg: Segment, wide: bool, types: list[str], whole: bool = False) -> Link:
     room = seg.length - 2 * DOOR_MARGIN
-    width = min(WIDE_OPENING, room) if wide else DOOR_WIDTH
+    width = room if whole else min(WIDE_OPENING, room) if wide else DOOR_WIDTH
     if room < DOOR_WIDTH:
         raise FloorPlanError(
             f"the {types[a]} and the {types[b]} share only {seg.length:.2f} m of wall, too "

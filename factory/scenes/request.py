@@ -14,7 +14,7 @@ import re
 from dataclasses import dataclass
 from functools import cache, lru_cache
 
-from factory.scenes.homes import find_home, home_rooms
+from factory.scenes.homes import find_home, home_rooms, is_open_plan
 from factory.scenes.room_meaning import RoomGuess, nearest_room_type
 from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
 from factory.scenes.style_words import COLOURS, CONDITIONS, STYLE_WORDS, read_style
@@ -72,6 +72,8 @@ class ParsedRequest:
             meaning: exam room (score 0.85)").
         warnings: what the user should know (words not understood, no room named).
         guess: the room type chosen by meaning when no room word matched (``None`` if none).
+        open_plan: the request asks for an open plan ("an open-plan loft"): the home's day
+            rooms are zones of one open space (:data:`~.homes.OPEN_PLAN_WORDS`).
     """
 
     text: str
@@ -91,6 +93,7 @@ class ParsedRequest:
     notes: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
     guess: RoomGuess | None = None
+    open_plan: bool = False
 
     @property
     def names_a_room(self) -> bool:
@@ -235,6 +238,7 @@ def parse_request(text: str) -> ParsedRequest:
         notes=tuple(notes),
         warnings=tuple(warnings),
         guess=guess,
+        open_plan=len(room_types) > 1 and is_open_plan(english),
     )
     for note in notes:
         log.info("request %r: %s", text, note)

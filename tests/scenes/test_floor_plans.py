@@ -269,3 +269,40 @@ def test_generate_a_home_through_the_cli(cli, tmp_path: Path) -> None:
     assert all(any(o.room_id == r.id for o in scene.objects) for r in scene.rooms)
     renders = sorted(p.name for p in (scene_dir / "renders").iterdir())
     assert renders == ["plan.png", "room_bathroom.png", "room_bedroom.png", "room_kitchen.png"]
+
+
+def test_open_plan_joins_the_day_rooms() -> None:
+    """ "open-plan" (or a loft) makes the home's day rooms zones of one open space: two of them
+    that share a wall meet through an opening as wide as that wall but for short stubs; the
+    same home without the word keeps doors and a 1.6 m kitchen opening."""
+    from factory.scenes.homes import OPEN_PLAN_ROOMS
+    from factory.scenes.plan_layout import DOOR_MARGIN
+    from factory.scenes.request import parse_request
+
+    assert parse_request("an open-plan loft").open_plan
+    assert not parse_request("a loft bed").open_plan  # one room: nothing to open
+    assert not parse_request("a family home").open_plan
+
+    def day_doors(request: str) -> list[tuple[Door, float]]:
+        scene, _ = init_scene(request, seed=1)
+        rooms = {r.id: r for r in scene.rooms}
+        out = []
+        for room in scene.rooms:
+            walls = {w.id: w for w in room.walls}
+            for door in room.doors:
+                other = door.id.rpartition("_to_")[2]
+                if other in rooms and {room.room_type, rooms[other].room_type} <= OPEN_PLAN_ROOMS:
+                    w = walls[door.wall_id]
+                    length = math.dist((w.start.x, w.start.y), (w.end.x, w.end.y))
+                    out.append((door, length))
+        return out
+
+    request = "an apartment with a kitchen, a living room, a dining room and a bedroom"
+    closed = day_doors(request)
+    assert closed and all(d.width <= 1.6 + 1e-6 for d, _ in closed)
+    opened = day_doors("an open-plan " + request.removeprefix("an "))
+    assert len(opened) >= len(closed)
+    shared = [d for d, _ in opened if d.door_type == "opening" and d.width > 1.6]
+    assert shared, [(d.id, d.width) for d, _ in opened]
+    for d in shared:
+        assert d.width >= 2.0 - 2 * DOOR_MARGIN
