@@ -13,11 +13,11 @@ import math
 __all__ = ["MIN_SUPPORT_GAP", "footprint_gap"]
 
 MIN_SUPPORT_GAP = 1.5
-"""Least gap (m) between the pick's support and the place support of the mobile task. The
-Panda reaches about 0.85 m from its shoulder and needs about 0.1 m into a top: one base pose
-reaches two tops at most about 1.5 m apart, so at 2.0 m no pose serves both and the base must
-drive (at least about 0.5 m, usually the gap itself, since it works each support from its
-front)."""
+"""Least gap (m) between the pick's support and the place support of a generated mobile-task
+scene (its feasibility critic, :meth:`MobilePickPlaceTask.feasibility`). The Panda reaches
+about 0.85 m from its shoulder and needs about 0.1 m into a top: one base pose between two tops
+reaches both only while their nearest edges are closer than about 1.5 m, so at this gap the
+base must drive."""
 
 
 def _extent(hw: float, hl: float, yaw: float) -> tuple[float, float]:

@@ -4,6 +4,7 @@ check with repair, and the task's feasibility critic with another attempt when i
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -127,3 +128,29 @@ def test_generate_tries_another_seed_when_the_task_does_not_fit(
     rejected = json.loads(report_path.read_text())["generate"]["rejected"]
     assert [r["seed"] for r in rejected] == [0, 7919]
     assert not (report_path.parent / "scene.json").exists()
+
+
+def test_mobile_feasibility_asks_the_base_to_drive(tmp_path: Path) -> None:
+    """The mobile task's critic is its route check with the supports' nearest edges at least
+    MIN_SUPPORT_GAP apart: the bundled living room passes; with the desk moved beside the
+    coffee table (one base pose would serve both) it fails as ``place_support_too_close``."""
+    from factory.nav.support_gap import MIN_SUPPORT_GAP
+    from factory.schema import load_scene
+    from factory.tasks import get_task
+
+    task = get_task("mobile_pick_place")
+    path = task.example_scene_path()
+    assert path is not None
+    scene = load_scene(path)
+    ok = task.feasibility(scene, None)
+    assert ok is not None and ok["reason"] == "" and ok["gap"] >= MIN_SUPPORT_GAP, ok
+    can = next(o for o in scene.objects if o.task_role == "pick")
+    pick = scene.object(can.placement.support_id or "")
+    place = next(o for o in scene.objects if o.task_role == "place_target")
+    side = math.copysign(1.0, place.position.x - pick.position.x)
+    x = pick.position.x + side * (pick.dimensions.width / 2 + place.dimensions.width / 2 + 0.5)
+    dx, dy = x - place.position.x, pick.position.y - place.position.y
+    for o in [place, *(o for o in scene.objects if o.placement.support_id == place.id)]:
+        o.position = Vec3(o.position.x + dx, o.position.y + dy, o.position.z)
+    near = task.feasibility(scene, None)
+    assert near is not None and near["reason"] == "place_support_too_close", near

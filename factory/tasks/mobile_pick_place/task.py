@@ -36,6 +36,19 @@ class MobilePickPlaceTask(Task):
         kitchen": ``travel``, :mod:`factory.scenes.task_read`)."""
         return bool(spec.get("travel"))
 
+    def feasibility(self, scene: Scene, assets_root: Any) -> dict[str, Any] | None:
+        """The route check (:func:`factory.nav.route.check_route`: both supports reachable
+        for the base, a free route between them) with the supports' nearest edges at least
+        :data:`~factory.nav.support_gap.MIN_SUPPORT_GAP` apart, so that the robot must drive:
+        ``stage=generate`` tries another seed when it fails (``stage=validate`` reports the
+        route itself, ``validate.checks.route``)."""
+        from factory.nav.route import check_route
+        from factory.nav.support_gap import MIN_SUPPORT_GAP
+        from factory.sim.compile import compile_scene
+
+        model = compile_scene(scene, assets_root).model
+        return check_route(scene, model=model, min_gap=MIN_SUPPORT_GAP).as_dict()
+
     # -- demos ----------------------------------------------------------------------------------
     # set-up, planner, simulation and stored episode: factory.tasks.mobile_pick_place.demos
     # (demo_scene)
