@@ -31,7 +31,7 @@ from factory.schema import AssetRef, Physics, Placement, Room, Scene, SceneObjec
 from factory.sim.compile import compile_scene
 from factory.sim.stability import FreeBodies, StabilityProtocol, check_stability
 
-SEEDS = range(5)
+SEEDS = (0, 2, 4)  # three of the five seeds the mass ranges were calibrated on
 
 
 @pytest.mark.parametrize("category", sorted(CATEGORIES))

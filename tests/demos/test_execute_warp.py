@@ -289,10 +289,10 @@ def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> N
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
     assert len(plans) >= 3
-    # Short episodes of different lengths: the first 0.5-1 s of each.
+    # Short episodes of different lengths: the first 0.25-0.5 s of each.
     plans = [
         dataclasses.replace(p, ctrl=p.ctrl[:k], targets=p.targets[:k])
-        for p, k in zip(plans[:3], (500, 250, 300), strict=True)
+        for p, k in zip(plans[:3], (250, 125, 150), strict=True)
     ]
     cfg = RecordConfig(width=16, height=16)
     ex = WarpExecutor(setup, cfg, device=device)
@@ -324,8 +324,8 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
     plans = [p for p in (planner.plan_episode(s) for s in range(6)) if isinstance(p, EpisodePlan)]
     plans = sorted(plans, key=lambda p: len(p.ctrl))[:2]
     assert len(plans) == 2
-    # Short episodes: the first 0.6 s of each (the success checks may fail; images are compared).
-    plans = [dataclasses.replace(p, ctrl=p.ctrl[:300], targets=p.targets[:300]) for p in plans]
+    # Short episodes: the first 0.3 s of each (the success checks may fail; images are compared).
+    plans = [dataclasses.replace(p, ctrl=p.ctrl[:150], targets=p.targets[:150]) for p in plans]
     cfg = RecordConfig(width=24, height=24)
     plain = WarpExecutor(setup, cfg, device="cpu").execute(plans)
     pool = ArenaPool(1 << 24)

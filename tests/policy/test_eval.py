@@ -218,10 +218,10 @@ def test_replay_of_a_generated_kitchen(pcli, tmp_path: Path) -> None:
         "profile=small",
         f"run_dir={run}",
         "all.stages=[generate,validate,demos,dataset]",
-        "demos.episodes_per_scene=10",
+        "demos.episodes_per_scene=5",
     )
     assert out.returncode == 0, out.stderr[-3000:]
     out = pcli("stage=eval", "profile=small", f"run_dir={run}", "eval.policy=replay")
     assert out.returncode == 0, out.stderr[-3000:]
     r = _results(run, "replay")
-    assert r["episodes"] == 10 and r["success_rate"] >= 0.98, r
+    assert r["episodes"] == 5 and r["success_rate"] >= 0.98, r  # every one
