@@ -172,6 +172,8 @@ def run(ctx: Any) -> dict[str, Any]:
         from factory.store import atomic_write_json, atomic_write_text
 
         failed: list[dict[str, Any]] = []
+        soft: tuple[float, Any, dict[str, Any]] | None = None  # the best scene that can host
+        accepted = False
         for attempt in range(gcfg.task_attempts):
             s = attempt_seed(seed, attempt)
             try:
@@ -183,8 +185,11 @@ def run(ctx: Any) -> dict[str, Any]:
             report.update(checks)
             verdict = checks.get("task_check")
             if verdict is None or not verdict["reason"]:
+                accepted = True
                 break
             failed.append({"seed": s, "reason": verdict["reason"], "detail": verdict["detail"]})
+            if verdict.get("soft") and (soft is None or verdict.get("gap", 0.0) > soft[0]):
+                soft = (float(verdict.get("gap", 0.0)), scene, report)
             log.info(
                 "scene %s: attempt %d of %d cannot host its task (%s: %s)",
                 scene_id,
@@ -193,17 +198,26 @@ def run(ctx: Any) -> dict[str, Any]:
                 verdict["reason"],
                 verdict["detail"],
             )
-        else:
-            atomic_write_json(
-                store.report_json(scene_id),
-                {"schema_version": 1, "generate": {"request": prompt, "rejected": failed}},
+        if not accepted:
+            if soft is None:
+                atomic_write_json(
+                    store.report_json(scene_id),
+                    {"schema_version": 1, "generate": {"request": prompt, "rejected": failed}},
+                )
+                raise TaskError(
+                    f"scene {scene_id}: none of {len(failed)} attempts can host its task "
+                    f"({', '.join(sorted({f['reason'] for f in failed}))}; "
+                    f"{store.report_json(scene_id)} lists them): raise generate.task_attempts "
+                    "or name a larger support in the request"
+                )
+            # every attempt can host the task, short of what the critic prefers (a soft
+            # verdict: the mobile task's supports closer than it asks): the closest is kept
+            _, scene, report = soft
+            report["task_check_kept"] = (
+                f"no attempt met the task critic ({failed[-1]['reason']}); kept the one "
+                "closest to it"
             )
-            raise TaskError(
-                f"scene {scene_id}: none of {len(failed)} attempts can host its task "
-                f"({', '.join(sorted({f['reason'] for f in failed}))}; "
-                f"{store.report_json(scene_id)} lists them): raise generate.task_attempts or "
-                "name a larger support in the request"
-            )
+            log.warning("scene %s: %s", scene_id, report["task_check_kept"])
         if failed:
             report["rejected_attempts"] = failed
         atomic_write_json(store.report_json(scene_id), {"schema_version": 1, "generate": report})

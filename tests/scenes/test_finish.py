@@ -154,3 +154,32 @@ def test_mobile_feasibility_asks_the_base_to_drive(tmp_path: Path) -> None:
         o.position = Vec3(o.position.x + dx, o.position.y + dy, o.position.z)
     near = task.feasibility(scene, None)
     assert near is not None and near["reason"] == "place_support_too_close", near
+
+
+def test_generate_keeps_the_closest_soft_attempt(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, make_kitchen
+) -> None:
+    """When every attempt could host the task but none meets the critic's preference (a soft
+    verdict, as the mobile task's supports closer than it asks), the attempt closest to it
+    (the widest gap) is written, and the report says so."""
+    import factory.scenes.generate as generate
+    from factory.tasks.pick_place.task import PickPlaceTask
+
+    def agent(gcfg, prompt, library, seed, agent_cfg, scene_id):
+        scene = make_kitchen(library.assets_dir, scene_id=scene_id)
+        scene.task = Task(kind="pick_place", instruction="put the mug in the bowl")
+        return scene, {"request": prompt, "seed": seed, "objects": len(scene.objects)}
+
+    gaps = iter([0.9, 1.2, 0.4])
+    monkeypatch.setattr(generate, "_generate_with", agent)
+    monkeypatch.setattr(
+        PickPlaceTask,
+        "feasibility",
+        lambda self, s, a: {"reason": "too_close", "detail": "x", "soft": True, "gap": next(gaps)},
+    )
+    _generate(tmp_path / "a", task_attempts=3)
+    (report_path,) = (tmp_path / "a" / "scenes").glob("*/report.json")
+    report = json.loads(report_path.read_text())["generate"]
+    assert report["seed"] == 7919 and "kept the one closest" in report["task_check_kept"]
+    assert len(report["rejected_attempts"]) == 3
+    assert (report_path.parent / "scene.json").is_file()

@@ -39,15 +39,27 @@ class MobilePickPlaceTask(Task):
     def feasibility(self, scene: Scene, assets_root: Any) -> dict[str, Any] | None:
         """The route check (:func:`factory.nav.route.check_route`: both supports reachable
         for the base, a free route between them) with the supports' nearest edges at least
-        :data:`~factory.nav.support_gap.MIN_SUPPORT_GAP` apart, so that the robot must drive:
-        ``stage=generate`` tries another seed when it fails (``stage=validate`` reports the
-        route itself, ``validate.checks.route``)."""
-        from factory.nav.route import check_route
+        :data:`~factory.nav.support_gap.MIN_SUPPORT_GAP` apart, so that the robot must drive.
+        A scene whose only fault is a smaller gap can still host the task: its verdict is
+        ``soft`` (``stage=generate`` tries other seeds and keeps the widest gap if none
+        reaches the minimum). ``stage=validate`` reports the route itself
+        (``validate.checks.route``)."""
+        from factory.nav.route import PLACE_SUPPORT_TOO_CLOSE, check_route
         from factory.nav.support_gap import MIN_SUPPORT_GAP
         from factory.sim.compile import compile_scene
 
         model = compile_scene(scene, assets_root).model
-        return check_route(scene, model=model, min_gap=MIN_SUPPORT_GAP).as_dict()
+        verdict = check_route(scene, model=model, min_gap=MIN_SUPPORT_GAP)
+        if verdict.reason == PLACE_SUPPORT_TOO_CLOSE:
+            route = check_route(scene, model=model)  # the centres' distance and the rest
+            if route.ok:
+                return {
+                    **route.as_dict(),
+                    "reason": verdict.reason,
+                    "detail": verdict.detail,
+                    "soft": True,
+                }
+        return verdict.as_dict()
 
     # -- demos ----------------------------------------------------------------------------------
     # set-up, planner, simulation and stored episode: factory.tasks.mobile_pick_place.demos
