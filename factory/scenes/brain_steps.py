@@ -264,12 +264,21 @@ class Brain:
         place, source = verdict.get("place_support"), verdict.get("pick_support")
         if place and source:
             objects = {o["id"]: o for o in self.call("get_scene_info").get("objects", [])}
-            if verdict.get("reason") == NO_PICK_POSE and source in objects:
-                for rule in ("center", "free"):
+
+            def free_pick_side(verdict: dict[str, Any]) -> dict[str, Any]:
+                """The pick's support moved (centre, then anywhere) where the base has no
+                pose to pick from: the place support stands next to it."""
+                if verdict.get("reason") == NO_PICK_POSE and source in objects:
                     room = objects[source].get("room_id")
-                    verdict = self.move_support(source, room, rule, None, verdict)
-                    if not verdict.get("reason"):
-                        return verdict
+                    for rule in ("center", "free"):
+                        verdict = self.move_support(source, room, rule, None, verdict)
+                        if not verdict.get("reason"):
+                            break
+                return verdict
+
+            verdict = free_pick_side(verdict)
+            if not verdict.get("reason"):
+                return verdict
             text = str(objects[place]["category"]).replace("_", " ") if place in objects else ""
             spots = self.support_spots(text, source) if text else []
             for room_id, rule in spots:
@@ -278,13 +287,9 @@ class Brain:
                     return verdict
             if verdict.get("reason") == PLACE_SUPPORT_TOO_CLOSE:
                 verdict = self.make_room(place, source, [r for r, _ in spots], verdict)
-            if verdict.get("reason") == NO_PICK_POSE and source in objects:
-                # the place support moved next to the pick's support: free the pick's side
-                for rule in ("center", "free"):
-                    room = objects[source].get("room_id")
-                    verdict = self.move_support(source, room, rule, None, verdict)
-                    if not verdict.get("reason"):
-                        return verdict
+            verdict = free_pick_side(verdict)
+            if not verdict.get("reason"):
+                return verdict
         if verdict.get("reason") in BLOCKED:
             verdict = self.call("route_critic", clear=True)
             for oid in verdict.get("clear", []):

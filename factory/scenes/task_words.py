@@ -18,6 +18,21 @@ table") and nothing else: the fixed task, both on the table.
 
 from __future__ import annotations
 
+_TRAVEL: tuple[str, ...] = (
+    "carry",
+    "carries",
+    "bring",
+    "brings",
+    "deliver",
+    "delivers",
+    "fetch",
+    "fetches",
+    "transport",
+    "transports",
+    "relocate",
+    "relocates",
+)
+
 PICK_VERBS: tuple[str, ...] = (
     "pick up",
     "picks up",
@@ -32,18 +47,7 @@ PICK_VERBS: tuple[str, ...] = (
     "lifts",
     "move",
     "moves",
-    "carry",
-    "carries",
-    "bring",
-    "brings",
-    "deliver",
-    "delivers",
-    "fetch",
-    "fetches",
-    "transport",
-    "transports",
-    "relocate",
-    "relocates",
+    *_TRAVEL,
 )
 """Verbs that start a task: "<verb> the <object> ..." (longest tried first)."""
 
@@ -73,22 +77,7 @@ PLACE_VERBS: tuple[str, ...] = (
 )
 """Verbs of the second clause: "... and <verb> it in the bowl"."""
 
-TRAVEL_VERBS: frozenset[str] = frozenset(
-    {
-        "carry",
-        "carries",
-        "bring",
-        "brings",
-        "deliver",
-        "delivers",
-        "fetch",
-        "fetches",
-        "transport",
-        "transports",
-        "relocate",
-        "relocates",
-    }
-)
+TRAVEL_VERBS: frozenset[str] = frozenset(_TRAVEL)
 """Verbs that say the robot takes the object somewhere else: always the mobile task."""
 
 RELATIONS: dict[str, str] = {
