@@ -200,7 +200,13 @@ class Brain:
         if source is None:
             return
         self.place(text=spec.pick, placement="on_top", target=source["id"], task_role="pick")
-        for room_id, rule in self.support_spots(spec.target, source["id"]):
+        spots = self.support_spots(spec.target, source["id"])
+        if spots and spots[0][0] is None:  # both in one room: the source goes to a wall
+            # first, so that the place support can stand far from it (a coffee table in the
+            # middle of a 5 m room leaves no spot 1.5 m from its edges); what stands on it
+            # moves along
+            self.call("move_object", object_id=source["id"], placement="floor", rule="wall")
+        for room_id, rule in spots:
             res = self.place(
                 text=spec.target,
                 placement="floor",
