@@ -5,7 +5,10 @@ repaired, and judged by its task.
    under the validation protocol (:func:`factory.sim.validate.validate_scene`, the ``sim.*``
    and ``validate.*`` settings, repair on): the smaller of two interpenetrating objects is
    removed, unstable objects are moved to their settled pose when it is stable, or removed
-   (with what stands on them), for up to ``validate.max_repair_rounds`` rounds. What
+   (with what stands on them), for up to ``validate.max_repair_rounds`` rounds; then an object
+   that stands more than ``validate.collision_tol`` into a wall, floor or ceiling at rest is
+   removed too (``stage=validate`` counts pairs of objects; a plain contact check counts the
+   building as well). What
    ``stage=validate`` then measures is what this step measured last: 0 % colliding and 100 %
    stable unless the rounds ran out (logged as a warning).
 2. **Task feasibility** (a scene made for a task): the task's own critic
@@ -63,6 +66,14 @@ def strict_check(scene: Scene, assets_root: Path, cfg: Any) -> tuple[Scene, dict
     scene, report = validate_scene(scene, assets_root, run_cfg, make_backend(cfg.sim))
     metrics = report["metrics"]
     changes = [c for r in report["repair"] for c in r["changes"]]
+    into_walls = _into_structure(scene, assets_root, cfg.validate.collision_tol)
+    if into_walls:  # stage=validate counts object pairs; a plain contact check counts walls too
+        gone = scene.with_dependents(set(into_walls))
+        scene.objects = [o for o in scene.objects if o.id not in gone]
+        changes += [
+            {"action": "remove", "object": oid, "reason": into_walls.get(oid, "its support went")}
+            for oid in sorted(gone)
+        ]
     out = {
         "rounds": len(report["repair"]),
         "changes": changes,
@@ -87,6 +98,29 @@ def strict_check(scene: Scene, assets_root: Path, cfg: Any) -> tuple[Scene, dict
             out["rounds"],
         )
     return scene, out
+
+
+def _into_structure(scene: Scene, assets_root: Path, tol: float) -> dict[str, str]:
+    """Objects that stand more than ``tol`` (m) into a wall, floor or ceiling at rest (the
+    compiled scene's contacts at its initial state), with why: object id -> reason."""
+    import mujoco
+
+    from factory.sim.compile import compile_scene
+
+    model = compile_scene(scene, assets_root).model
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    ids = {o.id for o in scene.objects}
+    root = model.body_rootid
+    out: dict[str, str] = {}
+    for c in data.contact[: data.ncon]:
+        if c.dist >= -tol:
+            continue
+        a, b = (model.body(int(root[model.geom_bodyid[g]])).name for g in (c.geom1, c.geom2))
+        if (a in ids) != (b in ids):  # one object, one piece of the building
+            oid, wall = (a, model.geom(c.geom2).name) if a in ids else (b, model.geom(c.geom1).name)
+            out.setdefault(oid, f"{-c.dist * 100:.1f} cm into {wall}")
+    return out
 
 
 def task_check(scene: Scene, assets_root: Path | None) -> dict[str, Any] | None:

@@ -183,3 +183,27 @@ def test_generate_keeps_the_closest_soft_attempt(
     assert report["seed"] == 7919 and "kept the one closest" in report["task_check_kept"]
     assert len(report["rejected_attempts"]) == 3
     assert (report_path.parent / "scene.json").is_file()
+
+
+def test_final_check_removes_an_object_in_a_wall(tmp_path: Path, make_kitchen) -> None:
+    """An object standing 4 cm into a wall (which stage=validate's object pairs do not count)
+    is removed by the final check, with the depth and the wall in its reason."""
+    from factory.scenes.finish import strict_check
+
+    scene = make_kitchen(tmp_path / "assets")
+    mug = next(o for o in scene.objects if o.id.startswith("mug"))
+    room = scene.rooms[0]
+    wall = min(room.walls, key=lambda w: min(w.start.x, w.end.x))  # the west wall, x = x0
+    x0 = min(wall.start.x, wall.end.x)
+    inside = replace(
+        mug,
+        id="mug_8",
+        task_role=None,
+        position=Vec3(x0 + wall.thickness / 2 + mug.dimensions.width / 2 - 0.04, 1.0, 0.0),
+        placement=Placement(kind="floor"),
+    )
+    scene.objects.append(inside)
+    scene, out = strict_check(scene, tmp_path / "assets", FactoryConfig())
+    removed = {c["object"]: c["reason"] for c in out["changes"] if c["action"] == "remove"}
+    assert "mug_8" in removed and "cm into" in removed["mug_8"], out["changes"]
+    assert all(o.id != "mug_8" for o in scene.objects)
