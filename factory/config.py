@@ -503,6 +503,14 @@ class TrainConfig:
             samples and the gradients are averaged (:mod:`factory.policy.data_parallel`).
         options: policy config fields per type, e.g. ``{diffusion: {down_dims: [64, 128]}}``;
             applied to the type trained, others ignored.
+        vision: how an ``rgb``/``rgbd`` policy of the fixed-base task reads its cameras:
+            ``end_to_end`` (lerobot's image encoder inside the policy, trained by the policy's
+            loss with ``aux_state``) or ``perception`` (a perception network predicts the object
+            poses from the newest frame and lerobot's diffusion policy, the state recipe, acts
+            on them: :mod:`factory.policy.perception`).
+        perception_noise_m: ``vision=perception``: standard deviation (m, per axis) of the
+            Gaussian offset added to each object's recorded position while the policy trains,
+            so that it acts on a perception's errors.
     """
 
     name: str = "${train.policy}_${train.inputs}"
@@ -536,6 +544,8 @@ class TrainConfig:
     eval_episodes: int = 10
     gpus: int = 1
     options: dict[str, Any] = field(default_factory=dict)
+    vision: str = "end_to_end"
+    perception_noise_m: float = 0.01
 
 
 @dataclass

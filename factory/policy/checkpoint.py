@@ -91,6 +91,7 @@ class TrainInfo:
     config: dict[str, Any] = field(default_factory=dict)
     episode_indices: list[int] = field(default_factory=list)
     action: str = "joint"
+    vision: str = "end_to_end"
 
     def to_json(self) -> dict[str, Any]:
         return {"schema_version": TRAIN_SCHEMA_VERSION, **asdict(self)}
@@ -308,7 +309,11 @@ class LoadedPolicy:
         self.info = info
         self.path = path
         self.device = device
-        self.spec = spec_from_features(info.inputs, info.features, info.depth_max_m, info.action)
+        self.spec = spec_from_features(
+            info.inputs, info.features, info.depth_max_m, info.action, info.vision == "perception"
+        )
+        self.perception: Any = None
+        """The perception network (``train.vision=perception``), set by :func:`load_policy`."""
         self._tracker = ToolActionTracker() if info.action != "joint" else None
         self._origin: np.ndarray | None = None
         self._base_origin: np.ndarray | None = None
@@ -358,6 +363,15 @@ class LoadedPolicy:
             check_features(self.info, obs, {k: np.shape(v)[1:] for k, v in obs.items()})
             self._checked = True
         batch = convert_observation(self.spec, obs)
+        if self.perception is not None:  # the object poses read from the cameras
+            from factory.policy.perception import camera_stack
+
+            images = camera_stack(batch, self.perception.cameras, self.perception.depth)
+            for k in self.spec.visual_keys():
+                del batch[k]
+            with torch.inference_mode():
+                env = self.perception.predict(images.to(self.device)).float()
+            batch["observation.environment_state"] = env.to("cpu")
         with torch.inference_mode():
             if chunk_starts(self._policy):
                 # this chunk's positions are relative to the tool's position now, its base
@@ -464,6 +478,11 @@ def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedP
     policy.to(dev)
     policy.eval()
     policy.reset()
+    perception = None
+    if info.vision == "perception":
+        from factory.policy.perception import load as load_perception
+
+        perception = load_perception(path, dev)
     log.info(
         "loaded policy %s (%s, inputs=%s, %d steps) from %s on %s",
         info.name,
@@ -473,4 +492,6 @@ def load_policy(ref: str, run_dir: Path | None, device: str = "auto") -> LoadedP
         path,
         dev,
     )
-    return LoadedPolicy(info, path, policy, pre, post, dev)
+    loaded = LoadedPolicy(info, path, policy, pre, post, dev)
+    loaded.perception = perception
+    return loaded

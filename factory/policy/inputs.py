@@ -90,6 +90,9 @@ from factory.tasks.mobile_pick_place import SUBTASKS as MOBILE_SUBTASKS
 from factory.tasks.mobile_pick_place.dataset import SUBTASK_KEY
 
 INPUTS = ("state", "rgb", "rgbd")
+VISIONS = ("end_to_end", "perception")
+"""``train.vision`` settings of image policies: ``end_to_end`` (lerobot's image encoder inside
+the policy, trained by its loss) or ``perception`` (:mod:`factory.policy.perception`)."""
 """The ``train.inputs`` settings."""
 ACTIONS = ("tool", "tool_rel", "joint")
 """The ``train.action`` settings: what the model predicts."""
@@ -140,6 +143,10 @@ class InputSpec:
         action: what the model predicts (:data:`ACTIONS`).
         mobile: a mobile-manipulation dataset (``task=mobile_pick_place``): base pose in the
             state, the sub-task as input, the base target in the action.
+        perception: ``train.vision=perception`` (:mod:`factory.policy.perception`): the
+            cameras are read by a perception network that predicts the environment state, and
+            the lerobot policy reads the robot state and that environment state (its model
+            features are a state policy's).
     """
 
     inputs: str
@@ -148,6 +155,7 @@ class InputSpec:
     depth_max_m: float = DEPTH_MAX_M
     action: str = "joint"
     mobile: bool = False
+    perception: bool = False
 
     @property
     def action_dim(self) -> int:
@@ -183,8 +191,11 @@ class InputSpec:
         return out
 
     def model_features(self) -> dict[str, list[int]]:
-        """Model input key -> shape (lerobot's channel-first images)."""
+        """Model input key -> shape (lerobot's channel-first images); with ``perception``, the
+        lerobot policy's inputs (the robot state and the predicted environment state)."""
         h, w = self.image_size
+        if self.perception:
+            return {STATE: [ROBOT_DIM], ENV_STATE: [ENV_DIM]}
         if self.mobile:
             out: dict[str, list[int]] = {STATE: [MOBILE_ROBOT_DIM], ENV_STATE: [SUBTASK_DIM]}
         else:
@@ -200,8 +211,13 @@ class InputSpec:
         return [*self.raw_features(), ACTION]
 
 
-def input_spec(inputs: str, features: Mapping[str, Any], action: str = "joint") -> InputSpec:
+def input_spec(
+    inputs: str, features: Mapping[str, Any], action: str = "joint", perception: bool = False
+) -> InputSpec:
     """The inputs of a setting on a dataset with these features (``meta/info.json``).
+
+    Args:
+        perception: ``train.vision=perception`` (image inputs of the fixed-base task).
 
     Raises:
         PolicyError: an unknown setting, or the dataset lacks a feature the setting reads.
@@ -210,10 +226,20 @@ def input_spec(inputs: str, features: Mapping[str, Any], action: str = "joint") 
         raise PolicyError(f"unknown train.inputs {inputs!r}: use one of {', '.join(INPUTS)}")
     if action not in ACTIONS:
         raise PolicyError(f"unknown train.action {action!r}: use one of {', '.join(ACTIONS)}")
+    if perception and inputs == "state":
+        raise PolicyError(
+            "train.vision=perception reads the cameras: use train.inputs=rgb or rgbd, or "
+            "train.vision=end_to_end"
+        )
     if SUBTASK_KEY in features:
+        if perception:
+            raise PolicyError(
+                "train.vision=perception learns the object poses, which a mobile dataset does "
+                "not record: use train.vision=end_to_end"
+            )
         return _mobile_spec(inputs, features, action)
     need = [STATE, EE_POSE, ACTION]
-    if inputs == "state":
+    if inputs == "state" or perception:
         need.append(ENV_STATE)
     missing = [k for k in need if k not in features]
     if missing:
@@ -236,7 +262,8 @@ def input_spec(inputs: str, features: Mapping[str, Any], action: str = "joint") 
                 "with stage=dataset force=true, or use train.inputs=rgb"
             )
     shape = features[f"{IMAGE_PREFIX}{cams[0]}"]["shape"]
-    return InputSpec(inputs, cams, (int(shape[0]), int(shape[1])), action=action)
+    size = (int(shape[0]), int(shape[1]))
+    return InputSpec(inputs, cams, size, action=action, perception=perception)
 
 
 def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> InputSpec:
@@ -289,7 +316,11 @@ def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> Input
 
 
 def spec_from_features(
-    inputs: str, features: Mapping[str, list[int]], depth_max_m: float, action: str = "joint"
+    inputs: str,
+    features: Mapping[str, list[int]],
+    depth_max_m: float,
+    action: str = "joint",
+    perception: bool = False,
 ) -> InputSpec:
     """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape)."""
     mobile = SUBTASK_KEY in features
@@ -300,7 +331,7 @@ def spec_from_features(
     if cams:
         shape = features[f"{IMAGE_PREFIX}{cams[0]}"]
         size = (int(shape[0]), int(shape[1]))
-    return InputSpec(inputs, cams, size, float(depth_max_m), action, mobile)
+    return InputSpec(inputs, cams, size, float(depth_max_m), action, mobile, perception)
 
 
 # ---- geometry: poses in the robot's base frame

@@ -45,6 +45,16 @@ batch loader replace the random crop). On one H100, 96 px, two observation steps
 images a sample are the bound, so each of these settings cuts them
 (``benchmarks/results/policy-recipe-rgbd-h100.json``)."""
 
+PERCEPTION_DIFFUSION_DEFAULTS: dict[str, Any] = {
+    **STATE_DIFFUSION_DEFAULTS,
+    "down_dims": (128, 256, 512),
+}
+"""The lerobot policy of ``train.vision=perception`` (it reads the robot state and the poses
+that :mod:`factory.policy.perception` predicts): the state recipe with the U-Net of the state
+policy that reached 75.6 % on 3 held-out kitchens after training on 16
+(``benchmarks/results/scaling-h200.json``: 128-256-512 channels, 17 M parameters, where
+lerobot's default 512-1024-2048 has 250 M)."""
+
 DIFFUSION_LR = 3e-4
 """Learning rate of a diffusion policy when ``train.lr`` is 0 (lerobot's preset: 1e-4)."""
 STATE_DIFFUSION_LR = DIFFUSION_LR
@@ -72,8 +82,11 @@ def image_inputs(inputs: str) -> bool:
     return inputs in ("rgb", "rgbd")
 
 
-def diffusion_defaults(inputs: str) -> dict[str, Any]:
-    """The policy config fields a diffusion policy on these inputs gets by default."""
+def diffusion_defaults(inputs: str, perception: bool = False) -> dict[str, Any]:
+    """The policy config fields a diffusion policy on these inputs gets by default
+    (``perception``: the lerobot policy of ``train.vision=perception``)."""
+    if perception:
+        return dict(PERCEPTION_DIFFUSION_DEFAULTS)
     return dict(IMAGE_DIFFUSION_DEFAULTS if image_inputs(inputs) else STATE_DIFFUSION_DEFAULTS)
 
 

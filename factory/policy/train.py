@@ -41,6 +41,7 @@ from factory.policy.checkpoint import (
     INFO_IN_MODEL,
     PRETRAINED,
     TRAIN_LOG,
+    TRAINING_STATE,
     TrainInfo,
     checkpoint_step,
     prune_checkpoints,
@@ -87,6 +88,8 @@ CROP_RATIO = 0.9
 OFFLINE_DEFAULTS: dict[str, Any] = {"pretrained_backbone_weights": None, "push_to_hub": False}
 """Policy config fields set unless ``train.options`` says otherwise: no downloads (ACT would
 fetch ImageNet weights), nothing pushed."""
+PERCEPTION_STATE = "perception_optimizer.pt"
+"""In a checkpoint's ``training_state``: the perception network's optimizer and schedule."""
 EXTRAS = "factory_extras.safetensors"
 """In a checkpoint's ``training_state``: what lerobot's format has no place for: the raw
 weights where ``pretrained_model`` holds their average (``raw.<i>``, the policy's trained
@@ -125,8 +128,9 @@ def policy_config(tc: Any, spec: InputSpec, device: str) -> Any:
     cls = PreTrainedConfig.get_choice_class(tc.policy)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {k: v for k, v in OFFLINE_DEFAULTS.items() if k in fields}
-    if tc.policy == "diffusion":
-        kwargs.update({k: v for k, v in diffusion_defaults(spec.inputs).items() if k in fields})
+    if tc.policy == "diffusion":  # a perception policy's lerobot part is a state policy
+        recipe = diffusion_defaults(spec.inputs, spec.perception)
+        kwargs.update({k: v for k, v in recipe.items() if k in fields})
     if tc.horizon > 0:
         key = "horizon" if "horizon" in fields else "chunk_size" if "chunk_size" in fields else ""
         if not key:
@@ -166,6 +170,7 @@ def policy_config(tc: Any, spec: InputSpec, device: str) -> Any:
     h, w = spec.image_size
     if (
         tc.augment_images
+        and not spec.perception
         and spec.cameras
         and getattr(cfg, "crop_shape", "absent") is None
         and getattr(cfg, "resize_shape", None) is None
@@ -222,7 +227,7 @@ class LowDimFrames:
         }
         if spec.mobile:
             self.values[ENV_STATE] = subtask_onehot(column(SUBTASK_KEY), state.shape[:-1])
-        elif spec.inputs == "state":
+        elif spec.inputs == "state" or spec.perception:
             self.values[ENV_STATE] = env_features(state, column(EE_POSE), column(ENV_STATE))
         if aux:  # the auxiliary target: the environment state of the sample's frame
             self.values[AUX_TARGET] = env_features(state, column(EE_POSE), column(ENV_STATE))
@@ -239,6 +244,11 @@ class LowDimFrames:
         self.delta: dict[str, list[int]] = dict(base.delta_indices or {})
         if spec.mobile and SUBTASK_KEY in self.delta:  # the one-hot is read at its frames
             self.delta[ENV_STATE] = self.delta[SUBTASK_KEY]
+        if spec.perception:  # the poses at the robot state's frames; the cameras' newest only
+            if STATE in self.delta:
+                self.delta[ENV_STATE] = self.delta[STATE]
+            for key in spec.visual_keys():
+                self.delta.pop(key, None)
         self.raw_keys = list(spec.raw_features())
 
     def __len__(self) -> int:
@@ -458,7 +468,7 @@ def model_stats(
     keys = [STATE, EE_POSE, ACTION]
     if spec.mobile:
         keys.append(SUBTASK_KEY)
-    elif spec.inputs == "state":
+    elif spec.inputs == "state" or spec.perception:
         keys.append(ENV_STATE)
     rows = _low_dim(root, keys, episodes)
     if spec.action == "tool_rel" or spec.mobile:
@@ -472,9 +482,11 @@ def model_stats(
     if spec.mobile:
         onehot = subtask_onehot(rows[SUBTASK_KEY], rows[STATE].shape[:-1])
         stats[ENV_STATE] = get_feature_stats(onehot, axis=0, keepdims=False)
-    elif spec.inputs == "state":
+    elif spec.inputs == "state" or spec.perception:
         env = env_features(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
         stats[ENV_STATE] = get_feature_stats(env, axis=0, keepdims=False)
+    if spec.perception:  # the lerobot policy reads no images (the perception network does)
+        return stats
     for k in spec.image_keys():
         stats[k] = {s: np.asarray(v) for s, v in base.meta.stats[k].items()}
     depth_keys = spec.depth_keys()
@@ -644,18 +656,27 @@ class Trainer:
             cfg = policy_config(tc, spec, self.device)
         self.cfg = cfg
         self.precision = resolve_precision(getattr(tc, "precision", "fp32"), self.device)
-        self.aux_weight = resolve_aux_state(
-            getattr(tc, "aux_state", 0.0), tc.policy, spec.inputs, spec.mobile
-        )
-        self.ema_decay = resolve_ema(getattr(tc, "ema", 0.0), tc.policy, spec.inputs)
+        # train.vision=perception: the lerobot policy is a state policy (its recipe, no
+        # auxiliary head); the perception network learns the poses the aux target holds
+        recipe_inputs = "state" if spec.perception else spec.inputs
+        self.aux_weight = 0.0
+        if not spec.perception:
+            setting = getattr(tc, "aux_state", 0.0)
+            self.aux_weight = resolve_aux_state(setting, tc.policy, spec.inputs, spec.mobile)
+        self.ema_decay = resolve_ema(getattr(tc, "ema", 0.0), tc.policy, recipe_inputs)
         self.base, self.trainset = open_dataset(
             root,
             spec,
             cfg,
             tc.augment_images,
             getattr(tc, "video_cache", "off"),
-            self.aux_weight > 0,
+            self.aux_weight > 0 or spec.perception,
         )
+        if spec.perception and self.trainset.frames is None:
+            raise PolicyError(
+                "train.vision=perception needs the camera frames in memory: set "
+                "train.video_cache=memory (or free memory for train.video_cache=auto)"
+            )
         if self.aux_weight > 0 and self.trainset.frames is None:
             log.warning(
                 "train: the auxiliary state loss needs the camera frames in memory "
@@ -707,8 +728,14 @@ class Trainer:
         self.compiled = resolve_compile(
             getattr(tc, "compile", False), tc.policy, spec.inputs, self.device
         )
+        self.perception: Any = None
+        if spec.perception:
+            self._make_perception(resume)
         if self.compiled:
             compiled = _compile_modules(self.policy)
+            if self.perception is not None:
+                self.perception.compile(backend=COMPILE_BACKEND, dynamic=False)
+                compiled.append("perception")
             log.info("train: torch.compile: %s", ", ".join(compiled) or "nothing to compile")
         self.aux_head: Any = None
         self.tap: Any = None
@@ -751,6 +778,8 @@ class Trainer:
             from factory.policy.data_parallel import GradientSync
 
             head = list(self.aux_head.parameters()) if self.aux_head is not None else []
+            if self.perception is not None:
+                head = list(self.perception.parameters())
             self.sync = GradientSync(accelerator, [*self.params, *head])
             self.sync.broadcast_weights()
             if self.ema is not None:
@@ -759,6 +788,55 @@ class Trainer:
                 for t in self.ema.shadow:
                     dist.broadcast(t, 0)
         self.policy.train()
+
+    def _make_perception(self, resume: Path | None) -> None:
+        """The perception network (``train.vision=perception``), its optimizer (AdamW at the
+        policy's learning rate) and schedule (the policy's: 500 warm-up steps, then a cosine
+        to 0 at ``train.steps``); from the checkpoint ``resume`` where given."""
+        import math
+
+        import torch
+
+        from factory.policy import perception
+
+        assert self.trainset.frames is not None
+        target = self.trainset.frames.values[AUX_TARGET]
+        settings = perception.settings_of(
+            list(self.spec.cameras), self.spec.depth, self.spec.image_size, target
+        )
+        if resume is not None and (resume / PRETRAINED / perception.WEIGHTS).is_file():
+            net = perception.load(resume / PRETRAINED, self.device)
+        else:
+            net = perception.build(settings).to(self.device)
+        self.perception = net.to(memory_format=torch.channels_last).train()
+        self.perception_optimizer = torch.optim.AdamW(
+            net.parameters(), lr=self.pipeline.optimizer.lr, weight_decay=1e-6
+        )
+        total, warm = max(int(self.tc.steps), 1), 500
+
+        def factor(step: int) -> float:
+            if step < warm:
+                return (step + 1) / warm
+            return 0.5 * (1 + math.cos(math.pi * min(1.0, (step - warm) / max(total - warm, 1))))
+
+        self.perception_scheduler = torch.optim.lr_scheduler.LambdaLR(
+            self.perception_optimizer, factor
+        )
+        state = None if resume is None else resume / TRAINING_STATE / PERCEPTION_STATE
+        if state is not None and state.is_file():
+            saved = torch.load(state, map_location=self.device, weights_only=True)
+            self.perception_optimizer.load_state_dict(saved["optimizer"])
+            self.perception_scheduler.load_state_dict(saved["scheduler"])
+        self.noise_gen = torch.Generator(device=self.device).manual_seed(self.tc.seed + 17)
+        self.last_perception_m: Any = None
+        log.info(
+            "train: train.vision=perception: %d-parameter perception network over %s (%s), "
+            "position noise %.3g m",
+            sum(p.numel() for p in net.parameters()),
+            ", ".join(self.spec.cameras),
+            "RGB + depth" if self.spec.depth else "RGB",
+            float(getattr(self.tc, "perception_noise_m", 0.0)),
+        )
 
     @property
     def rank(self) -> int:
@@ -838,11 +916,29 @@ class Trainer:
         import torch
 
         target = batch.pop(AUX_TARGET, None)
+        images = None
+        if self.perception is not None:
+            from factory.policy.perception import add_noise, camera_stack
+
+            images = camera_stack(batch, self.perception.cameras, self.perception.depth)
+            for k in self.spec.visual_keys():
+                batch.pop(k, None)
+            noise = float(getattr(self.tc, "perception_noise_m", 0.0))
+            env = batch[ENV_STATE].to(self.device, non_blocking=True)
+            batch[ENV_STATE] = add_noise(env, noise, self.noise_gen)
         batch = self.pre(batch)
         kind = "cuda" if self.device.startswith("cuda") else "cpu"
         with torch.autocast(kind, dtype=torch.bfloat16, enabled=self.precision == "bf16"):
             loss, _ = self.policy.forward(batch)
             total = loss
+            if images is not None and target is not None:
+                seen, err_m = self.perception.loss(
+                    images.to(self.device, non_blocking=True),
+                    target.to(self.device, non_blocking=True),
+                )
+                total = loss + seen
+                self.last_aux = seen.detach()
+                self.last_perception_m = err_m
             if self.aux_head is not None and target is not None:
                 b, n_obs = batch[STATE].shape[:2]
                 feats = self.tap.take(b, n_obs, len(self.cfg.image_features))
@@ -861,6 +957,12 @@ class Trainer:
         if self.aux_head is not None:
             self.aux_optimizer.step()
             self.aux_optimizer.zero_grad(set_to_none=True)
+        if self.perception is not None:
+            if self.grad_clip > 0:
+                torch.nn.utils.clip_grad_norm_(self.perception.parameters(), self.grad_clip)
+            self.perception_optimizer.step()
+            self.perception_optimizer.zero_grad(set_to_none=True)
+            self.perception_scheduler.step()
         if self.scheduler is not None:
             self.scheduler.step()
         if hasattr(self.policy, "update"):
@@ -904,6 +1006,19 @@ class Trainer:
             extras["ema.updates"] = torch.tensor([self.ema.updates], dtype=torch.int64)
         if self.aux_head is not None:
             extras.update({f"aux.{k}": v for k, v in self.aux_head.state_dict().items()})
+        if self.perception is not None:
+            import torch
+
+            from factory.policy import perception
+
+            perception.save(self.perception, tmp / PRETRAINED)
+            torch.save(
+                {
+                    "optimizer": self.perception_optimizer.state_dict(),
+                    "scheduler": self.perception_scheduler.state_dict(),
+                },
+                tmp / TRAINING_STATE / PERCEPTION_STATE,
+            )
         if extras:
             from safetensors.torch import save_file
 
@@ -1013,6 +1128,7 @@ def train(
     newest = str(resume) if resume is not None else ""
     losses: list[Any] = []
     aux_losses: list[Any] = []
+    seen_m: list[Any] = []  # the perception's position errors (m) of the interval's batches
     last_loss = float("nan")
     limit = 60.0 * float(getattr(tc, "max_minutes", 0.0) or 0.0)
     t0 = time.perf_counter()
@@ -1031,6 +1147,8 @@ def train(
             losses.append(trainer.optimize(next(batches)))
             if trainer.last_aux is not None:
                 aux_losses.append(trainer.last_aux)
+            if getattr(trainer, "last_perception_m", None) is not None:
+                seen_m.append(trainer.last_perception_m)
             step = trainer.step
             bar.update(1)
             late = limit > 0 and time.perf_counter() - t0 > limit
@@ -1056,6 +1174,10 @@ def train(
                 if aux_losses:
                     rec["aux_loss"] = round(float(torch.stack(aux_losses).mean().item()), 6)
                     aux_losses.clear()
+                if seen_m:  # root-mean-square position error of the batches, cm
+                    sq = torch.stack(seen_m).float().square().mean().sqrt()
+                    rec["perception_cm"] = round(100 * float(sq.item()), 3)
+                    seen_m.clear()
                 log_file.write(json.dumps(rec) + "\n")
                 log_file.flush()
                 bar.set_postfix(loss=f"{last_loss:.4f}")

@@ -30,13 +30,13 @@ from factory.policy.checkpoint import (
     write_train_json,
 )
 from factory.policy.device_batches import LOADERS
-from factory.policy.inputs import INPUTS, InputSpec, input_spec
+from factory.policy.inputs import INPUTS, VISIONS, InputSpec, input_spec
 from factory.policy.recipe import PRECISIONS
 
 log = logging.getLogger(__name__)
 
 NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
-MODEL_SETTINGS = ("horizon", "n_obs_steps", "n_action_steps")
+MODEL_SETTINGS = ("horizon", "n_obs_steps", "n_action_steps", "vision")
 """``train.*`` keys that shape the model: a resumed training must have the same."""
 
 
@@ -48,6 +48,18 @@ def check_config(tc: Any) -> None:
         )
     if tc.inputs not in INPUTS:
         raise ConfigError(f"train.inputs must be one of {', '.join(INPUTS)}, got {tc.inputs!r}")
+    vision = getattr(tc, "vision", "end_to_end")
+    if vision not in VISIONS:
+        raise ConfigError(f"train.vision must be one of {', '.join(VISIONS)}, got {vision!r}")
+    if vision == "perception" and tc.inputs == "state":
+        raise ConfigError(
+            "train.vision=perception reads the cameras: use train.inputs=rgb or rgbd, or "
+            "train.vision=end_to_end"
+        )
+    if getattr(tc, "perception_noise_m", 0.0) < 0:
+        raise ConfigError(
+            f"train.perception_noise_m must be >= 0 (0: none), got {tc.perception_noise_m}"
+        )
     for key in ("steps", "batch_size", "save_every", "log_every", "keep_checkpoints"):
         if getattr(tc, key) < 1:
             raise ConfigError(f"train.{key} must be >= 1, got {getattr(tc, key)}")
@@ -184,6 +196,7 @@ def train_info(tc: Any, spec: InputSpec, root: Path) -> TrainInfo:
         config=_settings(tc),
         episode_indices=indices,
         action=spec.action,
+        vision="perception" if spec.perception else "end_to_end",
     )
 
 
@@ -201,7 +214,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     store = ctx.require_store()
     root = dataset_root(store.root, tc.dataset)
     features = _dataset(root)[0]["features"]
-    spec = input_spec(tc.inputs, features, tc.action)
+    spec = input_spec(tc.inputs, features, tc.action, getattr(tc, "vision", "") == "perception")
     if spec.mobile and spec.inputs == "state":
         log.warning(
             "train %s: the mobile dataset has no object poses, so train.inputs=state reads the "

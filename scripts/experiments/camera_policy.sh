@@ -34,6 +34,7 @@ TRAIN_SCENES=${TRAIN_SCENES:-16}
 HELDOUT_SCENES=${HELDOUT_SCENES:-3}
 EPISODES=${EPISODES:-20}
 INPUTS=${INPUTS:-rgbd}
+VISION=${VISION:-end_to_end}  # train.vision: end_to_end or perception (factory/policy/perception.py)
 BATCH=${BATCH:-512}
 TRAIN_MINUTES=${TRAIN_MINUTES:-15}
 STEPS=${STEPS:-0}  # 0: from the measured rate of the recipe (step 1), else 12 steps/s
@@ -46,7 +47,10 @@ SECOND_GPU=${SECOND_GPU:-}  # e.g. 1: a second policy trains on that GPU
 SECOND_INPUTS=${SECOND_INPUTS:-$([ "$INPUTS" = rgb ] && echo rgbd || echo rgb)}  # its inputs
 SECOND_NAME=${SECOND_NAME:-$SECOND_INPUTS}  # its name (policy/<name>, eval/<name>)
 SECOND_ARGS=${SECOND_ARGS:-}  # more train.* overrides of the second policy (shell-quoted words)
+SECOND_VISION=${SECOND_VISION:-$VISION}  # its train.vision
 EVAL_WARP=${EVAL_WARP:-}  # 1: evaluate the policy and the planner again on MuJoCo Warp
+PERCEPTION_CHECK=${PERCEPTION_CHECK:-}  # N (VISION=perception): N demos per held-out kitchen,
+# recorded after the evaluation into their own run, to measure the perception's errors there
 BENCH_STEPS=${BENCH_STEPS:-150}
 TAG=${TAG:-gpu}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
@@ -124,10 +128,11 @@ PLANNER=$!
 n_pol=$(echo $POLICIES | wc -w)
 curve_workers=$(( EVAL_WORKERS / 2 / n_pol > 0 ? EVAL_WORKERS / 2 / n_pol : 1 ))
 train_one() {  # train_one <name> <visible GPUs or empty>
-  local gpu_env=() extra=() inputs=$1
+  local gpu_env=() extra=() inputs=$1 vision=$VISION
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
-  if [ "$1" != "$INPUTS" ]; then inputs=$SECOND_INPUTS; eval "extra=($SECOND_ARGS)"; fi
+  if [ "$1" != "$INPUTS" ]; then inputs=$SECOND_INPUTS vision=$SECOND_VISION; eval "extra=($SECOND_ARGS)"; fi
   "${gpu_env[@]}" $PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$1" train.inputs="$inputs" \
+    train.vision="$vision" \
     train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
     train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
     train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
@@ -167,6 +172,31 @@ done
 for pid in "${pids[@]}"; do wait "$pid" || log "   an evaluation failed (pid $pid)"; done
 log "   evaluated in $(( $(date +%s) - t1 )) s"
 wait "$PLANNER" || log "   the planner evaluation failed: $OUT_DIR/planner.log"
+if [ "$VISION" = perception ] && [ -n "$PERCEPTION_CHECK" ]; then
+  # the perception's position errors on the training frames and on demos recorded afterwards
+  # in the held-out kitchens (their own run directory: never in the training data)
+  HELD=$RUN-heldout-frames
+  rm -rf "$HELD"; mkdir -p "$HELD/scenes"
+  $PY - "$RUN" "$HELD" <<'EOF2'
+import json, shutil, sys
+from pathlib import Path
+run, held = Path(sys.argv[1]), Path(sys.argv[2])
+seen = set(json.loads((run / "dataset/merged/meta/factory.json").read_text())["scenes"])
+for d in sorted((run / "scenes").iterdir()):
+    if d.is_dir() and d.name not in seen and (d / "scene.json").is_file():
+        shutil.copytree(d, held / "scenes" / d.name)
+EOF2
+  [ -d "$RUN/assets" ] && ln -sfn "$RUN/assets" "$HELD/assets"
+  $PY -m factory stage=demos run_dir="$HELD" $COMMON demos.episodes_per_scene="$PERCEPTION_CHECK" \
+    demos.workers="$JOBS" seed=777 > "$OUT_DIR/heldout-frames.log" 2>&1 \
+    && $PY -m factory stage=dataset run_dir="$HELD" >> "$OUT_DIR/heldout-frames.log" 2>&1 \
+    && $PY scripts/perception_error.py --policy "$RUN/policy/$INPUTS" --dataset "$HELD/dataset/merged" \
+      --out "$OUT_DIR/perception-error-heldout.json" >> "$OUT_DIR/heldout-frames.log" 2>&1 \
+    || log "   the held-out perception check failed: $OUT_DIR/heldout-frames.log"
+  $PY scripts/perception_error.py --policy "$RUN/policy/$INPUTS" --dataset "$RUN/dataset/merged" \
+    --out "$OUT_DIR/perception-error-train.json" >> "$OUT_DIR/heldout-frames.log" 2>&1 || true
+  log "   perception errors: $OUT_DIR/perception-error-*.json"
+fi
 if [ -n "$EVAL_WARP" ]; then  # the same configurations on MuJoCo Warp (eval.executor=warp)
   for p in "$INPUTS" planner; do
     t2=$(date +%s)

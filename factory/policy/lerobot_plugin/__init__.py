@@ -140,6 +140,11 @@ class PolicyAdapter:
             why = "a mobile policy's base targets are relative to the base at each chunk's start"
         elif self.spec.action == "tool_rel":
             why = "a train.action=tool_rel policy's positions are relative to each chunk's start"
+        elif info.vision == "perception":
+            why = (
+                "a train.vision=perception policy reads the object poses from its perception "
+                "network, which lerobot's policy does not hold"
+            )
         elif self.spec.depth:
             why = "LeRobot's env pipeline has no depth input (train.inputs=rgbd)"
         if why:
