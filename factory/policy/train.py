@@ -400,7 +400,27 @@ def open_dataset(
                 need / 1e9,
                 have / 1e9,
             )
+    if keys and videos is None:
+        _check_per_sample_decoding()
     return base, TrainSet(base, spec, transforms, videos, aux)
+
+
+def _check_per_sample_decoding() -> None:
+    """Refuses per-sample video decoding where lerobot's ``pyav`` backend cannot run: it reads
+    through ``torchvision.io.VideoReader``, which newer torchvision releases no longer have
+    (the GPU machine's); the factory's own decoder (``train.video_cache``) needs only PyAV.
+
+    Raises:
+        PolicyError: names the setting that avoids it.
+    """
+    import torchvision
+
+    if not hasattr(torchvision.io, "VideoReader"):
+        raise PolicyError(
+            f"decoding the videos per sample needs torchvision.io.VideoReader, which torchvision "
+            f"{torchvision.__version__} lacks: set train.video_cache=memory (every frame decoded "
+            "once with PyAV)"
+        )
 
 
 def _low_dim(

@@ -132,7 +132,7 @@ train_one() {  # train_one <name> <visible GPUs or empty>
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
   if [ "$1" != "$INPUTS" ]; then inputs=$SECOND_INPUTS vision=$SECOND_VISION; eval "extra=($SECOND_ARGS)"; fi
   "${gpu_env[@]}" $PY -m factory stage=train run_dir="$RUN" $COMMON train.name="$1" train.inputs="$inputs" \
-    train.vision="$vision" \
+    train.vision="$vision" train.video_cache=memory \
     train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
     train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
     train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \

@@ -88,10 +88,10 @@ def _listing(root: Path) -> list[tuple[str, int]]:
 
 def _frames(dataset: Path, n: int, keys: list[str]) -> dict[str, np.ndarray]:
     """Env-style observations (n, ...) from the dataset's first frames: vectors from the
-    parquet files, images and depth decoded from the videos to the env's raw dtypes."""
+    parquet files, images (uint8) and depth (uint16 mm) decoded from the videos by the
+    factory's own PyAV decoder (lerobot's ``pyav`` backend needs ``torchvision.io.
+    VideoReader``, which newer torchvision lacks)."""
     import pyarrow.parquet as pq
-
-    from factory.dataset.lerobot_export import unpack_depth_mm
 
     (path,) = sorted((dataset / "data").glob("*/*.parquet"))[:1]
     table = pq.read_table(path).to_pydict()
@@ -100,18 +100,12 @@ def _frames(dataset: Path, n: int, keys: list[str]) -> dict[str, np.ndarray]:
     if visual:
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+        from factory.policy.video_frames import decode_videos
+
         ds = LeRobotDataset("factory/demos", root=dataset, video_backend="pyav")
-        items = [ds[i] for i in range(n)]
+        frames = decode_videos(ds, visual, workers=1)
         for k in visual:
-            if k.startswith("observation.images."):
-                obs[k] = np.stack(
-                    [
-                        np.round(it[k].permute(1, 2, 0).numpy() * 255).astype(np.uint8)
-                        for it in items
-                    ]
-                )
-            else:
-                obs[k] = np.stack([unpack_depth_mm(it[k]) for it in items])
+            obs[k] = np.ascontiguousarray(frames[k][:n])
     for k in keys:
         if k not in obs:
             obs[k] = np.asarray(table[k][:n], np.float32)
@@ -755,3 +749,18 @@ def test_perception_policy_trains_resumes_and_acts_without_poses(
         _train(tmp_path, dataset, name="bad", inputs="state", vision="perception")
     with pytest.raises(ConfigError, match="end_to_end, perception"):
         _train(tmp_path, dataset, name="bad", inputs="rgbd", vision="pixels")
+
+
+def test_per_sample_decoding_without_video_reader_names_the_cache(
+    policy_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where torchvision has no ``io.VideoReader`` (lerobot's ``pyav`` backend reads through
+    it; the GPU machine's torchvision lacks it), decoding per sample is refused with the
+    setting that decodes every frame once instead."""
+    import torchvision
+
+    monkeypatch.delattr(torchvision.io, "VideoReader", raising=False)
+    dataset = policy_run / "dataset" / "merged"
+    with pytest.raises(PolicyError, match=r"train\.video_cache=memory") as e:
+        _train(tmp_path, dataset, name="pyav", inputs="rgb", video_cache="off", steps=1)
+    assert "\n" not in str(e.value)
