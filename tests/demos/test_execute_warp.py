@@ -340,3 +340,58 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
                 np.testing.assert_array_equal(a.rgb[cam], b.rgb[cam])
                 np.testing.assert_array_equal(a.depth[cam], b.depth[cam])
     pool.close()
+
+
+def test_image_store_rows_past_two_gib_of_a_camera() -> None:
+    """Regression of the H100 crash at production size (CUDA error 700): the image store was one
+    camera-major ``(ncam, rows, 3 H W)`` array, whose first stride (a camera's block, 2 GiB at
+    43,691 rows of 128 x 128) overflowed Warp's 32-bit strides. Now each camera has its own
+    ``(rows, 3 H W)`` store: ``to_images`` on Warp's CPU device files a world's frame into row
+    43,999 of camera 1's 2.2 GB store, and :func:`check_strides` refuses the old layout."""
+    wp = pytest.importorskip("warp")
+    from factory.demos.execute.warp import check_strides
+    from factory.demos.execute.warp_kernels import to_images
+    from factory.errors import RenderError
+    from factory.sim.backend import init_warp
+
+    init_warp()
+    npix, rows, ncam = 128 * 128, 44_000, 2
+    with wp.ScopedDevice("cpu"):
+        packed = np.zeros((2, ncam * npix), np.uint32)
+        packed[0, npix:] = 0x00102030  # world 0, camera 1: RGB (16, 32, 48)
+        depth = np.full((2, ncam * npix), 1.234, np.float32)
+        adr = wp.array(np.arange(ncam, dtype=np.int32) * npix, dtype=int)
+        rgb = wp.empty((rows, 3 * npix), dtype=wp.uint8)
+        mm = wp.empty((rows, npix), dtype=wp.uint16)
+        check_strides([rgb, mm])
+        row_of = wp.array(np.array([[rows - 1, -1]], np.int32), dtype=int)
+        wp.launch(
+            to_images,
+            dim=(2, npix),
+            inputs=[
+                wp.array(packed, dtype=wp.uint32),
+                wp.array(depth, dtype=float),
+                adr,
+                adr,
+                1,
+                npix,
+                1,
+                row_of,
+                wp.zeros(1, dtype=int),
+                1,
+            ],
+            outputs=[rgb, mm, wp.empty((1, 1), dtype=float)],
+        )
+        wp.synchronize()
+        last = rgb.numpy()[rows - 1].reshape(128, 128, 3)
+        assert (last == [16, 32, 48]).all()
+        assert (mm.numpy()[rows - 1] == 1234).all()
+        # the old camera-major layout: its strides would not fit (a view, nothing allocated)
+        old = wp.array(
+            ptr=rgb.ptr,
+            shape=(3, rows, 3 * npix),
+            dtype=wp.uint8,
+            strides=(rows * 3 * npix, 3 * npix, 1),
+        )
+        with pytest.raises(RenderError, match=r"demos\.gpu_batch"):
+            check_strides([old])

@@ -44,7 +44,7 @@ from factory.demos.execute.cpu import (
     finish_recordings,
 )
 from factory.demos.execute.world_schedule import WorldSchedule
-from factory.errors import AppearanceError
+from factory.errors import AppearanceError, RenderError
 from factory.robots.panda import CAMERAS
 from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup
 
@@ -73,6 +73,27 @@ _BITS: dict[str, int] = {
     "plugin": int(mujoco.mjtState.mjSTATE_PLUGIN),
     "plastic": int(mujoco.mjtState.mjSTATE_PLASTIC),
 }
+
+
+INT32_MAX = 2**31 - 1
+"""Largest stride (bytes) a Warp array may have: Warp passes strides to kernels as 32-bit
+ints."""
+
+
+def check_strides(arrays: list[Any]) -> None:
+    """Refuses Warp arrays whose strides do not fit Warp's 32-bit ints (a kernel would index
+    outside them: an illegal memory access on CUDA, a crash on the CPU).
+
+    Raises:
+        RenderError: names the array's shape and the smaller call that avoids it.
+    """
+    for a in arrays:
+        big = [int(st) for st in a.strides if int(st) > INT32_MAX]
+        if big:
+            raise RenderError(
+                f"a Warp array of shape {tuple(a.shape)} has a stride of {big[0]} bytes, past "
+                f"Warp's 32-bit limit ({INT32_MAX}): use a smaller demos.gpu_batch"
+            )
 
 
 def state_layout(model: mujoco.MjModel, spec: int = int(STATE_SPEC)) -> dict[str, slice]:
@@ -482,9 +503,12 @@ class WarpExecutor:
                 img_rows = sched.row if store else np.where(sched.row >= 0, np.arange(n), -1)
                 rows_d = wp.array(img_rows.astype(np.int32), dtype=int)
                 t_part = time.perf_counter()
-                rgb_store = wp.empty((ncam, nr, 3 * npix), dtype=wp.uint8)
-                mm_store = wp.empty((ncam, nr, npix) if mm else (1, 1, 1), wp.uint16)
-                m_store = wp.empty((1, 1, 1) if mm else (ncam, nr, npix), dtype=float)
+                # one 2-D store per camera: Warp's strides are 32-bit (to_images' docstring)
+                rgb_store = [wp.empty((nr, 3 * npix), dtype=wp.uint8) for _ in range(ncam)]
+                none_mm, none_m = wp.empty((1, 1), wp.uint16), wp.empty((1, 1), dtype=float)
+                mm_store = [wp.empty((nr, npix), wp.uint16) if mm else none_mm for _ in range(ncam)]
+                m_store = [none_m if mm else wp.empty((nr, npix), dtype=float) for _ in range(ncam)]
+                check_strides([*rgb_store, *mm_store, *m_store])
                 rgb_adr = wp.array(np.asarray(rc.rgb_adr.numpy(), np.int32), dtype=int)
                 depth_adr = wp.array(np.asarray(rc.depth_adr.numpy(), np.int32), dtype=int)
 
@@ -493,22 +517,24 @@ class WarpExecutor:
                     return
                 mjw.refit_bvh(m, d, rc)
                 mjw.render(m, d, rc)
-                wp.launch(
-                    to_images,
-                    dim=(n, ncam, npix),
-                    inputs=[
-                        rc.rgb_data,
-                        rc.depth_data,
-                        rgb_adr,
-                        depth_adr,
-                        npix,
-                        int(mm),
-                        rows_d,
-                        step_d,
-                        per_frame,
-                    ],
-                    outputs=[rgb_store, mm_store, m_store],
-                )
+                for c in range(ncam):
+                    wp.launch(
+                        to_images,
+                        dim=(n, npix),
+                        inputs=[
+                            rc.rgb_data,
+                            rc.depth_data,
+                            rgb_adr,
+                            depth_adr,
+                            c,
+                            npix,
+                            int(mm),
+                            rows_d,
+                            step_d,
+                            per_frame,
+                        ],
+                        outputs=[rgb_store[c], mm_store[c], m_store[c]],
+                    )
 
             def period() -> None:
                 for _ in range(per_frame):
@@ -548,7 +574,9 @@ class WarpExecutor:
                 contact_world=d.contact.worldid,
             )
             if rc is not None and not store:
-                sources.update(rgb=rgb_store, depth=mm_store if mm else m_store)
+                for c in range(ncam):
+                    sources[f"rgb{c}"] = rgb_store[c]
+                    sources[f"depth{c}"] = (mm_store if mm else m_store)[c]
             sources = {k: a for k, a in sources.items() if a.size}
             if rc is not None:
                 parts["stores_first_draw"] = time.perf_counter() - t_part
@@ -655,8 +683,9 @@ class WarpExecutor:
     def _images_to_host(
         self, rgb: Any, mm: Any, m: Any, n_rows: int
     ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """Copies the device image stores of a call (``rgb``: (ncam, R, 3 H W) uint8;
-        ``mm``/``m``: (ncam, R, H W) depth) into an arena taken now from :attr:`arenas`,
+        """Copies the device image stores of a call (one per camera, in ``cfg.cameras``
+        order: ``rgb[c]`` (R, 3 H W) uint8; ``mm[c]``/``m[c]`` (R, H W) depth) into an arena
+        taken now from :attr:`arenas`,
         page-locked for the copy where CUDA allows (:meth:`Arena.pin`; an arena given back
         keeps its registration).
 
@@ -684,7 +713,7 @@ class WarpExecutor:
             for out, key, src in ((out_rgb, f"rgb/{cam}", rgb), (out_depth, f"depth/{cam}", depth)):
                 out[cam] = arena.empty(*specs[key])
                 host = wp.array(
-                    out[cam].reshape(n_rows, -1), dtype=src.dtype, device="cpu", copy=False
+                    out[cam].reshape(n_rows, -1), dtype=src[k].dtype, device="cpu", copy=False
                 )
                 wp.copy(host, src[k])
         wp.synchronize()
@@ -757,10 +786,9 @@ class WarpExecutor:
                 np.maximum.at(worst, sched.episode[b, world[hit]], np.maximum(0.0, -dist[hit]))
         if images:
             h, w = self.cfg.height, self.cfg.width
-            rgb, depth = host["rgb"], host["depth"]
             for k, cam in enumerate(self.cfg.cameras):
-                frames.rgb[cam][rows] = rgb[k, live].reshape(-1, h, w, 3)
-                frames.depth[cam][rows] = depth[k, live].reshape(-1, h, w)
+                frames.rgb[cam][rows] = host[f"rgb{k}"][live].reshape(-1, h, w, 3)
+                frames.depth[cam][rows] = host[f"depth{k}"][live].reshape(-1, h, w)
 
 
 @dataclass(frozen=True)

@@ -150,31 +150,38 @@ def to_images(
     depth: wp.array2d(dtype=float),
     rgb_adr: wp.array(dtype=int),
     depth_adr: wp.array(dtype=int),
+    c: int,
     npix: int,
     depth_mm: int,
     rows: wp.array2d(dtype=int),
     step: wp.array(dtype=int),
     per_frame: int,
-    rgb_out: wp.array3d(dtype=wp.uint8),
-    mm_out: wp.array3d(dtype=wp.uint16),
-    m_out: wp.array3d(dtype=float),
+    rgb_out: wp.array2d(dtype=wp.uint8),
+    mm_out: wp.array2d(dtype=wp.uint16),
+    m_out: wp.array2d(dtype=float),
 ):
     """The renderer's packed ARGB pixels and planar depth (m) of camera ``c`` of world ``w`` ->
-    the image store at row ``r = rows[b, w]`` of boundary ``b = step // per_frame`` (nothing
-    when ``r < 0``): ``rgb_out[c, r, 3 p + k]`` (uint8 RGB), ``mm_out[c, r, p]`` (uint16 mm,
-    when ``depth_mm``) or ``m_out[c, r, p]`` (float32 m); ``p`` runs over the ``npix`` pixels
-    row by row from the top. Camera-major: camera ``c``'s block is the host's
-    ``(rows, H, W, 3)``."""
-    w, c, p = wp.tid()
+    camera ``c``'s image store at row ``r = rows[b, w]`` of boundary ``b = step // per_frame``
+    (nothing when ``r < 0``): ``rgb_out[r, 3 p + k]`` (uint8 RGB), ``mm_out[r, p]`` (uint16 mm,
+    when ``depth_mm``) or ``m_out[r, p]`` (float32 m); ``p`` runs over the ``npix`` pixels row
+    by row from the top: the host's ``(rows, H, W, 3)``.
+
+    One store per camera (launched once per camera), never one array over all cameras: Warp
+    keeps an array's strides in 32-bit ints, so a camera-major ``(ncam, rows, 3 H W)`` store of
+    over 43,690 rows of 128 x 128 images (2 GiB a camera) had a negative first stride, and the
+    first production-size call on an H100 (761 episodes, about 120,000 rows) wrote outside its
+    store: CUDA error 700, an illegal memory access. A row of one camera is 49,152 bytes at
+    128 x 128; the row index times it is computed in 64 bits."""
+    w, p = wp.tid()
     r = rows[step[0] // per_frame, w]
     if r < 0:
         return
     val = packed[w, rgb_adr[c] + p]
-    rgb_out[c, r, 3 * p + 0] = wp.uint8((val >> wp.uint32(16)) & wp.uint32(0xFF))
-    rgb_out[c, r, 3 * p + 1] = wp.uint8((val >> wp.uint32(8)) & wp.uint32(0xFF))
-    rgb_out[c, r, 3 * p + 2] = wp.uint8(val & wp.uint32(0xFF))
+    rgb_out[r, 3 * p + 0] = wp.uint8((val >> wp.uint32(16)) & wp.uint32(0xFF))
+    rgb_out[r, 3 * p + 1] = wp.uint8((val >> wp.uint32(8)) & wp.uint32(0xFF))
+    rgb_out[r, 3 * p + 2] = wp.uint8(val & wp.uint32(0xFF))
     z = depth[w, depth_adr[c] + p]
     if depth_mm != 0:
-        mm_out[c, r, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
+        mm_out[r, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
     else:
-        m_out[c, r, p] = z
+        m_out[r, p] = z
