@@ -145,6 +145,9 @@ def execute(cfg: Any) -> dict[str, Any]:
     check_stage(cfg.stage)
     setup_logging(cfg.log_level)
     configure_gl(cfg.render.gl)  # before anything imports mujoco
+    from factory.sim.kernel_cache import configure_kernel_cache
+
+    configure_kernel_cache(cfg.sim.kernel_cache)  # before anything imports warp
     shard = resolve_shard(cfg.shard.index, cfg.shard.count)
     store = None if cfg.run_dir in (None, "") else RunStore(cfg.run_dir)
     return run_stage(cfg.stage, StageContext(cfg=cfg, store=store, shard=shard))

@@ -185,6 +185,11 @@ class SimConfig:
         sleep: the warp backend lets bodies at rest sleep (MuJoCo island sleeping) and stops a
             batch once all its worlds sleep; ``false`` gives the strict protocol (every step
             of every body), which the benchmark compares it with.
+        kernel_cache: the folder where Warp keeps the GPU kernels it compiles (created; ``~``
+            expanded), for this stage and the processes it starts: a shared folder spares
+            every node of a cluster the minutes of compiling a bare machine spends. Empty:
+            ``WARP_CACHE_PATH`` where set, else Warp's default under the user's cache folder
+            (``~/.cache/warp``). :mod:`factory.sim.kernel_cache`.
     """
 
     backend: str = "auto"
@@ -197,6 +202,7 @@ class SimConfig:
     mjx_max_free_bodies: int = 8
     timestep: float | None = None
     sleep: bool = True
+    kernel_cache: str = ""
 
 
 @dataclass

@@ -17,9 +17,10 @@
 #   TRAIN_SCENES=2 HELDOUT_SCENES=1 EPISODES=2 POINTS="1 2" STATE_STEPS=20 RGBD_STEPS=4 \
 #     EVAL_EPISODES=2 RUN=/tmp/tiny bash scripts/experiments/policy_experiment.sh
 # Results: $RUN/eval/*/results.json, $OUT_DIR/*.json (scaling JSON + SVG, the summaries).
-# On the GPU machine: scripts/experiments/device_bundle.sh gathers the wheels, GL loaders and
-# robot model it needs and says how to install them there (its preinstalled transformers needs a
-# newer huggingface_hub than lerobot 0.4.4 pins: `python3 -m pip uninstall -y transformers`).
+# On the GPU machine: scripts/gpu_bundle.sh gathers the wheels, GL loaders and robot models it
+# needs into one tar and prints the line that installs it there (scripts/gpu_install.sh, which
+# also uninstalls its preinstalled transformers: it needs a newer huggingface_hub than lerobot
+# 0.4.4 pins).
 # Run this script there in the background (setsid) and copy results under $OUT in every call:
 # an idle machine is given back after 30 s with everything on it.
 set -euo pipefail

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from pathlib import Path
 
 import mujoco
@@ -156,10 +157,16 @@ def test_gpu_executor_agrees_with_cpu(setup) -> None:
 
 
 @pytest.mark.slow
-def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
+def test_gpu_pipeline_on_warp_cpu(
+    make_kitchen, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     """The GPU pipeline end to end on Warp's CPU device (kernels compile in about 2-3 min):
     four slots: the longest left to the CPU executor (``demos.gpu_tail``), three packed onto
-    two worlds of one call, stored by the writer processes, replayable."""
+    two worlds of one call, stored by the writer processes, replayable; the kernels' loading
+    is announced with the cache it reads, and its end with the seconds it took."""
+    import logging
+
+    caplog.set_level(logging.INFO, logger="factory.demos.execute.warp")
     from factory.demos.gpu_pipeline import run_gpu
     from factory.demos.record.episodes import EpisodeStore
     from factory.demos.record.slots import StageEnv, WorkItem
@@ -177,6 +184,8 @@ def test_gpu_pipeline_on_warp_cpu(make_kitchen, tmp_path: Path) -> None:
     assert out["new"] + sum(out["failures"].values()) >= 4
     assert out["new"] >= 3, dict(out["failures"])
     assert out["cpu_tail"] == 1
+    assert "loading the GPU kernels (Warp kernel cache" in caplog.text
+    assert re.search(r"GPU kernels ready in [0-9.]+ s", caplog.text), caplog.text[-2000:]
     store = EpisodeStore(store_path)
     assert len(store.episode_ids()) == out["new"]
     infos = [store.info(e) for e in store.episode_ids()]
@@ -360,6 +369,7 @@ def test_image_store_rows_past_two_gib_of_a_camera() -> None:
         packed = np.zeros((2, ncam * npix), np.uint32)
         packed[0, npix:] = 0x00102030  # world 0, camera 1: RGB (16, 32, 48)
         depth = np.full((2, ncam * npix), 1.234, np.float32)
+        depth[0, npix : npix + 2] = (np.nan, np.inf)  # rays that hit nothing: the far value
         adr = wp.array(np.arange(ncam, dtype=np.int32) * npix, dtype=int)
         rgb = wp.empty((rows, 3 * npix), dtype=wp.uint8)
         mm = wp.empty((rows, npix), dtype=wp.uint16)
@@ -376,6 +386,7 @@ def test_image_store_rows_past_two_gib_of_a_camera() -> None:
                 1,
                 npix,
                 1,
+                100.0,
                 row_of,
                 wp.zeros(1, dtype=int),
                 1,
@@ -385,7 +396,8 @@ def test_image_store_rows_past_two_gib_of_a_camera() -> None:
         wp.synchronize()
         last = rgb.numpy()[rows - 1].reshape(128, 128, 3)
         assert (last == [16, 32, 48]).all()
-        assert (mm.numpy()[rows - 1] == 1234).all()
+        assert (mm.numpy()[rows - 1, 2:] == 1234).all()
+        assert (mm.numpy()[rows - 1, :2] == 65535).all()
         # the old camera-major layout: its strides would not fit (a view, nothing allocated)
         old = wp.array(
             ptr=rgb.ptr,

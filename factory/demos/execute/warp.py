@@ -287,6 +287,7 @@ class WarpExecutor:
 
         init_warp()
         self.wp, self.mjw = wp, mjw
+        self._kernels_ready = False
         self.setup = setup
         self.cfg = cfg
         self.device = device or ("cuda:0" if cuda_available() else "cpu")
@@ -468,6 +469,19 @@ class WarpExecutor:
                 parts["looks"] = time.perf_counter() - t_part
                 look_dim = (n, max(1, tables.width))
             t_part = time.perf_counter()
+            first_call = not self._kernels_ready
+            if first_call:  # the kernels compile now, unless Warp's cache holds them
+                from factory.sim.kernel_cache import cached_modules, kernel_cache_dir
+
+                cache = kernel_cache_dir(wp)
+                log.info(
+                    "demos %s: loading the GPU kernels (Warp kernel cache %s, %d modules there; "
+                    "a bare machine compiles for minutes, sim.kernel_cache keeps them)",
+                    setup.scene.id,
+                    cache,
+                    cached_modules(cache),
+                )
+                t_kernels = t_part
             d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
             parts["put_data"] = time.perf_counter() - t_part
             d.qpos.assign(wp.array(q0[first].astype(np.float32), dtype=float))
@@ -529,6 +543,7 @@ class WarpExecutor:
                             c,
                             npix,
                             int(mm),
+                            float(RENDER_CLIP[1]),
                             rows_d,
                             step_d,
                             per_frame,
@@ -580,6 +595,14 @@ class WarpExecutor:
             sources = {k: a for k, a in sources.items() if a.size}
             if rc is not None:
                 parts["stores_first_draw"] = time.perf_counter() - t_part
+            if first_call:
+                self._kernels_ready = True
+                log.info(
+                    "demos %s: GPU kernels ready in %.1f s (%d modules in the cache now)",
+                    setup.scene.id,
+                    time.perf_counter() - t_kernels,
+                    cached_modules(cache),
+                )
             t_part = time.perf_counter()
             mirrors = {
                 k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)

@@ -153,6 +153,7 @@ def to_images(
     c: int,
     npix: int,
     depth_mm: int,
+    far: float,
     rows: wp.array2d(dtype=int),
     step: wp.array(dtype=int),
     per_frame: int,
@@ -164,7 +165,8 @@ def to_images(
     camera ``c``'s image store at row ``r = rows[b, w]`` of boundary ``b = step // per_frame``
     (nothing when ``r < 0``): ``rgb_out[r, 3 p + k]`` (uint8 RGB), ``mm_out[r, p]`` (uint16 mm,
     when ``depth_mm``) or ``m_out[r, p]`` (float32 m); ``p`` runs over the ``npix`` pixels row
-    by row from the top: the host's ``(rows, H, W, 3)``.
+    by row from the top: the host's ``(rows, H, W, 3)``. A depth that is not finite is stored
+    as the far value: 65535 mm, or ``far`` (m).
 
     One store per camera (launched once per camera), never one array over all cameras: Warp
     keeps an array's strides in 32-bit ints, so a camera-major ``(ncam, rows, 3 H W)`` store of
@@ -181,7 +183,14 @@ def to_images(
     rgb_out[r, 3 * p + 1] = wp.uint8((val >> wp.uint32(8)) & wp.uint32(0xFF))
     rgb_out[r, 3 * p + 2] = wp.uint8(val & wp.uint32(0xFF))
     z = depth[w, depth_adr[c] + p]
+    finite = wp.isfinite(z)
     if depth_mm != 0:
-        mm_out[r, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
+        if finite:
+            mm_out[r, p] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
+        else:  # the far value, as the CPU recorder's encode_depth (a NaN never cast)
+            mm_out[r, p] = wp.uint16(65535)
     else:
-        m_out[r, p] = z
+        if finite:
+            m_out[r, p] = z
+        else:
+            m_out[r, p] = far

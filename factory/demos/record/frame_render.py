@@ -25,11 +25,28 @@ def size_offscreen(model: mujoco.MjModel, width: int, height: int) -> None:
     vis.global_.offheight = max(vis.global_.offheight, height)
 
 
-def encode_depth(depth: np.ndarray, fmt: str) -> np.ndarray:
-    """Depth (m) as recorded: ``uint16_mm`` (millimetres, clipped to uint16) or ``float32`` (m)."""
+DEPTH_FAR_MM = 65535
+"""``uint16_mm`` depth of a pixel that sees nothing within the renderer's range, or whose depth
+is not a finite number: the far value (the largest uint16; every farther depth clips to it)."""
+
+
+def encode_depth(depth: np.ndarray, fmt: str, far_m: float = float("inf")) -> np.ndarray:
+    """Depth (m) as recorded: ``uint16_mm`` (millimetres, clipped to uint16) or ``float32`` (m).
+
+    A depth that is not a finite number (NaN, or infinite: a ray that hit nothing in some
+    renderers) is stored as the far value, never cast as it is (a NaN cast to uint16 is
+    undefined): :data:`DEPTH_FAR_MM`, or ``far_m`` (the renderer's far distance) for
+    ``float32``."""
+    d = np.asarray(depth, np.float32)
+    bad = ~np.isfinite(d)
     if fmt == "uint16_mm":
-        return np.clip(np.round(depth * 1000.0), 0, 65535).astype(np.uint16)
-    return depth.astype(np.float32)
+        mm = np.round(np.where(bad, 0.0, d) * 1000.0)
+        out = np.clip(mm, 0, 65535).astype(np.uint16)
+        out[bad] = DEPTH_FAR_MM
+        return out
+    out = d.astype(np.float32, copy=True)
+    out[bad] = far_m
+    return out
 
 
 class CameraStrip:
@@ -132,7 +149,7 @@ class CameraStrip:
                 culler.restore()
         mujoco.mjr_readPixels(self._rgb, self._z, self._rect, ctx)
         rgb = np.flipud(self._rgb)
-        depth = encode_depth(self._metric(np.flipud(self._z)), self.depth)
+        depth = encode_depth(self._metric(np.flipud(self._z)), self.depth, float(self._far))
         rgbs = [rgb[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
         depths = [depth[:, k * w : (k + 1) * w].copy() for k in range(len(self.cams))]
         return rgbs, depths
