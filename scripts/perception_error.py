@@ -37,8 +37,8 @@ def main() -> int:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from factory.policy.checkpoint import INFO_IN_MODEL, read_info, resolve_device, resolve_ref
-    from factory.policy.inputs import depth_image, env_features
-    from factory.policy.perception import POSITIONS, camera_stack, load
+    from factory.policy.inputs import depth_image, env_features, kinematics
+    from factory.policy.perception import POSITIONS, XYZ_CAMERA, camera_stack, load
     from factory.policy.video_frames import decode_videos
 
     device = resolve_device(a.device)
@@ -61,6 +61,10 @@ def main() -> int:
     rows = {k: np.concatenate(v) for k, v in parts.items()}
     truth = env_features(*(rows[k] for k in cols))
     n = len(truth)
+    poses = None
+    if net.xyz:
+        joints = rows["observation.state"][:, :7]
+        poses = torch.from_numpy(kinematics().camera_poses(joints, XYZ_CAMERA))
     pred = np.zeros_like(truth)
     with torch.inference_mode():
         for i in range(0, n, a.batch):
@@ -73,7 +77,8 @@ def main() -> int:
                 else:
                     batch[k] = pix.movedim(-1, -3).float() / 255.0
             images = camera_stack(batch, net.cameras, net.depth)
-            pred[sl] = net.predict(images).float().cpu().numpy()
+            pose = None if poses is None else poses[sl].to(device)
+            pred[sl] = net.predict(images, pose).float().cpu().numpy()
     err = pred - truth
     ep = rows["episode_index"].reshape(-1)
     frame = rows["frame_index"].reshape(-1)

@@ -369,8 +369,16 @@ class LoadedPolicy:
             images = camera_stack(batch, self.perception.cameras, self.perception.depth)
             for k in self.spec.visual_keys():
                 del batch[k]
+            pose = None
+            if self.perception.xyz:  # the wrist camera's pose: forward kinematics
+                from factory.policy.inputs import kinematics
+                from factory.policy.perception import XYZ_CAMERA
+
+                joints = np.asarray(obs["observation.state"], np.float64)[:, :7]
+                pose = torch.from_numpy(kinematics().camera_poses(joints, XYZ_CAMERA))
+                pose = pose.to(self.device)
             with torch.inference_mode():
-                env = self.perception.predict(images.to(self.device)).float()
+                env = self.perception.predict(images.to(self.device), pose).float()
             batch["observation.environment_state"] = env.to("cpu")
         with torch.inference_mode():
             if chunk_starts(self._policy):

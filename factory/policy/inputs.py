@@ -388,6 +388,32 @@ class _Kinematics:
                 rot[i] = d.site_xmat[site].reshape(3, 3)
         return pos, rot
 
+    def camera_poses(self, joints: np.ndarray, camera: str) -> np.ndarray:
+        """(N, 7) arm joints (rad) -> the pose of a camera that rides on the arm (``wrist``),
+        (N, 12) float32: position (m) then the rotation's rows (its columns are the camera's
+        x right, y up and viewing -z axes), base frame; the nominal mount (an episode's
+        appearance may move a camera by up to ``demos.appearance.camera_pos``)."""
+        from factory.robots.panda import CAMERAS as MODEL_CAMERAS
+
+        joints = np.asarray(joints, np.float64).reshape(-1, 7)
+        cam = self.model.camera(MODEL_CAMERAS[camera]).id
+        out = np.empty((len(joints), 12), np.float32)
+        m, d, qadr = self.model, self.data, self.index.qpos
+        with self.lock:
+            for i in range(len(joints)):
+                d.qpos[qadr] = joints[i]
+                self._mujoco.mj_kinematics(m, d)
+                self._mujoco.mj_camlight(m, d)  # cameras follow their bodies here
+                out[i, :3] = d.cam_xpos[cam]
+                out[i, 3:] = d.cam_xmat[cam]
+        return out
+
+    def camera_fovy(self, camera: str) -> float:
+        """Vertical field of view of a camera on the arm (deg)."""
+        from factory.robots.panda import CAMERAS as MODEL_CAMERAS
+
+        return float(self.model.cam_fovy[self.model.camera(MODEL_CAMERAS[camera]).id])
+
 
 @functools.lru_cache(maxsize=1)
 def kinematics() -> _Kinematics:

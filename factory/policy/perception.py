@@ -47,6 +47,16 @@ KEYPOINTS = 32
 """Spatial-softmax keypoints per camera."""
 HIDDEN = 512
 """Width of the MLP's hidden layers."""
+XYZ_CAMERA = "wrist"
+"""The camera whose pose the robot knows at every frame (it rides on the hand: forward
+kinematics of the joints): its pixels' points in the base frame are inputs, and each keypoint
+reads the point it attends to. The left and right cameras are placed per scene and their pose
+is not observed."""
+CAMERA_POSE = "aux.camera_pose"
+"""Batch key of the :data:`XYZ_CAMERA`'s pose of each sample's frame (B, 12) (popped before
+lerobot's processors)."""
+READOUT = 32
+"""Side (px) of the grid at which keypoints read the :data:`XYZ_CAMERA`'s points."""
 POSITIONS = ((0, 3), (9, 12))
 """Columns of the pick object's and the target's positions in the 24 environment values."""
 OFFSETS = ((18, 21), (21, 24))
@@ -60,10 +70,19 @@ def _torch() -> Any:
 
 
 def settings_of(
-    cameras: list[str], depth: bool, image_size: tuple[int, int], target: np.ndarray
+    cameras: list[str],
+    depth: bool,
+    image_size: tuple[int, int],
+    target: np.ndarray,
+    depth_max_m: float = 2.0,
+    xyz_fovy_deg: float = 0.0,
 ) -> dict[str, Any]:
     """The settings that rebuild a network: cameras (in order), depth channel, image size (H, W
-    px) and the range of each target column over the training frames (``target``: (N, 24))."""
+    px), the range of each target column over the training frames (``target``: (N, 24)), the
+    depth range (m) and, with depth and the :data:`XYZ_CAMERA` among the cameras, that
+    camera's vertical field of view (deg; ``xyz_fovy_deg`` > 0) for the points behind its
+    pixels."""
+    xyz = bool(depth) and XYZ_CAMERA in cameras and xyz_fovy_deg > 0
     return {
         "schema_version": SCHEMA_VERSION,
         "cameras": list(cameras),
@@ -73,7 +92,34 @@ def settings_of(
         "hidden": HIDDEN,
         "low": [float(x) for x in np.asarray(target).min(0)],
         "high": [float(x) for x in np.asarray(target).max(0)],
+        "depth_max_m": float(depth_max_m),
+        "xyz_camera": XYZ_CAMERA if xyz else "",
+        "xyz_fovy_deg": float(xyz_fovy_deg) if xyz else 0.0,
     }
+
+
+def pixel_points(depth_m: Any, pose: Any, fovy_deg: float) -> Any:
+    """The point behind every pixel of a camera, in the robot's base frame (m).
+
+    Args:
+        depth_m: (B, H, W) depth along the camera's optical axis (m), row 0 at the top.
+        pose: (B, 12) the camera's position, then its rotation's rows (MuJoCo's
+            ``cam_xmat``: columns x right, y up, -z the viewing direction), base frame.
+        fovy_deg: the camera's vertical field of view (deg).
+
+    Returns:
+        (B, 3, H, W) x, y, z of each pixel's point.
+    """
+    torch = _torch()
+    b, h, w = depth_m.shape
+    f = (h / 2) / float(np.tan(np.radians(fovy_deg) / 2))
+    dev = depth_m.device
+    u = (torch.arange(w, device=dev, dtype=torch.float32) + 0.5 - w / 2) / f
+    v = -(torch.arange(h, device=dev, dtype=torch.float32) + 0.5 - h / 2) / f
+    d = depth_m.float()
+    cam = torch.stack([d * u[None, None, :], d * v[None, :, None], -d], 1)  # (B, 3, H, W)
+    rot = pose[:, 3:].float().reshape(b, 3, 3)
+    return torch.einsum("bij,bjhw->bihw", rot, cam) + pose[:, :3].float()[:, :, None, None]
 
 
 def build(settings: dict[str, Any]) -> Any:
@@ -84,22 +130,28 @@ def build(settings: dict[str, Any]) -> Any:
 
     nn = torch.nn
 
+    def expected(logits: Any, values: Any) -> Any:
+        """Softmax-weighted mean of ``values`` (B, C, h, w) under each of the ``k`` attention
+        maps ``logits`` (B, k, h, w): (B, k, C)."""
+        attn = F.softmax(logits.flatten(2).float(), dim=-1)
+        return attn @ values.flatten(2).float().transpose(1, 2)
+
     class SpatialSoftmax(nn.Module):
-        """Expected image position (x, y in [-1, 1]) of each of ``k`` learned keypoints."""
+        """Attention maps of ``k`` learned keypoints and their expected image positions."""
 
         def __init__(self, channels: int, k: int) -> None:
             super().__init__()
             self.proj = nn.Conv2d(channels, k, 1)
 
-        def forward(self, x: Any) -> Any:
+        def forward(self, x: Any) -> tuple[Any, Any]:
+            """Logits (B, k, h, w) and expected positions (B, 2k), x, y in [-1, 1]."""
             b, _, h, w = x.shape
-            logits = self.proj(x).flatten(2).float()  # (B, k, h*w)
-            attn = F.softmax(logits, dim=-1)
+            logits = self.proj(x).float()
             ys = torch.linspace(-1, 1, h, device=x.device)
             xs = torch.linspace(-1, 1, w, device=x.device)
             gy, gx = torch.meshgrid(ys, xs, indexing="ij")
-            grid = torch.stack([gx.reshape(-1), gy.reshape(-1)], -1)  # (h*w, 2)
-            return (attn @ grid).reshape(b, -1)  # (B, 2k)
+            grid = torch.stack([gx, gy], 0).expand(b, 2, h, w)
+            return logits, expected(logits, grid).reshape(b, -1)
 
     class Perception(nn.Module):
         """Camera images of one frame -> the 24 environment values (see the module)."""
@@ -109,7 +161,11 @@ def build(settings: dict[str, Any]) -> Any:
             self.settings = dict(settings)
             self.cameras = list(settings["cameras"])
             self.depth = bool(settings["depth"])
-            chans = 4 if self.depth else 3
+            xyz_cam = str(settings.get("xyz_camera", ""))
+            self.xyz_index = self.cameras.index(xyz_cam) if xyz_cam else -1
+            self.xyz_fovy = float(settings.get("xyz_fovy_deg", 0.0))
+            self.depth_max = float(settings.get("depth_max_m", 2.0))
+            chans = (4 if self.depth else 3) + (3 if self.xyz_index >= 0 else 0)
             net = torchvision.models.resnet18(
                 weights=None, norm_layer=lambda c: nn.GroupNorm(max(c // 16, 1), c)
             )
@@ -122,8 +178,9 @@ def build(settings: dict[str, Any]) -> Any:
             n = len(self.cameras)
             hidden = int(settings["hidden"])
             dim = len(settings["low"])
+            width = n * (2 * k + 256) + (3 * k if self.xyz_index >= 0 else 0)
             self.mlp = nn.Sequential(
-                nn.Linear(n * (2 * k + 256), hidden),
+                nn.Linear(width, hidden),
                 nn.ReLU(),
                 nn.Linear(hidden, hidden),
                 nn.ReLU(),
@@ -134,26 +191,52 @@ def build(settings: dict[str, Any]) -> Any:
             self.register_buffer("low", low)
             self.register_buffer("span", torch.clamp(high - low, min=1e-6))
 
-        def forward(self, images: Any) -> Any:
+        @property
+        def xyz(self) -> bool:
+            """Whether the network reads the :data:`XYZ_CAMERA`'s points (needs its pose)."""
+            return self.xyz_index >= 0
+
+        def forward(self, images: Any, pose: Any = None) -> Any:
             """Predictions scaled to [-1, 1] (B, 24) from ``images`` (B, n_cams, C, H, W),
-            values in [0, 1] (the module's call: what ``torch.compile`` compiles)."""
-            b = images.shape[0]
-            x = (images.flatten(0, 1) - 0.5) / 0.25
-            x = x.contiguous(memory_format=torch.channels_last)
+            values in [0, 1], and (:attr:`xyz`) the :data:`XYZ_CAMERA`'s pose (B, 12) (the
+            module's call: what ``torch.compile`` compiles)."""
+            b, n = images.shape[:2]
+            x = (images - 0.5) / 0.25
+            points = None
+            if self.xyz:
+                if pose is None:
+                    raise PolicyError(
+                        f"the perception network reads the {XYZ_CAMERA} camera's points: give "
+                        "its pose (forward kinematics of the joints)"
+                    )
+                depth_m = images[:, self.xyz_index, 3] * self.depth_max
+                points = pixel_points(depth_m, pose, self.xyz_fovy)  # (B, 3, H, W)
+                extra = torch.zeros_like(x[:, :, :3])
+                extra[:, self.xyz_index] = points / 0.5
+                x = torch.cat([x, extra], 2)
+            x = x.flatten(0, 1).contiguous(memory_format=torch.channels_last)
             fmap = self.trunk(x)  # (B*n, 256, h, w)
-            feats = torch.cat([self.keypoints(fmap), fmap.float().mean(dim=(-2, -1))], -1)
-            return self.mlp(feats.reshape(b, -1))
+            logits, coords = self.keypoints(fmap)
+            parts = [coords, fmap.float().mean(dim=(-2, -1))]
+            feats = torch.cat(parts, -1).reshape(b, -1)
+            if points is not None:  # each keypoint's point, read at READOUT px
+                h, w = logits.shape[-2:]
+                mine = logits.reshape(b, n, -1, h, w)[:, self.xyz_index]
+                up = F.interpolate(mine, size=(READOUT, READOUT), mode="bilinear")
+                pts = expected(up, F.adaptive_avg_pool2d(points, READOUT))  # (B, k, 3)
+                feats = torch.cat([feats, pts.reshape(b, -1)], -1)
+            return self.mlp(feats)
 
-        def predict(self, images: Any) -> Any:
+        def predict(self, images: Any, pose: Any = None) -> Any:
             """The 24 environment values (B, 24), in the dataset's units (m, rotations)."""
-            return (self(images).float() + 1) * 0.5 * self.span + self.low
+            return (self(images, pose).float() + 1) * 0.5 * self.span + self.low
 
-        def loss(self, images: Any, target: Any) -> tuple[Any, Any]:
+        def loss(self, images: Any, target: Any, pose: Any = None) -> tuple[Any, Any]:
             """Mean squared error in the [-1, 1] scale against ``target`` (B, 24, dataset
             units), and the root-mean-square error of the two objects' positions (m), detached.
             """
             want = 2 * (target.float() - self.low) / self.span - 1
-            got = self(images).float()
+            got = self(images, pose).float()
             mse = F.mse_loss(got, want)
             with torch.no_grad():
                 err = (got - want) * 0.5 * self.span

@@ -62,10 +62,12 @@ from factory.policy.inputs import (
     convert_sample,
     depth_image,
     env_features,
+    kinematics,
     model_actions,
     state_features,
     subtask_onehot,
 )
+from factory.policy.perception import CAMERA_POSE, XYZ_CAMERA
 from factory.policy.recipe import (
     STATE_DIFFUSION_DEFAULTS,
     STATE_DIFFUSION_LR,
@@ -244,6 +246,9 @@ class LowDimFrames:
         self.delta: dict[str, list[int]] = dict(base.delta_indices or {})
         if spec.mobile and SUBTASK_KEY in self.delta:  # the one-hot is read at its frames
             self.delta[ENV_STATE] = self.delta[SUBTASK_KEY]
+        if spec.perception and spec.depth and XYZ_CAMERA in spec.cameras:
+            # the wrist camera's pose of each frame (forward kinematics of the joints)
+            self.values[CAMERA_POSE] = kinematics().camera_poses(state[:, :7], XYZ_CAMERA)
         if spec.perception:  # the poses at the robot state's frames; the cameras' newest only
             if STATE in self.delta:
                 self.delta[ENV_STATE] = self.delta[STATE]
@@ -819,10 +824,17 @@ class Trainer:
 
         from factory.policy import perception
 
-        assert self.trainset.frames is not None
-        target = self.trainset.frames.values[AUX_TARGET]
+        frames = self.trainset.frames
+        assert frames is not None
+        target = frames.values[AUX_TARGET]
+        fovy = kinematics().camera_fovy(XYZ_CAMERA) if CAMERA_POSE in frames.values else 0.0
         settings = perception.settings_of(
-            list(self.spec.cameras), self.spec.depth, self.spec.image_size, target
+            list(self.spec.cameras),
+            self.spec.depth,
+            self.spec.image_size,
+            target,
+            self.spec.depth_max_m,
+            fovy,
         )
         if resume is not None and (resume / PRETRAINED / perception.WEIGHTS).is_file():
             net = perception.load(resume / PRETRAINED, self.device)
@@ -936,6 +948,7 @@ class Trainer:
         import torch
 
         target = batch.pop(AUX_TARGET, None)
+        pose = batch.pop(CAMERA_POSE, None)
         images = None
         if self.perception is not None:
             from factory.policy.perception import add_noise, camera_stack
@@ -955,6 +968,7 @@ class Trainer:
                 seen, err_m = self.perception.loss(
                     images.to(self.device, non_blocking=True),
                     target.to(self.device, non_blocking=True),
+                    None if pose is None else pose.to(self.device, non_blocking=True),
                 )
                 total = loss + seen
                 self.last_aux = seen.detach()

@@ -732,6 +732,7 @@ def test_perception_policy_trains_resumes_and_acts_without_poses(
     assert any(not torch.equal(first[k], moved[k]) for k in first)
     policy = load_policy("seen", tmp_path, device="cpu")
     assert policy.info.vision == "perception" and policy.perception is not None
+    assert policy.perception.xyz  # RGB-D with the wrist camera: its pixels' points are read
     assert "observation.environment_state" not in policy.info.features
     obs = _frames(dataset, 2, list(policy.info.features))
     seen = {}
