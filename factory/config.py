@@ -517,6 +517,8 @@ class TrainConfig:
         perception_noise_m: ``vision=perception``: standard deviation (m, per axis) of the
             Gaussian offset added to each object's recorded position while the policy trains,
             so that it acts on a perception's errors.
+        cameras: the cameras an ``rgb``/``rgbd`` policy reads, e.g. ``[wrist]`` (empty: every
+            camera the dataset records); the evaluation renders those only.
     """
 
     name: str = "${train.policy}_${train.inputs}"
@@ -552,6 +554,7 @@ class TrainConfig:
     options: dict[str, Any] = field(default_factory=dict)
     vision: str = "end_to_end"
     perception_noise_m: float = 0.01
+    cameras: list[str] = field(default_factory=list)
 
 
 @dataclass

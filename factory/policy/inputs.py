@@ -79,8 +79,8 @@ from __future__ import annotations
 
 import functools
 import threading
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -212,16 +212,39 @@ class InputSpec:
 
 
 def input_spec(
-    inputs: str, features: Mapping[str, Any], action: str = "joint", perception: bool = False
+    inputs: str,
+    features: Mapping[str, Any],
+    action: str = "joint",
+    perception: bool = False,
+    cameras: Sequence[str] | None = None,
 ) -> InputSpec:
     """The inputs of a setting on a dataset with these features (``meta/info.json``).
 
     Args:
         perception: ``train.vision=perception`` (image inputs of the fixed-base task).
+        cameras: ``train.cameras``: the cameras an image policy reads (None or empty: every
+            camera the dataset records).
 
     Raises:
-        PolicyError: an unknown setting, or the dataset lacks a feature the setting reads.
+        PolicyError: an unknown setting, or the dataset lacks a feature the setting reads
+            (a camera named that it lacks: the ones it has listed).
     """
+    spec = _input_spec(inputs, features, action, perception)
+    if not cameras or not spec.cameras:
+        return spec
+    unknown = [c for c in cameras if c not in spec.cameras]
+    if unknown:
+        raise PolicyError(
+            f"train.cameras: the dataset has no {', '.join(unknown)} camera; it records "
+            f"{', '.join(spec.cameras)}"
+        )
+    return replace(spec, cameras=tuple(c for c in spec.cameras if c in set(cameras)))
+
+
+def _input_spec(
+    inputs: str, features: Mapping[str, Any], action: str, perception: bool
+) -> InputSpec:
+    """:func:`input_spec` with every camera the dataset records."""
     if inputs not in INPUTS:
         raise PolicyError(f"unknown train.inputs {inputs!r}: use one of {', '.join(INPUTS)}")
     if action not in ACTIONS:

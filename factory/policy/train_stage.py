@@ -56,6 +56,11 @@ def check_config(tc: Any) -> None:
             "train.vision=perception reads the cameras: use train.inputs=rgb or rgbd, or "
             "train.vision=end_to_end"
         )
+    cams = getattr(tc, "cameras", None) or []
+    if not isinstance(cams, list | tuple) or not all(isinstance(c, str) for c in cams):
+        raise ConfigError(
+            f"train.cameras must be a list of camera names, e.g. [wrist], got {cams!r}"
+        )
     if getattr(tc, "perception_noise_m", 0.0) < 0:
         raise ConfigError(
             f"train.perception_noise_m must be >= 0 (0: none), got {tc.perception_noise_m}"
@@ -214,7 +219,13 @@ def run(ctx: StageContext) -> dict[str, Any]:
     store = ctx.require_store()
     root = dataset_root(store.root, tc.dataset)
     features = _dataset(root)[0]["features"]
-    spec = input_spec(tc.inputs, features, tc.action, getattr(tc, "vision", "") == "perception")
+    spec = input_spec(
+        tc.inputs,
+        features,
+        tc.action,
+        getattr(tc, "vision", "") == "perception",
+        list(getattr(tc, "cameras", None) or []),
+    )
     if spec.mobile and spec.inputs == "state":
         log.warning(
             "train %s: the mobile dataset has no object poses, so train.inputs=state reads the "

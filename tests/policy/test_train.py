@@ -765,3 +765,20 @@ def test_per_sample_decoding_without_video_reader_names_the_cache(
     with pytest.raises(PolicyError, match=r"train\.video_cache=memory") as e:
         _train(tmp_path, dataset, name="pyav", inputs="rgb", video_cache="off", steps=1)
     assert "\n" not in str(e.value)
+
+
+def test_train_cameras_chooses_what_an_image_policy_reads(policy_run: Path, tmp_path: Path) -> None:
+    """``train.cameras``: an image policy reads the cameras named (the evaluation then renders
+    those only); a camera the dataset lacks is a one-line error listing the ones it has."""
+    dataset = policy_run / "dataset" / "merged"
+    result = _train(
+        tmp_path, dataset, name="wrist", inputs="rgb", cameras=["wrist"], steps=1, batch_size=2
+    )
+    assert result["steps"] == 1
+    info = json.loads((tmp_path / "policy" / "wrist" / "train.json").read_text())
+    assert [k for k in info["features"] if k.startswith("observation.images.")] == [
+        "observation.images.wrist"
+    ]
+    with pytest.raises(PolicyError, match="it records left, wrist") as e:
+        _train(tmp_path, dataset, name="nope", inputs="rgb", cameras=["right"], steps=1)
+    assert "\n" not in str(e.value)
