@@ -20,6 +20,12 @@
 # [128, 128]}}'): two recipes for the device time of one on a machine that counts in full. With EVAL_WARP=1 the policy and the
 # planner are evaluated again on the same configurations with eval.executor=warp (timed).
 #
+# With VISION=perception (factory/policy/perception.py) the policy is a perception network and a
+# lerobot state policy; PERCEPTION_CHECK=3 then records 3 demos per held-out kitchen into a run of
+# their own and measures the perception's position errors there and on the training frames. The
+# next comparison, on a two-GPU machine (the wrist camera alone: the one whose pose is known):
+#   VISION=perception PERCEPTION_CHECK=3 SECOND_GPU=1 SECOND_NAME=rgbd_wrist SECOND_INPUTS=rgbd \
+#     SECOND_ARGS="'train.cameras=[wrist]'" TRAIN_MINUTES=12 bash scripts/experiments/camera_policy.sh
 # A tiny dry run on a CPU:
 #   TRAIN_SCENES=1 HELDOUT_SCENES=1 EPISODES=2 TRAIN_MINUTES=0.2 STEPS=4 BATCH=2 \
 #     EVAL_EPISODES=1 CURVE_MINUTES=0.05 CURVE_EPISODES=1 BENCH_DATASET= DEVICE=cpu \
