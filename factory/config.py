@@ -519,6 +519,9 @@ class TrainConfig:
             so that it acts on a perception's errors.
         cameras: the cameras an ``rgb``/``rgbd`` policy reads, e.g. ``[wrist]`` (empty: every
             camera the dataset records); the evaluation renders those only.
+        perception_points: ``vision=perception`` with ``rgbd`` and the wrist camera: its
+            pixels enter the network as points in the robot's base frame (forward kinematics
+            and depth), which its keypoints read.
     """
 
     name: str = "${train.policy}_${train.inputs}"
@@ -555,6 +558,7 @@ class TrainConfig:
     vision: str = "end_to_end"
     perception_noise_m: float = 0.01
     cameras: list[str] = field(default_factory=list)
+    perception_points: bool = True
 
 
 @dataclass

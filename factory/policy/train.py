@@ -207,6 +207,7 @@ class LowDimFrames:
         spec: InputSpec,
         videos: dict[str, np.ndarray] | None = None,
         aux: bool = False,
+        points: bool = True,
     ) -> None:
         self.spec = spec
         self.videos = videos or {}
@@ -246,7 +247,7 @@ class LowDimFrames:
         self.delta: dict[str, list[int]] = dict(base.delta_indices or {})
         if spec.mobile and SUBTASK_KEY in self.delta:  # the one-hot is read at its frames
             self.delta[ENV_STATE] = self.delta[SUBTASK_KEY]
-        if spec.perception and spec.depth and XYZ_CAMERA in spec.cameras:
+        if spec.perception and spec.depth and XYZ_CAMERA in spec.cameras and points:
             # the wrist camera's pose of each frame (forward kinematics of the joints)
             self.values[CAMERA_POSE] = kinematics().camera_poses(state[:, :7], XYZ_CAMERA)
         if spec.perception:  # the poses at the robot state's frames; the cameras' newest only
@@ -308,13 +309,14 @@ class TrainSet:
         augment: Any = None,
         videos: dict[str, np.ndarray] | None = None,
         aux: bool = False,
+        points: bool = True,
     ) -> None:
         self.base = base
         self.spec = spec
         self.augment = augment
         self.videos = videos
         cached = not spec.cameras or videos is not None
-        self.frames = LowDimFrames(base, spec, videos, aux) if cached else None
+        self.frames = LowDimFrames(base, spec, videos, aux, points) if cached else None
 
     def __len__(self) -> int:
         return len(self.base)
@@ -354,12 +356,15 @@ def open_dataset(
     augment: bool,
     video_cache: str = "off",
     aux: bool = False,
+    points: bool = True,
 ) -> tuple[Any, TrainSet]:
     """The ``LeRobotDataset`` (videos the policy reads only) and its converted view.
 
     Args:
         aux: the samples hold the auxiliary target (:data:`AUX_TARGET`) where the frames are
             in memory (the trainer drops the auxiliary loss otherwise).
+        points: a perception policy's samples hold the wrist camera's pose
+            (``train.perception_points``).
         video_cache: ``memory`` decodes the videos the policy reads into memory once
             (:func:`~factory.policy.video_frames.decode_videos`), ``auto`` does so when they take
             less than half of the available memory, ``off`` decodes per sample (lerobot).
@@ -407,7 +412,7 @@ def open_dataset(
             )
     if keys and videos is None:
         _check_per_sample_decoding()
-    return base, TrainSet(base, spec, transforms, videos, aux)
+    return base, TrainSet(base, spec, transforms, videos, aux, points)
 
 
 def _check_per_sample_decoding() -> None:
@@ -696,6 +701,7 @@ class Trainer:
             tc.augment_images,
             getattr(tc, "video_cache", "off"),
             self.aux_weight > 0 or spec.perception,
+            bool(getattr(tc, "perception_points", True)),
         )
         if spec.perception and self.trainset.frames is None:
             raise PolicyError(

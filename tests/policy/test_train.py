@@ -740,6 +740,9 @@ def test_perception_policy_trains_resumes_and_acts_without_poses(
     actions = policy.act(obs)
     assert actions.shape == (2, 8) and np.isfinite(actions).all()
     assert seen["env"].shape == (2, 24)
+    # train.perception_points=false: the first version, images only
+    _train(tmp_path, dataset, steps=1, **{**args, "name": "flat"}, perception_points=False)
+    assert not load_policy("flat", tmp_path, device="cpu").perception.xyz
     # lerobot-eval cannot run it (its policy alone would read the env's recorded poses)
     from factory.policy.lerobot_plugin import PolicyAdapter
 
