@@ -93,7 +93,12 @@ class WarpBatchSim(BatchSim):
         graph: bool = True,
     ) -> None:
         from factory.demos.execute.cpu import RecordConfig
-        from factory.demos.execute.warp import buffer_sizes, render_context, state_layout
+        from factory.demos.execute.warp import (
+            RENDER_CLIP,
+            buffer_sizes,
+            render_context,
+            state_layout,
+        )
         from factory.demos.execute.warp_kernels import to_images
         from factory.policy.warp_kernels import frame_ctrl
         from factory.sim.backend import cuda_available, init_warp
@@ -128,9 +133,11 @@ class WarpBatchSim(BatchSim):
                 self.rc = render_context(m, n, (spec.width, spec.height), names)
                 npix = spec.width * spec.height
                 self._npix = npix
-                self._rgb = wp.empty((ncam, n, 3 * npix), dtype=wp.uint8)
-                self._mm = wp.empty((ncam, n, npix), dtype=wp.uint16)
-                self._m = wp.empty((1, 1, 1), dtype=float)
+                # one 2-D store per camera, as the demos' (to_images' docstring)
+                self._rgb = [wp.empty((n, 3 * npix), dtype=wp.uint8) for _ in range(ncam)]
+                self._mm = [wp.empty((n, npix), dtype=wp.uint16) for _ in range(ncam)]
+                self._m = wp.empty((1, 1), dtype=float)
+                self._far = float(RENDER_CLIP[1])  # the depth of a ray that hits nothing
                 self._rgb_adr = wp.array(np.asarray(self.rc.rgb_adr.numpy(), np.int32), dtype=int)
                 self._depth_adr = wp.array(
                     np.asarray(self.rc.depth_adr.numpy(), np.int32), dtype=int
@@ -145,7 +152,9 @@ class WarpBatchSim(BatchSim):
                 for name in ("time", "qpos", "qvel", "act", "qacc_warmstart", "ctrl", "overflow")
             }
             if self.rc is not None:
-                self._sources.update(rgb=self._rgb, depth=self._mm)
+                for k in range(ncam):
+                    self._sources[f"rgb{k}"] = self._rgb[k]
+                    self._sources[f"depth{k}"] = self._mm[k]
             self._sources = {k: a for k, a in self._sources.items() if a.size}
             self._mirrors = {
                 k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
@@ -199,22 +208,25 @@ class WarpBatchSim(BatchSim):
         _, to_images = self._kernels
         mjw.refit_bvh(self.m, self.d, self.rc)
         mjw.render(self.m, self.d, self.rc)
-        wp.launch(
-            to_images,
-            dim=(self.num_envs, len(self._cams), self._npix),
-            inputs=[
-                self.rc.rgb_data,
-                self.rc.depth_data,
-                self._rgb_adr,
-                self._depth_adr,
-                self._npix,
-                1,
-                self._rows,
-                self._step0,
-                1,
-            ],
-            outputs=[self._rgb, self._mm, self._m],
-        )
+        for c in range(len(self._cams)):
+            wp.launch(
+                to_images,
+                dim=(self.num_envs, self._npix),
+                inputs=[
+                    self.rc.rgb_data,
+                    self.rc.depth_data,
+                    self._rgb_adr,
+                    self._depth_adr,
+                    c,
+                    self._npix,
+                    1,
+                    self._far,
+                    self._rows,
+                    self._step0,
+                    1,
+                ],
+                outputs=[self._rgb[c], self._mm[c], self._m],
+            )
 
     def _grab(self) -> None:
         """Copies the worlds' dynamic state and images of the last frame to the host."""
@@ -336,8 +348,8 @@ class WarpBatchSim(BatchSim):
         if i < 0:
             raise ValueError("the device's images are per world: pass the env index")
         h, w = self.spec.height, self.spec.width
-        rgb, depth = self._host["rgb"], self._host["depth"]
+        host = self._host
         return {
-            c: (rgb[k, i].reshape(h, w, 3), depth[k, i].reshape(h, w))
+            c: (host[f"rgb{k}"][i].reshape(h, w, 3), host[f"depth{k}"][i].reshape(h, w))
             for k, c in enumerate(self._cams)
         }
