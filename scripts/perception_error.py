@@ -37,8 +37,8 @@ def main() -> int:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from factory.policy.checkpoint import INFO_IN_MODEL, read_info, resolve_device, resolve_ref
-    from factory.policy.inputs import depth_image, env_features, kinematics
-    from factory.policy.perception import POSITIONS, XYZ_CAMERA, camera_stack, load
+    from factory.policy.inputs import depth_image, env_features
+    from factory.policy.perception import POSITIONS, camera_stack, load, wrist_poses
     from factory.policy.video_frames import decode_videos
 
     device = resolve_device(a.device)
@@ -63,8 +63,7 @@ def main() -> int:
     n = len(truth)
     poses = None
     if net.xyz:
-        joints = rows["observation.state"][:, :7]
-        poses = torch.from_numpy(kinematics().camera_poses(joints, XYZ_CAMERA))
+        poses = torch.from_numpy(wrist_poses(rows["observation.state"]))
     pred = np.zeros_like(truth)
     with torch.inference_mode():
         for i in range(0, n, a.batch):

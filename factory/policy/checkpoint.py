@@ -371,12 +371,9 @@ class LoadedPolicy:
                 del batch[k]
             pose = None
             if self.perception.xyz:  # the wrist camera's pose: forward kinematics
-                from factory.policy.inputs import kinematics
-                from factory.policy.perception import XYZ_CAMERA
+                from factory.policy.perception import wrist_poses
 
-                joints = np.asarray(obs["observation.state"], np.float64)[:, :7]
-                pose = torch.from_numpy(kinematics().camera_poses(joints, XYZ_CAMERA))
-                pose = pose.to(self.device)
+                pose = torch.from_numpy(wrist_poses(obs["observation.state"])).to(self.device)
             with torch.inference_mode():
                 env = self.perception.predict(images.to(self.device), pose).float()
             batch["observation.environment_state"] = env.to("cpu")

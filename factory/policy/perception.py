@@ -98,6 +98,14 @@ def settings_of(
     }
 
 
+def wrist_poses(joints: np.ndarray) -> np.ndarray:
+    """The :data:`XYZ_CAMERA`'s pose (N, 12) for arm joints (N, 7) (rad): forward kinematics
+    (:meth:`factory.policy.inputs.kinematics`), base frame, as :func:`pixel_points` takes it."""
+    from factory.policy.inputs import kinematics
+
+    return kinematics().camera_poses(np.asarray(joints, np.float64)[:, :7], XYZ_CAMERA)
+
+
 def pixel_points(depth_m: Any, pose: Any, fovy_deg: float) -> Any:
     """The point behind every pixel of a camera, in the robot's base frame (m).
 

@@ -67,7 +67,7 @@ from factory.policy.inputs import (
     state_features,
     subtask_onehot,
 )
-from factory.policy.perception import CAMERA_POSE, XYZ_CAMERA
+from factory.policy.perception import CAMERA_POSE, XYZ_CAMERA, wrist_poses
 from factory.policy.recipe import (
     STATE_DIFFUSION_DEFAULTS,
     STATE_DIFFUSION_LR,
@@ -249,7 +249,7 @@ class LowDimFrames:
             self.delta[ENV_STATE] = self.delta[SUBTASK_KEY]
         if spec.perception and spec.depth and XYZ_CAMERA in spec.cameras and points:
             # the wrist camera's pose of each frame (forward kinematics of the joints)
-            self.values[CAMERA_POSE] = kinematics().camera_poses(state[:, :7], XYZ_CAMERA)
+            self.values[CAMERA_POSE] = wrist_poses(state)
         if spec.perception:  # the poses at the robot state's frames; the cameras' newest only
             if STATE in self.delta:
                 self.delta[ENV_STATE] = self.delta[STATE]

@@ -93,13 +93,7 @@ class WarpBatchSim(BatchSim):
         graph: bool = True,
     ) -> None:
         from factory.demos.execute.cpu import RecordConfig
-        from factory.demos.execute.warp import (
-            RENDER_CLIP,
-            buffer_sizes,
-            render_context,
-            state_layout,
-        )
-        from factory.demos.execute.warp_kernels import to_images
+        from factory.demos.execute.warp import buffer_sizes, render_context, state_layout
         from factory.policy.warp_kernels import frame_ctrl
         from factory.sim.backend import cuda_available, init_warp
         from factory.tasks.pick_place.objects import Outcome
@@ -137,14 +131,13 @@ class WarpBatchSim(BatchSim):
                 self._rgb = [wp.empty((n, 3 * npix), dtype=wp.uint8) for _ in range(ncam)]
                 self._mm = [wp.empty((n, npix), dtype=wp.uint16) for _ in range(ncam)]
                 self._m = wp.empty((1, 1), dtype=float)
-                self._far = float(RENDER_CLIP[1])  # the depth of a ray that hits nothing
                 self._rgb_adr = wp.array(np.asarray(self.rc.rgb_adr.numpy(), np.int32), dtype=int)
                 self._depth_adr = wp.array(
                     np.asarray(self.rc.depth_adr.numpy(), np.int32), dtype=int
                 )
                 self._rows = wp.array(np.arange(n, dtype=np.int32)[None], dtype=int)
                 self._step0 = wp.zeros(1, dtype=int)
-            self._kernels = (frame_ctrl, to_images)
+            self._kernels = (frame_ctrl,)
             self._captured: Any = None
             pinned = self.device.startswith("cuda")
             self._sources = {
@@ -191,7 +184,7 @@ class WarpBatchSim(BatchSim):
         """One frame of every world: the controls of each physics step, the steps, then the
         kinematics and the cameras (the launches a CUDA graph captures)."""
         wp, mjw = self.wp, self.mjw
-        frame_ctrl, _ = self._kernels
+        (frame_ctrl,) = self._kernels
         nu = self.model.nu
         for k in range(self.per_frame):
             wp.launch(
@@ -204,29 +197,25 @@ class WarpBatchSim(BatchSim):
     def _draw_device(self) -> None:
         if self.rc is None:
             return
+        from factory.demos.execute.warp import launch_images
+
         wp, mjw = self.wp, self.mjw
-        _, to_images = self._kernels
         mjw.refit_bvh(self.m, self.d, self.rc)
         mjw.render(self.m, self.d, self.rc)
-        for c in range(len(self._cams)):
-            wp.launch(
-                to_images,
-                dim=(self.num_envs, self._npix),
-                inputs=[
-                    self.rc.rgb_data,
-                    self.rc.depth_data,
-                    self._rgb_adr,
-                    self._depth_adr,
-                    c,
-                    self._npix,
-                    1,
-                    self._far,
-                    self._rows,
-                    self._step0,
-                    1,
-                ],
-                outputs=[self._rgb[c], self._mm[c], self._m],
-            )
+        launch_images(
+            wp,
+            self.rc,
+            self._rgb_adr,
+            self._depth_adr,
+            self._npix,
+            True,
+            self._rows,
+            self._step0,
+            1,
+            self._rgb,
+            self._mm,
+            [self._m] * len(self._cams),
+        )
 
     def _grab(self) -> None:
         """Copies the worlds' dynamic state and images of the last frame to the host."""

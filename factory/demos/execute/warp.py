@@ -96,6 +96,48 @@ def check_strides(arrays: list[Any]) -> None:
             )
 
 
+def launch_images(
+    wp: Any,
+    rc: Any,
+    rgb_adr: Any,
+    depth_adr: Any,
+    npix: int,
+    depth_mm: bool,
+    rows: Any,
+    step: Any,
+    per_frame: int,
+    rgb: list[Any],
+    mm: list[Any],
+    m: list[Any],
+) -> None:
+    """Files the render context's last drawing into the image stores, one
+    :func:`~factory.demos.execute.warp_kernels.to_images` launch per camera (``rgb[c]``,
+    ``mm[c]``, ``m[c]``: camera ``c``'s stores; ``rows``: (boundaries, worlds) store rows of
+    each world, -1 for none). Depth that is not finite becomes the far clip of
+    :data:`RENDER_CLIP`."""
+    from factory.demos.execute.warp_kernels import to_images
+
+    for c in range(len(rgb)):
+        wp.launch(
+            to_images,
+            dim=(rows.shape[1], npix),
+            inputs=[
+                rc.rgb_data,
+                rc.depth_data,
+                rgb_adr,
+                depth_adr,
+                c,
+                npix,
+                int(depth_mm),
+                float(RENDER_CLIP[1]),
+                rows,
+                step,
+                per_frame,
+            ],
+            outputs=[rgb[c], mm[c], m[c]],
+        )
+
+
 def state_layout(model: mujoco.MjModel, spec: int = int(STATE_SPEC)) -> dict[str, slice]:
     """Where each part of a MuJoCo state vector lies (``mj_getState`` order: the ``mjtState``
     bits in increasing order), for the parts in ``spec``.
@@ -406,7 +448,6 @@ class WarpExecutor:
             set_looks,
             starts,
             tick,
-            to_images,
         )
         from factory.demos.execute.world_schedule import packed_schedule, padded_schedule
 
@@ -531,25 +572,20 @@ class WarpExecutor:
                     return
                 mjw.refit_bvh(m, d, rc)
                 mjw.render(m, d, rc)
-                for c in range(ncam):
-                    wp.launch(
-                        to_images,
-                        dim=(n, npix),
-                        inputs=[
-                            rc.rgb_data,
-                            rc.depth_data,
-                            rgb_adr,
-                            depth_adr,
-                            c,
-                            npix,
-                            int(mm),
-                            float(RENDER_CLIP[1]),
-                            rows_d,
-                            step_d,
-                            per_frame,
-                        ],
-                        outputs=[rgb_store[c], mm_store[c], m_store[c]],
-                    )
+                launch_images(
+                    wp,
+                    rc,
+                    rgb_adr,
+                    depth_adr,
+                    npix,
+                    mm,
+                    rows_d,
+                    step_d,
+                    per_frame,
+                    rgb_store,
+                    mm_store,
+                    m_store,
+                )
 
             def period() -> None:
                 for _ in range(per_frame):
