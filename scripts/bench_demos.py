@@ -7,7 +7,12 @@ and failure reasons, planning time per segment, rendering frames/s.
         [--run-dir runs/bench_demos] [--out benchmarks/results/demos-cpu1.json]
 
 ``--executor warp`` runs the episodes on the GPU (MuJoCo Warp worlds and batch renderer) with
-``--workers`` planning processes (default: cores - 1).
+``--workers`` planning processes (default: cores - 1), and changes the defaults to the GPU
+production size: 3 scenes x 1,536 episodes on every core, one cold run, the stage's own
+``demos.gpu_batch`` (``python scripts/bench_demos.py --executor warp`` is the GPU benchmark).
+``--kernel-cache DIR`` sets ``sim.kernel_cache``; the JSON says how many compiled modules the
+cache held at the start (``bare_machine``: none) and each run's time to its first stored
+episode (from the command's start, kernel compilation included).
 
 Scenes are generated first (kitchens with a pick-and-place task, or living rooms with a mobile
 "move the can from the coffee table to the desk" task; not timed; kept in
@@ -28,6 +33,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -42,15 +48,31 @@ PROMPTS = {
 """The generation request of each task's benchmark scenes."""
 
 
-def _cli(args: list[str], cores: int, env: dict[str, str]) -> float:
+def _cli(
+    args: list[str], cores: int, env: dict[str, str], episodes: Path | None = None
+) -> tuple[float, float | None]:
+    """Runs the CLI; returns its wall time (s) and, with ``episodes`` (the run's episode
+    store), the time from its start to the first stored episode (s; None if none was)."""
     cmd = [sys.executable, "-m", "factory", *args]
     if shutil.which("taskset") and cores < (os.cpu_count() or 1):
         cmd = ["taskset", "-c", f"0-{cores - 1}", *cmd]
     t0 = time.perf_counter()
-    out = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    if out.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{out.stderr[-4000:]}")
-    return time.perf_counter() - t0
+    first: float | None = None
+    with tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=err, text=True)
+        while proc.poll() is None:
+            if (
+                episodes is not None
+                and first is None
+                and next(episodes.glob("shard-*.zarr/*/zarr.json"), None)
+            ):
+                first = time.perf_counter() - t0
+                print(f"first episode stored after {first:.1f} s", flush=True)
+            time.sleep(0.5)
+        if proc.returncode != 0:
+            err.seek(0)
+            raise SystemExit(f"{' '.join(cmd)} failed:\n{err.read()[-4000:]}")
+    return time.perf_counter() - t0, first
 
 
 def _gpu_name() -> str | None:
@@ -90,17 +112,53 @@ def _per_scene(run: Path) -> list[dict[str, float | str]]:
     return rows
 
 
+def _kernel_cache(setting: str | None, env: dict[str, str]) -> dict[str, object]:
+    """The Warp kernel cache the stage will use and what it holds before the first run:
+    ``bare_machine`` when it holds no compiled module (every kernel is compiled in the run)."""
+    from factory.sim.kernel_cache import cached_modules
+
+    if setting:
+        folder = str(Path(os.path.expanduser(setting)).resolve())
+    elif env.get("WARP_CACHE_PATH"):
+        folder = os.path.realpath(env["WARP_CACHE_PATH"])
+    else:
+        folder = str(Path("~/.cache/warp").expanduser())
+    n = cached_modules(folder)
+    return {"folder": folder, "modules_at_start": n, "bare_machine": n == 0}
+
+
+KERNELS_READY = re.compile(r"GPU kernels ready in ([\d.]+) s")
+
+
+def _kernels_ready(run: Path) -> list[float]:
+    """The stage log's "GPU kernels ready in X s" times (s), one per worlds set-up."""
+    return [
+        float(m[1])
+        for log in sorted((run / "logs").glob("demos-*.log"))
+        for m in KERNELS_READY.finditer(log.read_text())
+    ]
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", type=int, default=2)
-    p.add_argument("--episodes", type=int, default=4, help="episodes per scene")
-    p.add_argument("--cores", type=int, default=1)
+    p.add_argument("--scenes", type=int, default=None, help="default 2 (cpu), 3 (warp)")
+    p.add_argument(
+        "--episodes", type=int, default=None, help="per scene; default 4 (cpu), 1536 (warp)"
+    )
+    p.add_argument("--cores", type=int, default=None, help="default 1 (cpu), all (warp)")
     p.add_argument("--batch", type=int, default=16)
     p.add_argument("--run-dir", type=Path, default=ROOT / "runs" / "bench_demos")
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--gl", default=None, help="MUJOCO_GL for rendering (egl, osmesa)")
     p.add_argument("--executor", default="cpu", choices=["cpu", "warp", "auto"])
-    p.add_argument("--gpu-batch", type=int, default=512)
+    p.add_argument(
+        "--gpu-batch", type=int, default=None, help="demos.gpu_batch (default: the stage's)"
+    )
+    p.add_argument(
+        "--kernel-cache",
+        default=None,
+        help="sim.kernel_cache (default: the stage's: WARP_CACHE_PATH or Warp's own folder)",
+    )
     p.add_argument("--workers", type=int, default=0, help="0: --cores (cpu), cores - 1 (warp)")
     p.add_argument(
         "--task",
@@ -115,9 +173,9 @@ def main() -> None:
     p.add_argument(
         "--runs",
         nargs="+",
-        default=["cold", "warm"],
+        default=None,
         choices=["cold", "warm"],
-        help="which runs (a long GPU run: 'cold' alone, its later scenes are warm)",
+        help="which runs; default cold warm (cpu), cold (warp: its later scenes are warm)",
     )
     p.add_argument(
         "--set",
@@ -126,6 +184,15 @@ def main() -> None:
         help="extra CLI override (repeatable), e.g. demos.freeze_beyond=0",
     )
     args = p.parse_args()
+    gpu = args.executor == "warp"
+    for name, cpu_default, gpu_default in (
+        ("scenes", 2, 3),
+        ("episodes", 4, 1536),
+        ("cores", 1, os.cpu_count() or 1),
+        ("runs", ["cold", "warm"], ["cold"]),
+    ):
+        if getattr(args, name) is None:
+            setattr(args, name, gpu_default if gpu else cpu_default)
     env = dict(os.environ)
     env["LP_NUM_THREADS"] = str(args.cores)  # Mesa llvmpipe render threads
     env["OMP_NUM_THREADS"] = str(args.cores)
@@ -145,12 +212,18 @@ def main() -> None:
             os.cpu_count() or 1,
             env,
         )
+    extra = list(args.set)
+    if args.gpu_batch is not None:
+        extra.append(f"demos.gpu_batch={args.gpu_batch}")
+    if args.kernel_cache:
+        extra.append(f"sim.kernel_cache={args.kernel_cache}")
+    cache = _kernel_cache(args.kernel_cache, env) if gpu else None
     workers = args.workers or (max(1, args.cores - 1) if args.executor == "warp" else args.cores)
     results = {}
     for label in args.runs:
         shutil.rmtree(run / "episodes", ignore_errors=True)
         shutil.rmtree(run / "logs", ignore_errors=True)
-        wall = _cli(
+        wall, first = _cli(
             [
                 "stage=demos",
                 f"run_dir={run}",
@@ -159,11 +232,11 @@ def main() -> None:
                 f"demos.workers={workers}",
                 f"demos.batch={args.batch}",
                 f"demos.executor={args.executor}",
-                f"demos.gpu_batch={args.gpu_batch}",
-                *args.set,
+                *extra,
             ],
             args.cores,
             env,
+            run / "episodes",
         )
         summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
         sec = summary["seconds"]
@@ -178,6 +251,7 @@ def main() -> None:
         cams = len(infos[0]["cameras"]) if infos else 0
         results[label] = {
             "wall_s": wall,
+            "first_episode_s": first,
             "stage_wall_s": sec["wall"],
             "successful_demos": ok,
             "failures": summary["failures"],
@@ -197,6 +271,7 @@ def main() -> None:
             "recorded_by": dict(Counter(i.get("recorder", "") for i in infos)),
             "gpu_seconds": sec.get("gpu"),
             "per_scene": _per_scene(run),
+            "kernels_ready_s": _kernels_ready(run),
         }
         r = results[label]
         print(
@@ -217,6 +292,7 @@ def main() -> None:
             "gpu": _gpu_name(),
         },
         "executor": args.executor,
+        "kernel_cache": cache,
         "task": args.task,
         "workers": workers,
         "scenes": args.scenes,
