@@ -289,11 +289,18 @@ def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPa
         pytest.param("cuda:0", marks=pytest.mark.gpu),
     ],
 )
-def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> None:
+def test_packed_worlds_record_what_padded_worlds_record(
+    setup, device: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Three episodes packed onto two worlds (the third starts in the world of the shortest
     as soon as it ends, through ``mujoco_warp.reset_data``; on CUDA inside the captured
-    graph) record the states and images that three worlds starting together record."""
+    graph) record the states and images that three worlds starting together record.
+
+    The executor's kernel preload (its dry trace, then the modules in parallel) leaves no
+    module for the calls to compile."""
     from factory.demos.execute.warp import WarpExecutor
+
+    late = _modules_compiled_after_preload(monkeypatch)
 
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
@@ -317,6 +324,36 @@ def test_packed_worlds_record_what_padded_worlds_record(setup, device: str) -> N
             assert np.mean(a.rgb[cam] != b.rgb[cam]) < 0.01
         assert a.outcome is not None and b.outcome is not None
         assert a.outcome.reason == b.outcome.reason
+    assert late == [], f"compiled after the preload: {late}"
+
+
+def _modules_compiled_after_preload(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """Names of the Warp modules first loaded after a :func:`factory.sim.kernel_preload.preload`
+    has run and did not report an early stop (filled as the test goes on)."""
+    import warp._src.context as ctx
+
+    import factory.sim.kernel_preload as kp
+
+    late: list[str] = []
+    seen: set[str] = set()
+    armed: list[bool] = []
+    real_preload, real_load = kp.preload, ctx.Module.load
+
+    def preload(*args, **kwargs):  # type: ignore[no-untyped-def]
+        report = real_preload(*args, **kwargs)
+        assert not report.error, report.error
+        armed.append(True)
+        return report
+
+    def load(self, device, block_dim=None, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if armed and self.name not in seen:
+            late.append(self.name)
+        seen.add(self.name)
+        return real_load(self, device, block_dim, *args, **kwargs)
+
+    monkeypatch.setattr(kp, "preload", preload)
+    monkeypatch.setattr(ctx.Module, "load", load)
+    return late
 
 
 @pytest.mark.slow

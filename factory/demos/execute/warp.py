@@ -434,6 +434,45 @@ class WarpExecutor:
                 inputs.append(wp.array(tables.rows[f], dtype=getattr(m, f).dtype))
         return m, inputs + [getattr(m, f) for f in PATCH_FIELDS]
 
+    def _preload_kernels(
+        self, m: Any, data: mujoco.MjData, nconmax: int, njmax: int, ncam: int, looks: bool
+    ) -> None:
+        """Compiles the kernels of a call's launches on every core before the call
+        (:func:`factory.sim.kernel_preload.preload`): a dry trace of :meth:`_execute`'s
+        launches on one world (same device model, appearance and cameras), then the modules
+        in parallel. Warp would otherwise compile them one after the other at first launch."""
+        from factory.demos.execute import warp_kernels as k
+        from factory.sim.kernel_preload import preload
+
+        wp, mjw, model = self.wp, self.mjw, self.setup.model
+
+        def trace() -> None:
+            for kernel in (k.set_ctrl, k.tick, k.starts, k.begin, k.to_images):
+                wp.launch(kernel, dim=1)
+            if looks:
+                wp.launch(k.set_looks, dim=1)
+            d = mjw.put_data(model, data, nworld=1, nconmax=nconmax, njmax=njmax)
+            mjw.forward(m, d)
+            mjw.reset_data(m, d, reset=wp.zeros(1, dtype=bool))
+            mjw.step(m, d)
+            if ncam:
+                rc = self._render_context(1)
+                mjw.refit_bvh(m, d, rc)
+                mjw.render(m, d, rc)
+
+        r = preload(wp, trace)
+        log.info(
+            "demos %s: GPU kernels: %d modules to load of the %d the call launches, on %d "
+            "threads in %.1f s (trace %.1f s)%s",
+            self.setup.scene.id,
+            r.compiled,
+            r.modules,
+            r.workers,
+            r.load_s,
+            r.trace_s,
+            f"; trace stopped early: {r.error}" if r.error else "",
+        )
+
     def _execute(
         self,
         plans: list[EpisodePlan],
@@ -523,6 +562,9 @@ class WarpExecutor:
                     cached_modules(cache),
                 )
                 t_kernels = t_part
+                self._preload_kernels(m, data, nconmax, njmax, ncam, looks is not None)
+                parts["kernels"] = time.perf_counter() - t_part
+                t_part = time.perf_counter()
             d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
             parts["put_data"] = time.perf_counter() - t_part
             d.qpos.assign(wp.array(q0[first].astype(np.float32), dtype=float))

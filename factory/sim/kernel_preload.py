@@ -1,0 +1,146 @@
+"""Compiling a code path's GPU kernels in parallel before it first runs.
+
+Warp compiles a kernel's module when the module is first launched, one module after the other:
+a MuJoCo Warp scene's first step, its renderer and the executor's own kernels took 261 s on a
+bare H100 (63 modules; ``benchmarks/results/demos-gpu16-h100-bare.json``), nearly all of it
+in the compiler. Which modules a path needs, and with which block sizes, is decided on the
+host by the model (MuJoCo Warp builds kernels specialised to it), not by values on the device:
+MuJoCo Warp's step is CUDA-graph capturable, its only control flow being
+``wp.capture_while`` and ``wp.capture_if``.
+
+:func:`dry_launches` runs such a path with every launch recorded instead of run (the
+conditional nodes run their bodies once), and :func:`preload` then loads the recorded modules
+on a thread pool (Warp's own ``force_load`` does the same; the compiler runs outside Python's
+lock). A module the trace missed still compiles when it is launched, as before: a trace can
+only make the first launch faster, never change what runs. The trace's arrays hold garbage;
+nothing of it may be kept.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+log = logging.getLogger(__name__)
+
+__all__ = ["PreloadReport", "dry_launches", "preload"]
+
+
+@dataclass(frozen=True)
+class PreloadReport:
+    """What :func:`preload` did.
+
+    Attributes:
+        modules: module variants (module, device, block size) the trace launched.
+        compiled: of those, the ones not loaded before (compiled, or read from the kernel cache).
+        trace_s: seconds of the dry trace.
+        load_s: seconds of the parallel load.
+        workers: threads of the load.
+        error: why the trace stopped early ("" if it ran through): the variants found until
+            then were loaded; the rest compile at their first launch.
+    """
+
+    modules: int
+    compiled: int
+    trace_s: float
+    load_s: float
+    workers: int
+    error: str = ""
+
+
+def _block_dim(ctx: Any, device: Any, block_dim: int | None) -> int:
+    resolve = getattr(ctx, "_resolve_launch_block_dim", None)
+    if resolve is not None:
+        return int(resolve(device, block_dim))
+    if block_dim is None or block_dim <= 0:  # pragma: no cover - other Warp versions
+        return 1 if device.is_cpu else 256
+    return 1 if device.is_cpu else int(block_dim)  # pragma: no cover
+
+
+@contextlib.contextmanager
+def dry_launches(wp: Any) -> Iterator[dict[tuple[int, int, str], tuple[Any, Any, int]]]:
+    """Within the block, ``wp.launch`` and ``wp.launch_tiled`` record the launched kernel's
+    module, device and block size instead of running it, and ``wp.capture_while`` and
+    ``wp.capture_if`` call their bodies once (each branch).
+
+    Yields:
+        ``(id(module), block_dim, device alias) -> (module, device, block_dim)``, filled as the
+        block launches.
+    """
+    ctx = wp._src.context
+    found: dict[tuple[int, int, str], tuple[Any, Any, int]] = {}
+
+    def launch(kernel: Any, dim: Any, *args: Any, **kwargs: Any) -> None:
+        device = ctx.get_device(kwargs.get("device") or (args[4] if len(args) > 4 else None))
+        bd = _block_dim(ctx, device, kwargs.get("block_dim"))
+        found[(id(kernel.module), bd, device.alias)] = (kernel.module, device, bd)
+
+    def capture_while(condition: Any, while_body: Any, stream: Any = None, **kwargs: Any) -> None:
+        if callable(while_body):
+            while_body(**kwargs)
+
+    def capture_if(
+        condition: Any, on_true: Any = None, on_false: Any = None, stream: Any = None, **kw: Any
+    ) -> None:
+        for branch in (on_true, on_false):
+            if callable(branch):
+                branch(**kw)
+
+    patched = {
+        (wp, "launch"): launch,
+        (ctx, "launch"): launch,
+        (wp, "capture_while"): capture_while,
+        (ctx, "capture_while"): capture_while,
+        (wp, "capture_if"): capture_if,
+        (ctx, "capture_if"): capture_if,
+    }
+    saved = {key: getattr(*key) for key in patched}
+    try:
+        for (owner, name), fn in patched.items():
+            setattr(owner, name, fn)
+        yield found
+    finally:
+        for (owner, name), fn in saved.items():
+            setattr(owner, name, fn)
+
+
+def preload(wp: Any, trace: Callable[[], None], workers: int | None = None) -> PreloadReport:
+    """Runs ``trace`` under :func:`dry_launches` and loads the modules it launched, those not
+    loaded yet, on ``workers`` threads (default: the cores this process may use).
+
+    ``trace`` must repeat the launches of the real path (same model, options and block sizes;
+    the number of worlds may be smaller) and keep nothing it makes. An exception in it is
+    logged and ends the trace; what it found by then is still loaded.
+    """
+    if workers is None:
+        try:
+            workers = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            workers = os.cpu_count() or 1
+    t0 = time.perf_counter()
+    error = ""
+    with dry_launches(wp) as found:
+        try:
+            trace()
+        except Exception as e:  # the real path shows any real error
+            error = f"{type(e).__name__}: {e}"
+            log.info("kernel preload: the trace stopped early (%s); the rest compile on use", error)
+    trace_s = time.perf_counter() - t0
+    todo = [
+        (module, device, bd)
+        for module, device, bd in found.values()
+        if (device.context, bd) not in getattr(module, "execs", {})
+    ]
+    t1 = time.perf_counter()
+    n = max(1, min(workers, len(todo)))
+    if todo:
+        with ThreadPoolExecutor(max_workers=n) as pool:
+            for f in [pool.submit(m.load, d, block_dim=bd) for m, d, bd in todo]:
+                f.result()
+    return PreloadReport(len(found), len(todo), trace_s, time.perf_counter() - t1, n, error)

@@ -1,0 +1,88 @@
+"""Compiling a path's kernels in parallel before it runs (``factory.sim.kernel_preload``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+wp = pytest.importorskip("warp")
+
+from factory.sim.backend import init_warp  # noqa: E402
+from factory.sim.kernel_preload import dry_launches, preload  # noqa: E402
+
+init_warp()
+
+
+@wp.kernel(module="unique")
+def add_one(a: wp.array(dtype=float)):  # type: ignore[valid-type]
+    a[wp.tid()] += 1.0
+
+
+@wp.kernel(module="unique")
+def times_two(a: wp.array(dtype=float)):  # type: ignore[valid-type]
+    a[wp.tid()] *= 2.0
+
+
+@wp.kernel(module="unique")
+def count_down(n: wp.array(dtype=int)):  # type: ignore[valid-type]
+    n[0] = n[0] - 1
+
+
+def _path(a, n) -> None:  # type: ignore[no-untyped-def]
+    """A path with a conditional loop, as MuJoCo Warp's solver has."""
+    wp.launch(add_one, dim=a.shape[0], inputs=[a], device="cpu")
+
+    def body() -> None:
+        wp.launch(count_down, dim=1, inputs=[n], device="cpu")
+        wp.launch(times_two, dim=a.shape[0], inputs=[a], device="cpu")
+
+    wp.capture_while(n, while_body=body)
+
+
+def test_preload_loads_the_modules_a_path_launches_and_runs_nothing(monkeypatch) -> None:
+    """The dry trace runs no kernel (the arrays keep their values, the loop body runs once
+    whatever its condition), records every module the path launches, and :func:`preload`
+    loads them all; running the path for real afterwards loads nothing more."""
+    a = wp.array(np.ones(4, np.float32), device="cpu")
+    n = wp.array(np.array([3], np.int32), device="cpu")
+    with dry_launches(wp) as found:
+        _path(a, n)
+    assert {m.name for m, _, _ in found.values()} == {
+        k.module.name for k in (add_one, times_two, count_down)
+    }
+    assert a.numpy().tolist() == [1.0] * 4 and n.numpy().tolist() == [3]
+    assert wp.launch is not None and wp.capture_while.__module__.startswith("warp")
+
+    report = preload(wp, lambda: _path(a, n), workers=2)
+    assert report.modules == 3 and not report.error
+    assert report.compiled <= 3 and report.workers >= 1
+
+    import warp._src.context as ctx
+
+    loads: list[str] = []
+    real_load = ctx.Module.load
+
+    def load(self, device, block_dim=None, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if (device.context, 1) not in self.execs:
+            loads.append(self.name)
+        return real_load(self, device, block_dim, *args, **kwargs)
+
+    monkeypatch.setattr(ctx.Module, "load", load)
+    _path(a, n)
+    assert loads == []
+    assert a.numpy().tolist() == [16.0] * 4  # (1 + 1) * 2 ** 3: it ran for real
+
+
+def test_a_trace_that_fails_still_loads_what_it_found() -> None:
+    """An exception in the trace ends it and is reported; the modules launched before it
+    are loaded (the real path compiles the rest when it launches them)."""
+    a = wp.array(np.ones(2, np.float32), device="cpu")
+
+    def trace() -> None:
+        wp.launch(add_one, dim=2, inputs=[a], device="cpu")
+        raise ValueError("garbage size from a dry launch")
+
+    report = preload(wp, trace, workers=1)
+    assert report.modules == 1
+    assert "ValueError: garbage size" in report.error
+    assert (wp.get_device("cpu").context, 1) in add_one.module.execs
