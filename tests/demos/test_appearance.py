@@ -139,7 +139,12 @@ def test_bounds_and_task_objects_untouched(setup, index) -> None:
 def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) -> None:
     from factory.config import DemosConfig
     from factory.demos.execute.cpu import STATE_SPEC, FrameRenderer, RecordConfig, execute
-    from factory.demos.record.appearance import apply_patch, episode_looks, setup_index
+    from factory.demos.record.appearance import (
+        apply_patch,
+        episode_looks,
+        place_cameras_and_lights,
+        setup_index,
+    )
     from factory.demos.record.episodes import EpisodeStore
     from factory.demos.record.slots import StageEnv, episode_seed
     from factory.tasks.pick_place.demos import PickPlaceScene
@@ -170,6 +175,7 @@ def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) 
         apply_patch(model, looks[1][1])
         mujoco.mj_setState(model, data, recs[1].state[frame], STATE_SPEC)
         mujoco.mj_forward(model, data)
+        place_cameras_and_lights(model, data)
         rgbs, _ = renderer.render(data)
     finally:
         for f, v in before.items():

@@ -275,7 +275,7 @@ def execute(
     recs = new_recordings(n_frames, cfg, nstate)
     sim_s = render_s = 0.0
     if looks is not None:
-        from factory.demos.record.appearance import apply_patch
+        from factory.demos.record.appearance import apply_patch, place_cameras_and_lights
 
     def record(frame: int, states: np.ndarray) -> float:
         """Records frame ``frame`` of every episode from the batch's states (n, nstate)."""
@@ -288,6 +288,8 @@ def execute(
                 apply_patch(model, looks[i][1])
             mujoco.mj_setState(model, data, states[i], STATE_SPEC)
             mujoco.mj_forward(model, data)
+            if looks is not None:  # the look's cameras and lights, where forward left them
+                place_cameras_and_lights(model, data)
             worst[i] = max(worst[i], robot_penetration(model, data, robot_geom, allowed))
             q, width, ee = robot_signals(model, data, robot)
             rec.state[frame] = states[i]
