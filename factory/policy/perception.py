@@ -15,7 +15,8 @@ out success, docs/POLICY.md). A state policy, told the poses, learns the task in
   state; it trains on the recorded poses with Gaussian position noise
   (``train.perception_noise_m``), and acts on the network's predictions.
 
-At evaluation the env gives the policy images and the robot state only (no recorded poses):
+At evaluation the env gives the policy images, the robot state and (where the network reads
+them) the cameras' calibration, never the objects' poses:
 :class:`factory.policy.checkpoint.LoadedPolicy` fills ``observation.environment_state`` with
 this network's prediction. The network's weights and settings are saved beside lerobot's
 ``pretrained_model`` files (:data:`WEIGHTS`, :data:`SETTINGS`); the policy alone is a plain
