@@ -519,9 +519,11 @@ class TrainConfig:
             so that it acts on a perception's errors.
         cameras: the cameras an ``rgb``/``rgbd`` policy reads, e.g. ``[wrist]`` (empty: every
             camera the dataset records); the evaluation renders those only.
-        perception_points: ``vision=perception`` with ``rgbd`` and the wrist camera: its
-            pixels enter the network as points in the robot's base frame (forward kinematics
-            and depth), which its keypoints read.
+        perception_points: ``vision=perception`` with ``rgbd``: the pixels of every camera
+            whose pose is known enter the network as points in the robot's base frame, which
+            its keypoints read: the wrist camera's (forward kinematics and depth) and, where
+            the dataset has ``observation.camera_poses``, the left and right cameras' (their
+            recorded calibration; the env observes it too).
     """
 
     name: str = "${train.policy}_${train.inputs}"

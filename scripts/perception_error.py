@@ -37,8 +37,8 @@ def main() -> int:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from factory.policy.checkpoint import INFO_IN_MODEL, read_info, resolve_device, resolve_ref
-    from factory.policy.inputs import depth_image, env_features
-    from factory.policy.perception import POSITIONS, camera_stack, load, wrist_poses
+    from factory.policy.inputs import CAMERA_POSES, depth_image, env_features
+    from factory.policy.perception import POSITIONS, camera_poses, camera_stack, load
     from factory.policy.video_frames import decode_videos
 
     device = resolve_device(a.device)
@@ -53,7 +53,10 @@ def main() -> int:
     t0 = time.perf_counter()
     videos = decode_videos(base, keys)
     cols = ["observation.state", "observation.ee_pose", "observation.environment_state"]
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in [*cols, "episode_index", "frame_index"]}
+    extra = [CAMERA_POSES] if CAMERA_POSES in base.meta.info["features"] else []
+    parts: dict[str, list[np.ndarray]] = {
+        k: [] for k in [*cols, *extra, "episode_index", "frame_index"]
+    }
     for f in sorted((root / "data").glob("*/*.parquet")):
         table = pq.read_table(f)
         for k in parts:
@@ -62,8 +65,15 @@ def main() -> int:
     truth = env_features(*(rows[k] for k in cols))
     n = len(truth)
     poses = None
-    if net.xyz:
-        poses = torch.from_numpy(wrist_poses(rows["observation.state"]))
+    if net.xyz:  # the point cameras' poses: kinematics, the dataset's calibration
+        from factory.demos.record.calibration import cameras_of_names
+
+        feat = base.meta.info["features"].get(CAMERA_POSES)
+        have = cameras_of_names(feat["names"]) if feat else ()  # this dataset's order
+        got = camera_poses(
+            net.point_cameras, rows["observation.state"], rows.get(CAMERA_POSES), have
+        )
+        poses = torch.from_numpy(got)
     pred = np.zeros_like(truth)
     with torch.inference_mode():
         for i in range(0, n, a.batch):

@@ -5,7 +5,8 @@ scenes and seeds, the factory version, what each feature holds (units, frames), 
 packed, and what ``extras/`` holds. ``meta/factory.json`` keeps the full per-episode listing.
 The dataset's task writes its opening paragraph and the feature lines
 (:meth:`~factory.tasks.base.Task.dataset_card`) and adds its tags; the task, episode and seed
-lines are the same for every task.
+lines are the same for every task, as is the line of ``observation.camera_poses`` where the
+dataset has it.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from factory.dataset.layout import meta_task
+from factory.demos.record.calibration import CAMERA_POSES_KEY, cameras_of_names
 
 CARD_FILE = "README.md"
 TAGS = ["factory", "mujoco", "simulation", "franka-panda", "pick-and-place"]
@@ -46,6 +48,16 @@ def card_text(meta: dict[str, Any], info: dict[str, Any], instructions: list[str
     )
     seed_text = f"{seeds[0]}" if len(seeds) == 1 else f"{seeds[0]} to {seeds[-1]}"
     intro, lines = meta_task(meta).dataset_card(meta, cams, rgb)
+    calib = info["features"].get(CAMERA_POSES_KEY)
+    if calib:
+        named = ", ".join(f"`{c}`" for c in cameras_of_names(calib["names"]))
+        lines = [
+            *lines,
+            f"- **`{CAMERA_POSES_KEY}`:** the calibration of the cameras placed in the scene "
+            f"({named}), 13 values each: position (m) and rotation matrix rows in the robot's "
+            "base frame (the camera looks along its -z axis, y up), then the vertical field "
+            "of view (deg); the same at every frame of an episode",
+        ]
     return "\n".join(
         [
             intro,

@@ -3,7 +3,17 @@
 The task declares its features (:meth:`~factory.tasks.base.Task.dataset_features`: the state,
 tool pose and action, and what else it records) and reads their values from an episode's
 arrays (:meth:`~factory.tasks.base.Task.episode_columns`); every task's episodes get, after
-them, for each of their cameras:
+them:
+
+* ``observation.camera_poses`` float32 (13 per camera), where every episode records the
+  calibration of the same cameras (:attr:`~factory.schema.episode.EpisodeInfo.camera_poses`:
+  the fixed-base task's left and right cameras, placed per scene): per camera, in the
+  episodes' camera order, its position (3, m) and rotation rows (9) in the robot's base frame
+  and its vertical field of view (deg), the same at every frame of an episode
+  (:mod:`factory.demos.record.calibration`); absent otherwise (datasets of episodes recorded
+  before it, the mobile task);
+
+and for each of their cameras:
 
 * ``observation.images.<camera>`` video (H, W, 3), h264, the camera's own size (the mobile
   robot's fisheye cameras are square);
@@ -13,16 +23,47 @@ them, for each of their cameras:
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from factory.demos.record.calibration import CAMERA_POSES_KEY, calibration_names
 from factory.errors import StoreError
 
 if TYPE_CHECKING:
     from factory.tasks.base import Task
 
+log = logging.getLogger(__name__)
+
 DEPTH_ENCODING = "mm = 256 * R + G (uint8 channels of a lossless RGB video)"
+
+
+def calibrated_cameras(infos: Sequence[Any]) -> tuple[str, ...]:
+    """The cameras whose calibration ``observation.camera_poses`` holds for these episodes
+    (their ``EpisodeInfo``), in the episodes' camera order: those every episode records the
+    calibration of; none (the feature left out, with a warning) where the episodes differ.
+    """
+    if not infos:
+        return ()
+    first = infos[0]
+    cams = tuple(c for c in first.cameras if c in first.camera_poses)
+    for info in infos[1:]:
+        have = tuple(c for c in info.cameras if c in info.camera_poses)
+        if have != cams:
+            log.warning(
+                "episodes %r and %r record the calibration of different cameras (%s; %s): the "
+                "dataset is written without %s (re-record the older episodes with stage=demos "
+                "force=true to have it)",
+                first.episode_id,
+                info.episode_id,
+                ", ".join(cams) or "none",
+                ", ".join(have) or "none",
+                CAMERA_POSES_KEY,
+            )
+            return ()
+    return cams
 
 
 def camera_size(info: Any, arrays: Any, camera: str) -> tuple[int, int]:
@@ -40,15 +81,22 @@ def camera_size(info: Any, arrays: Any, camera: str) -> tuple[int, int]:
     return int(shape[1]), int(shape[2])
 
 
-def features_for(task: Task, info: Any, arrays: Any) -> dict[str, dict[str, Any]]:
+def features_for(
+    task: Task, info: Any, arrays: Any, calibrated: Sequence[str] = ()
+) -> dict[str, dict[str, Any]]:
     """The LeRobot feature spec of ``task``'s episodes shaped like one of them.
 
     Args:
         task: the episodes' task.
         info: the episode's ``EpisodeInfo`` (cameras, fps).
         arrays: its stored arrays (the cameras' image sizes).
+        calibrated: the cameras of ``observation.camera_poses`` (:func:`calibrated_cameras`;
+            none: no such feature).
     """
     feats = task.dataset_features()
+    if calibrated:
+        names = calibration_names(calibrated)
+        feats[CAMERA_POSES_KEY] = {"dtype": "float32", "shape": (len(names),), "names": names}
     for cam in info.cameras:
         h, w = camera_size(info, arrays, cam)
         feats[f"observation.images.{cam}"] = {

@@ -4,6 +4,8 @@ One path writes every task's episodes. Features of every frame (:mod:`factory.da
 
 * the task's (:meth:`~factory.tasks.base.Task.dataset_features`, e.g. the state, tool pose and
   action: :mod:`factory.tasks.pick_place.dataset`, :mod:`factory.tasks.mobile_pick_place.dataset`);
+* ``observation.camera_poses`` where the episodes record their scene cameras' calibration
+  (:func:`~factory.dataset.features.calibrated_cameras`);
 * ``observation.images.<camera>`` video (H, W, 3), h264;
 * ``observation.depth.<camera>`` video (H, W, 3), lossless RGB h264 packing uint16 millimetres
   as (high byte, low byte, 0); :func:`unpack_depth_mm` turns lerobot's (3, H, W) float tensor
@@ -36,7 +38,13 @@ from typing import Any
 
 import numpy as np
 
-from factory.dataset.features import DEPTH_ENCODING, check_arrays, features_for, scalar_buffer
+from factory.dataset.features import (
+    DEPTH_ENCODING,
+    calibrated_cameras,
+    check_arrays,
+    features_for,
+    scalar_buffer,
+)
 from factory.dataset.layout import (
     episode_task,
     layout_of,
@@ -46,14 +54,20 @@ from factory.dataset.layout import (
 )
 from factory.dataset.routes import ROUTE_KEY, route_entry
 from factory.dataset.video import VideoCodec, frame_encoder, lossless_codec, rgb_codec
+from factory.demos.record.calibration import (
+    CALIBRATION_SIZE,
+    CAMERA_POSES_KEY,
+    calibration_vector,
+)
 from factory.errors import StoreError
 
 log = logging.getLogger(__name__)
 
 FACTORY_META = "meta/factory.json"
-EXPORT_SCHEMA_VERSION = 4
+EXPORT_SCHEMA_VERSION = 5
 """Format of ``meta/factory.json`` and the features (3: ``observation.environment_state``;
-4: a mobile episode's entry in ``meta/factory.json`` holds its ``route``)."""
+4: a mobile episode's entry in ``meta/factory.json`` holds its ``route``; 5:
+``observation.camera_poses``)."""
 VIDEO_FILE_MB = 4
 
 
@@ -298,7 +312,8 @@ def export_store(
             )
     one_layout(layout_of(i) for i in infos)
     task = episode_task(first)
-    features = features_for(task, first, store.arrays(first.episode_id))
+    calibrated = calibrated_cameras(infos)
+    features = features_for(task, first, store.arrays(first.episode_id), calibrated)
     log.info("dataset %s: %s episodes", dest.name, task.name)
     tmp = _fresh_tmp(dest)
     rgb = rgb or rgb_codec()
@@ -338,6 +353,11 @@ def export_store(
             columns = task.episode_columns(info, group, extras.scene_bytes(info))
             rgb_frames = {c: group[f"rgb/{c}"][:] for c in info.cameras}
             depth = {c: pack_depth_mm(depth_mm(group[f"depth/{c}"][:])) for c in info.cameras}
+            if calibrated:  # the episode's constant calibration, at every frame
+                columns[CAMERA_POSES_KEY] = np.broadcast_to(
+                    calibration_vector(info.camera_poses, info.camera_fovy, calibrated),
+                    (info.n_frames, len(calibrated) * CALIBRATION_SIZE),
+                )
             for f in range(info.n_frames):
                 frame: dict[str, Any] = {key: col[f] for key, col in columns.items()}
                 frame["task"] = info.instruction
@@ -374,6 +394,29 @@ def export_store(
     return meta
 
 
+def _same_calibration(shard_dirs: list[Path]) -> None:
+    """Refuses shards of which some hold ``observation.camera_poses`` and others not, or of
+    other cameras (lerobot's aggregation would refuse their features in a page-long message).
+
+    Raises:
+        StoreError: names two such shards and the fix.
+    """
+    seen: dict[str, Path] = {}
+    for d in shard_dirs:
+        feats = json.loads((d / "meta" / "info.json").read_text()).get("features", {})
+        names = ",".join((feats.get(CAMERA_POSES_KEY) or {}).get("names") or [])
+        seen.setdefault(names, d)
+        if len(seen) > 1:
+            (a, da), (b, db) = list(seen.items())[:2]
+            raise StoreError(
+                f"shards {da.name} and {db.name} differ in {CAMERA_POSES_KEY} (the cameras' "
+                f"calibration: {'present' if a else 'absent'} and {'present' if b else 'absent'} "
+                "or of other cameras): their episodes were recorded by different factory "
+                "versions; re-record the older ones with stage=demos force=true, then "
+                "stage=dataset force=true"
+            )
+
+
 def merge_datasets(
     shard_dirs: list[Path],
     dest: Path,
@@ -404,6 +447,7 @@ def merge_datasets(
             raise StoreError(f"{d} is not a finished shard dataset (no {FACTORY_META})")
         metas.append(json.loads(path.read_text()))
     one_meta_layout(metas, [str(d) for d in shard_dirs])
+    _same_calibration(shard_dirs)
     seen: dict[str, Path] = {}
     for d, meta in zip(shard_dirs, metas, strict=True):
         for ep in meta["episodes"]:

@@ -369,13 +369,20 @@ class LoadedPolicy:
             images = camera_stack(batch, self.perception.cameras, self.perception.depth)
             for k in self.spec.visual_keys():
                 del batch[k]
-            pose = None
-            if self.perception.xyz:  # the wrist camera's pose: forward kinematics
-                from factory.policy.perception import wrist_poses
+            poses = None
+            if self.perception.xyz:  # the point cameras' poses: kinematics, calibration
+                from factory.policy.inputs import CAMERA_POSES
+                from factory.policy.perception import camera_poses
 
-                pose = torch.from_numpy(wrist_poses(obs["observation.state"])).to(self.device)
+                got = camera_poses(
+                    self.perception.point_cameras,
+                    obs["observation.state"],
+                    obs.get(CAMERA_POSES),
+                    self.perception.pose_cameras,
+                )
+                poses = torch.from_numpy(got).to(self.device)
             with torch.inference_mode():
-                env = self.perception.predict(images.to(self.device), pose).float()
+                env = self.perception.predict(images.to(self.device), poses).float()
             batch["observation.environment_state"] = env.to("cpu")
         with torch.inference_mode():
             if chunk_starts(self._policy):

@@ -238,6 +238,7 @@ def _spec_for_policy(info: Any, run_spec: Any, env_state: bool) -> Any:
         cameras=cams,
         depth=bool(depth_cams),
         env_state=env_state or "observation.environment_state" in needs,
+        pose_cameras=full.pose_cameras if "observation.camera_poses" in needs else (),
     )
 
 
@@ -387,8 +388,11 @@ def run(ctx: StageContext) -> dict[str, Any]:
         run_spec = obs_spec_of_demos(cfg.demos, env_state=True, task=task.name)
     if policy is not None:
         spec = _spec_for_policy(policy.info, run_spec, ec.env_state)
+        order = tuple(getattr(policy.perception, "pose_cameras", None) or ())
+        if order and spec.pose_cameras and len(order) == len(spec.pose_cameras):
+            spec = replace(spec, pose_cameras=order)  # the calibration in the policy's order
     else:
-        spec = replace(run_spec, cameras=(), depth=False, env_state=ec.env_state)
+        spec = replace(run_spec, cameras=(), depth=False, env_state=ec.env_state, pose_cameras=())
     # resume
     out = Path(ec.out) if ec.out else run_dir / "eval" / name
     identity = {**_identity(kind, name, ref, ec, dataset, policy), **task.eval_identity()}

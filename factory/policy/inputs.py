@@ -10,6 +10,12 @@ Settings (dataset / env keys read):
 * ``rgbd``: the same plus ``observation.depth.<cam>`` (the paper's setting: RGB-D from three
   cameras and the end-effector pose).
 
+A ``train.vision=perception`` policy with depth and ``train.perception_points`` also reads
+``observation.camera_poses`` where the dataset has it (the calibration of the cameras fixed in
+the scene: :mod:`factory.demos.record.calibration`; :attr:`InputSpec.pose_cameras`): its
+perception network turns those cameras' pixels into points in the robot's base frame
+(:mod:`factory.policy.perception`); the lerobot policy never reads it.
+
 The model sees (lerobot feature names, so lerobot's policies and processors apply unchanged):
 
 * ``observation.state`` (17,): arm joints (7, rad), gripper opening (m), then the tool pose in
@@ -85,6 +91,11 @@ from typing import Any
 
 import numpy as np
 
+from factory.demos.record.calibration import (
+    CALIBRATION_SIZE,
+    CAMERA_POSES_KEY,
+    cameras_of_names,
+)
 from factory.errors import PolicyError
 from factory.tasks.mobile_pick_place import SUBTASKS as MOBILE_SUBTASKS
 from factory.tasks.mobile_pick_place.dataset import SUBTASK_KEY
@@ -103,6 +114,8 @@ ENV_STATE = "observation.environment_state"
 ACTION = "action"
 IMAGE_PREFIX = "observation.images."
 DEPTH_PREFIX = "observation.depth."
+CAMERA_POSES = CAMERA_POSES_KEY
+"""The cameras' calibration, 13 values per camera (:mod:`factory.demos.record.calibration`)."""
 DEPTH_MAX_M = 2.0
 """Depth beyond this (m) is clipped: the workspace is within about 1.5 m of every camera."""
 ROBOT_DIM = 17
@@ -147,6 +160,9 @@ class InputSpec:
             cameras are read by a perception network that predicts the environment state, and
             the lerobot policy reads the robot state and that environment state (its model
             features are a state policy's).
+        pose_cameras: the cameras of the dataset's :data:`CAMERA_POSES`, in its order, where
+            the perception network reads that calibration (``rgbd``, ``train.perception_points``
+            and one of them among ``cameras``); empty: not read.
     """
 
     inputs: str
@@ -156,6 +172,7 @@ class InputSpec:
     action: str = "joint"
     mobile: bool = False
     perception: bool = False
+    pose_cameras: tuple[str, ...] = ()
 
     @property
     def action_dim(self) -> int:
@@ -188,6 +205,8 @@ class InputSpec:
             out[k] = [h, w, 3]
         for k in self.depth_keys():
             out[k] = [h, w]
+        if self.pose_cameras:
+            out[CAMERA_POSES] = [CALIBRATION_SIZE * len(self.pose_cameras)]
         return out
 
     def model_features(self) -> dict[str, list[int]]:
@@ -217,6 +236,7 @@ def input_spec(
     action: str = "joint",
     perception: bool = False,
     cameras: Sequence[str] | None = None,
+    points: bool = False,
 ) -> InputSpec:
     """The inputs of a setting on a dataset with these features (``meta/info.json``).
 
@@ -224,21 +244,29 @@ def input_spec(
         perception: ``train.vision=perception`` (image inputs of the fixed-base task).
         cameras: ``train.cameras``: the cameras an image policy reads (None or empty: every
             camera the dataset records).
+        points: ``train.perception_points``: a perception policy with depth reads the
+            dataset's :data:`CAMERA_POSES` where it has it and one of its cameras is read
+            (:attr:`InputSpec.pose_cameras`).
 
     Raises:
         PolicyError: an unknown setting, or the dataset lacks a feature the setting reads
             (a camera named that it lacks: the ones it has listed).
     """
     spec = _input_spec(inputs, features, action, perception)
-    if not cameras or not spec.cameras:
-        return spec
-    unknown = [c for c in cameras if c not in spec.cameras]
-    if unknown:
-        raise PolicyError(
-            f"train.cameras: the dataset has no {', '.join(unknown)} camera; it records "
-            f"{', '.join(spec.cameras)}"
-        )
-    return replace(spec, cameras=tuple(c for c in spec.cameras if c in set(cameras)))
+    if cameras and spec.cameras:
+        unknown = [c for c in cameras if c not in spec.cameras]
+        if unknown:
+            raise PolicyError(
+                f"train.cameras: the dataset has no {', '.join(unknown)} camera; it records "
+                f"{', '.join(spec.cameras)}"
+            )
+        spec = replace(spec, cameras=tuple(c for c in spec.cameras if c in set(cameras)))
+    calib = features.get(CAMERA_POSES)
+    if spec.perception and spec.depth and points and calib:
+        have = cameras_of_names(calib["names"])
+        if set(have) & set(spec.cameras):
+            spec = replace(spec, pose_cameras=have)
+    return spec
 
 
 def _input_spec(
@@ -345,7 +373,8 @@ def spec_from_features(
     action: str = "joint",
     perception: bool = False,
 ) -> InputSpec:
-    """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape)."""
+    """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape), without
+    :attr:`InputSpec.pose_cameras` (a perception network's settings name them)."""
     mobile = SUBTASK_KEY in features
     cams = tuple(
         c for c in (MOBILE_CAMERAS if mobile else CAMERAS) if f"{IMAGE_PREFIX}{c}" in features

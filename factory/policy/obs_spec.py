@@ -6,9 +6,12 @@ The observations are keyed like the dataset's features: the task's low-dimension
 (:meth:`~factory.tasks.base.Task.env_observations`: ``observation.state``,
 ``observation.ee_pose``, the mobile task's ``subtask_index``), ``observation.
 environment_state`` where the task has one (:meth:`~factory.tasks.base.Task.env_state_dim`)
-and it is asked for, then per camera ``observation.images.<cam>`` (uint8 RGB) and
-``observation.depth.<cam>`` (uint16 millimetres); the task's fisheye cameras
-(:meth:`~factory.tasks.base.Task.fisheye_cameras`) draw ``width`` square images.
+and it is asked for, ``observation.camera_poses`` where the dataset has it (the calibration of
+the task's cameras fixed in the scene, :meth:`~factory.tasks.base.Task.calibrated_cameras`: 13
+float32 values per camera, :mod:`factory.demos.record.calibration`; a constant of the scene),
+then per camera ``observation.images.<cam>`` (uint8 RGB) and ``observation.depth.<cam>`` (uint16
+millimetres); the task's fisheye cameras (:meth:`~factory.tasks.base.Task.fisheye_cameras`)
+draw ``width`` square images.
 """
 
 from __future__ import annotations
@@ -18,6 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from factory.demos.record.calibration import (
+    CALIBRATION_SIZE,
+    CAMERA_POSES_KEY,
+    cameras_of_names,
+)
 from factory.errors import StoreError
 from factory.tasks import DEFAULT_TASK, get_task
 
@@ -36,6 +44,8 @@ class ObsSpec:
         depth: also ``observation.depth.<cam>`` (uint16 mm; fisheye: ray length).
         env_state: also ``observation.environment_state`` (tasks that have one).
         task: the task (a registered name).
+        pose_cameras: the cameras whose calibration ``observation.camera_poses`` holds, in
+            its order (the dataset's); empty: not observed.
     """
 
     fps: float = 20.0
@@ -45,6 +55,7 @@ class ObsSpec:
     depth: bool = True
     env_state: bool = False
     task: str = DEFAULT_TASK
+    pose_cameras: tuple[str, ...] = ()
 
     def image_shape(self, camera: str) -> tuple[int, int]:
         """(H, W) of a camera's images (px)."""
@@ -62,6 +73,8 @@ class ObsSpec:
         out = dict(task.env_observations())
         if self.env_state and task.env_state_dim():
             out[ENV_STATE_KEY] = ((task.env_state_dim(),), "float32")
+        if self.pose_cameras:
+            out[CAMERA_POSES_KEY] = ((CALIBRATION_SIZE * len(self.pose_cameras),), "float32")
         for c in self.cameras:
             out[f"observation.images.{c}"] = ((*self.image_shape(c), 3), "uint8")
         if self.depth:
@@ -116,6 +129,7 @@ def obs_spec_of_dataset(
     elif fisheye:
         w = h = int(feats[f"observation.images.{fisheye[0]}"]["shape"][1])
     has_env = ENV_STATE_KEY in feats
+    calib = feats.get(CAMERA_POSES_KEY)
     return ObsSpec(
         fps=float(meta["fps"]),
         cameras=cams,
@@ -124,13 +138,16 @@ def obs_spec_of_dataset(
         depth=any(f"observation.depth.{c}" in feats for c in cams),
         env_state=has_env if env_state is None else env_state,
         task=name,
+        pose_cameras=cameras_of_names(calib["names"]) if calib else (),
     )
 
 
 def obs_spec_of_demos(dc: Any, env_state: bool = False, task: str = DEFAULT_TASK) -> ObsSpec:
     """The observation spec of what ``stage=demos task=<task>`` records with the demos
-    settings ``dc``: ``demos.cameras`` and the task's fisheye cameras."""
-    cams = (*dc.cameras, *get_task(task).fisheye_cameras()) if dc.render else ()
+    settings ``dc``: ``demos.cameras`` and the task's fisheye cameras, and the calibration of
+    its cameras fixed in the scene."""
+    t = get_task(task)
+    cams = (*dc.cameras, *t.fisheye_cameras()) if dc.render else ()
     return ObsSpec(
         fps=dc.fps,
         cameras=tuple(cams),
@@ -139,4 +156,5 @@ def obs_spec_of_demos(dc: Any, env_state: bool = False, task: str = DEFAULT_TASK
         depth=bool(dc.render),
         env_state=env_state,
         task=task,
+        pose_cameras=t.calibrated_cameras(cams),
     )

@@ -15,7 +15,8 @@ out success, docs/POLICY.md). A state policy, told the poses, learns the task in
   state; it trains on the recorded poses with Gaussian position noise
   (``train.perception_noise_m``), and acts on the network's predictions.
 
-At evaluation the env gives the policy images and the robot state only (no recorded poses):
+At evaluation the env gives the policy images, the robot state and (where the network reads
+them) the cameras' calibration, never the objects' poses:
 :class:`factory.policy.checkpoint.LoadedPolicy` fills ``observation.environment_state`` with
 this network's prediction. The network's weights and settings are saved beside lerobot's
 ``pretrained_model`` files (:data:`WEIGHTS`, :data:`SETTINGS`); the policy alone is a plain
@@ -23,14 +24,27 @@ lerobot state policy.
 
 Architecture: a ResNet-18 trunk (torchvision, GroupNorm, up to ``layer3``: stride 16, an 8 x 8
 map at 128 px, finer than lerobot's 3 x 3 at 84 px) shared by the cameras, with a first
-convolution of 3 (RGB) or 4 (RGB + depth) channels; a spatial softmax per camera
-(:data:`KEYPOINTS` expected image positions) and the map's mean features; an MLP over every
-camera's to the 24 values scaled to [-1, 1] by their range over the training frames.
+convolution of 3 (RGB) or 4 (RGB + depth) channels, 3 more where cameras' points are read (below);
+a spatial softmax per camera (:data:`KEYPOINTS` expected image positions) and the map's mean
+features; an MLP over every camera's to the 24 values scaled to [-1, 1] by their range over the
+training frames.
+
+Points (``train.perception_points``, with depth): every camera whose pose the robot knows turns
+its pixels into points in the robot's base frame (:func:`pixel_points`: depth along the optical
+axis through the camera's field of view), three more input channels of that camera's image, and
+each of its keypoints reads the point it attends to. The :data:`XYZ_CAMERA` rides on the hand:
+its pose is forward kinematics of the joints (:func:`wrist_poses`). The cameras fixed in the
+scene (left, right) are placed per scene and jittered per episode; their pose is known where the
+dataset records their calibration (``observation.camera_poses``,
+:mod:`factory.demos.record.calibration`), which the evaluation env observes too. The network
+reads the poses and fields of view of its point cameras (:func:`camera_poses`: (B, P, 13)) beside
+the images.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,25 +52,31 @@ import numpy as np
 
 from factory.errors import PolicyError
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+"""Version of :data:`SETTINGS` written now (2: ``point_cameras`` and ``pose_cameras`` for
+several cameras' points, where version 1 had ``xyz_camera``, the wrist camera or none)."""
+READABLE_VERSIONS = (1, 2)
+"""Versions of :data:`SETTINGS` this factory loads (a version-1 network reads the points of
+its ``xyz_camera`` alone)."""
 WEIGHTS = "perception.safetensors"
 """The network's weights in a ``pretrained_model`` folder."""
 SETTINGS = "perception.json"
-"""Its settings (cameras, channels, image size, target range) beside them."""
+"""Its settings (cameras, channels, image size, target range, point cameras) beside them."""
 KEYPOINTS = 32
 """Spatial-softmax keypoints per camera."""
 HIDDEN = 512
 """Width of the MLP's hidden layers."""
 XYZ_CAMERA = "wrist"
-"""The camera whose pose the robot knows at every frame (it rides on the hand: forward
-kinematics of the joints): its pixels' points in the base frame are inputs, and each keypoint
-reads the point it attends to. The left and right cameras are placed per scene and their pose
-is not observed."""
+"""The camera whose pose the robot knows at every frame from its joints (it rides on the hand:
+forward kinematics, :func:`wrist_poses`). The left and right cameras are placed per scene: their
+pose is known only from the dataset's calibration (``observation.camera_poses``)."""
 CAMERA_POSE = "aux.camera_pose"
-"""Batch key of the :data:`XYZ_CAMERA`'s pose of each sample's frame (B, 12) (popped before
-lerobot's processors)."""
+"""Batch key of the point cameras' poses and fields of view of each sample's frame (B, P, 13)
+(:func:`camera_poses`; popped before lerobot's processors)."""
+POSE_SIZE = 13
+"""Values per camera of :func:`camera_poses`: position (3, m), rotation rows (9), fovy (deg)."""
 READOUT = 32
-"""Side (px) of the grid at which keypoints read the :data:`XYZ_CAMERA`'s points."""
+"""Side (px) of the grid at which keypoints read their camera's points."""
 POSITIONS = ((0, 3), (9, 12))
 """Columns of the pick object's and the target's positions in the 24 environment values."""
 OFFSETS = ((18, 21), (21, 24))
@@ -75,14 +95,23 @@ def settings_of(
     image_size: tuple[int, int],
     target: np.ndarray,
     depth_max_m: float = 2.0,
-    xyz_fovy_deg: float = 0.0,
+    point_cameras: Sequence[str] = (),
+    pose_cameras: Sequence[str] = (),
 ) -> dict[str, Any]:
-    """The settings that rebuild a network: cameras (in order), depth channel, image size (H, W
-    px), the range of each target column over the training frames (``target``: (N, 24)), the
-    depth range (m) and, with depth and the :data:`XYZ_CAMERA` among the cameras, that
-    camera's vertical field of view (deg; ``xyz_fovy_deg`` > 0) for the points behind its
-    pixels."""
-    xyz = bool(depth) and XYZ_CAMERA in cameras and xyz_fovy_deg > 0
+    """The settings that rebuild a network.
+
+    Args:
+        cameras: the cameras read, in order.
+        depth: a depth channel per camera.
+        image_size: (H, W) px.
+        target: (N, 24) the training frames' targets (their range scales the outputs).
+        depth_max_m: the depth range (m).
+        point_cameras: of ``cameras``, those whose pixels become base-frame points (with
+            depth; :func:`point_cameras_of`), in ``cameras`` order.
+        pose_cameras: the cameras of the dataset's ``observation.camera_poses``, in its order
+            (where the non-wrist point cameras' calibration is read from).
+    """
+    points = [c for c in cameras if c in set(point_cameras)] if depth else []
     return {
         "schema_version": SCHEMA_VERSION,
         "cameras": list(cameras),
@@ -93,9 +122,28 @@ def settings_of(
         "low": [float(x) for x in np.asarray(target).min(0)],
         "high": [float(x) for x in np.asarray(target).max(0)],
         "depth_max_m": float(depth_max_m),
-        "xyz_camera": XYZ_CAMERA if xyz else "",
-        "xyz_fovy_deg": float(xyz_fovy_deg) if xyz else 0.0,
+        "point_cameras": points,
+        "pose_cameras": list(pose_cameras),
     }
+
+
+def settings_points(settings: dict[str, Any]) -> list[str]:
+    """The point cameras of saved settings (a version-1 file: its ``xyz_camera``, or none)."""
+    if "point_cameras" in settings:
+        return [str(c) for c in settings["point_cameras"]]
+    xyz = str(settings.get("xyz_camera", ""))
+    return [xyz] if xyz else []
+
+
+def point_cameras_of(
+    cameras: Sequence[str], depth: bool, pose_cameras: Sequence[str], points: bool = True
+) -> list[str]:
+    """The cameras whose pixels become points (``train.perception_points``): with depth, the
+    :data:`XYZ_CAMERA` and every camera with a calibration (``pose_cameras``), in ``cameras``
+    order; none without depth or ``points``."""
+    if not (depth and points):
+        return []
+    return [c for c in cameras if c == XYZ_CAMERA or c in set(pose_cameras)]
 
 
 def wrist_poses(joints: np.ndarray) -> np.ndarray:
@@ -106,27 +154,75 @@ def wrist_poses(joints: np.ndarray) -> np.ndarray:
     return kinematics().camera_poses(np.asarray(joints, np.float64)[:, :7], XYZ_CAMERA)
 
 
-def pixel_points(depth_m: Any, pose: Any, fovy_deg: float) -> Any:
+def camera_poses(
+    point_cameras: Sequence[str],
+    state: np.ndarray,
+    calibration: np.ndarray | None = None,
+    pose_cameras: Sequence[str] = (),
+) -> np.ndarray:
+    """The network's poses input: each point camera's pose and field of view per frame.
+
+    Args:
+        point_cameras: the network's point cameras, in its order.
+        state: (N, >= 7) the dataset's or env's ``observation.state`` (arm joints first, rad).
+        calibration: (N, 13 * len(pose_cameras)) ``observation.camera_poses`` (None: none).
+        pose_cameras: the cameras of ``calibration``, in its order.
+
+    Returns:
+        (N, P, 13) float32: per point camera its position (m) and rotation rows in the robot's
+        base frame, then its vertical field of view (deg): the :data:`XYZ_CAMERA`'s by forward
+        kinematics, the others' from the calibration.
+
+    Raises:
+        PolicyError: a point camera without a pose (a dataset or env without its calibration).
+    """
+    from factory.policy.inputs import kinematics
+
+    state = np.asarray(state)
+    n = len(state)
+    out = np.zeros((n, len(point_cameras), POSE_SIZE), np.float32)
+    for k, cam in enumerate(point_cameras):
+        if cam == XYZ_CAMERA:
+            out[:, k, :12] = wrist_poses(state)
+            out[:, k, 12] = kinematics().camera_fovy(cam)
+            continue
+        if calibration is None or cam not in pose_cameras:
+            raise PolicyError(
+                f"the perception network reads the {cam} camera's points, but these "
+                "observations lack its calibration (observation.camera_poses): evaluate it "
+                "where its dataset came from, or re-export the dataset (stage=dataset "
+                "force=true) from episodes recorded with it"
+            )
+        j = list(pose_cameras).index(cam) * POSE_SIZE
+        out[:, k] = np.asarray(calibration, np.float32).reshape(n, -1)[:, j : j + POSE_SIZE]
+    return out
+
+
+def pixel_points(depth_m: Any, pose: Any, fovy_deg: Any) -> Any:
     """The point behind every pixel of a camera, in the robot's base frame (m).
 
     Args:
         depth_m: (B, H, W) depth along the camera's optical axis (m), row 0 at the top.
-        pose: (B, 12) the camera's position, then its rotation's rows (MuJoCo's
+        pose: (B, >= 12) the camera's position, then its rotation's rows (MuJoCo's
             ``cam_xmat``: columns x right, y up, -z the viewing direction), base frame.
-        fovy_deg: the camera's vertical field of view (deg).
+        fovy_deg: the camera's vertical field of view (deg): one number, or (B,) per sample.
 
     Returns:
         (B, 3, H, W) x, y, z of each pixel's point.
     """
     torch = _torch()
     b, h, w = depth_m.shape
-    f = (h / 2) / float(np.tan(np.radians(fovy_deg) / 2))
     dev = depth_m.device
-    u = (torch.arange(w, device=dev, dtype=torch.float32) + 0.5 - w / 2) / f
-    v = -(torch.arange(h, device=dev, dtype=torch.float32) + 0.5 - h / 2) / f
+    if isinstance(fovy_deg, int | float):
+        f: Any = (h / 2) / float(np.tan(np.radians(fovy_deg) / 2))
+    else:
+        fov = torch.as_tensor(fovy_deg, device=dev).float().reshape(-1, 1, 1)
+        f = (h / 2) / torch.tan(torch.deg2rad(fov) / 2)  # (B, 1, 1)
+    u = torch.arange(w, device=dev, dtype=torch.float32) + 0.5 - w / 2
+    v = -(torch.arange(h, device=dev, dtype=torch.float32) + 0.5 - h / 2)
     d = depth_m.float()
-    cam = torch.stack([d * u[None, None, :], d * v[None, :, None], -d], 1)  # (B, 3, H, W)
-    rot = pose[:, 3:].float().reshape(b, 3, 3)
+    cam = torch.stack([d * u[None, None, :] / f, d * v[None, :, None] / f, -d], 1)  # (B,3,H,W)
+    rot = pose[:, 3:12].float().reshape(b, 3, 3)
     return torch.einsum("bij,bjhw->bihw", rot, cam) + pose[:, :3].float()[:, :, None, None]
 
 
@@ -169,11 +265,14 @@ def build(settings: dict[str, Any]) -> Any:
             self.settings = dict(settings)
             self.cameras = list(settings["cameras"])
             self.depth = bool(settings["depth"])
-            xyz_cam = str(settings.get("xyz_camera", ""))
-            self.xyz_index = self.cameras.index(xyz_cam) if xyz_cam else -1
-            self.xyz_fovy = float(settings.get("xyz_fovy_deg", 0.0))
+            self.point_cameras = settings_points(settings)
+            """The cameras whose pixels become points, in :attr:`cameras` order."""
+            self.pose_cameras = [str(c) for c in settings.get("pose_cameras", [])]
+            """The cameras of the calibration (``observation.camera_poses``) it was trained
+            on, in that vector's order."""
+            self.point_index = [self.cameras.index(c) for c in self.point_cameras]
             self.depth_max = float(settings.get("depth_max_m", 2.0))
-            chans = (4 if self.depth else 3) + (3 if self.xyz_index >= 0 else 0)
+            chans = (4 if self.depth else 3) + (3 if self.point_index else 0)
             net = torchvision.models.resnet18(
                 weights=None, norm_layer=lambda c: nn.GroupNorm(max(c // 16, 1), c)
             )
@@ -186,7 +285,7 @@ def build(settings: dict[str, Any]) -> Any:
             n = len(self.cameras)
             hidden = int(settings["hidden"])
             dim = len(settings["low"])
-            width = n * (2 * k + 256) + (3 * k if self.xyz_index >= 0 else 0)
+            width = n * (2 * k + 256) + 3 * k * len(self.point_index)
             self.mlp = nn.Sequential(
                 nn.Linear(width, hidden),
                 nn.ReLU(),
@@ -201,50 +300,59 @@ def build(settings: dict[str, Any]) -> Any:
 
         @property
         def xyz(self) -> bool:
-            """Whether the network reads the :data:`XYZ_CAMERA`'s points (needs its pose)."""
-            return self.xyz_index >= 0
+            """Whether the network reads cameras' points (needs their poses:
+            :func:`camera_poses`)."""
+            return bool(self.point_index)
 
-        def forward(self, images: Any, pose: Any = None) -> Any:
+        def forward(self, images: Any, poses: Any = None) -> Any:
             """Predictions scaled to [-1, 1] (B, 24) from ``images`` (B, n_cams, C, H, W),
-            values in [0, 1], and (:attr:`xyz`) the :data:`XYZ_CAMERA`'s pose (B, 12) (the
-            module's call: what ``torch.compile`` compiles)."""
+            values in [0, 1], and (:attr:`xyz`) the point cameras' poses and fields of view
+            (B, P, 13) (:func:`camera_poses`; the module's call: what ``torch.compile``
+            compiles)."""
             b, n = images.shape[:2]
             x = (images - 0.5) / 0.25
-            points = None
-            if self.xyz:
-                if pose is None:
+            points = []
+            if self.point_index:
+                if poses is None:
                     raise PolicyError(
-                        f"the perception network reads the {XYZ_CAMERA} camera's points: give "
-                        "its pose (forward kinematics of the joints)"
+                        f"the perception network reads the points of the "
+                        f"{', '.join(self.point_cameras)} camera(s): give their poses "
+                        "(perception.camera_poses: forward kinematics of the joints, the "
+                        "observed calibration)"
                     )
-                depth_m = images[:, self.xyz_index, 3] * self.depth_max
-                points = pixel_points(depth_m, pose, self.xyz_fovy)  # (B, 3, H, W)
                 extra = torch.zeros_like(x[:, :, :3])
-                extra[:, self.xyz_index] = points / 0.5
+                for j, c in enumerate(self.point_index):
+                    depth_m = images[:, c, 3] * self.depth_max
+                    pts = pixel_points(depth_m, poses[:, j], poses[:, j, 12])  # (B, 3, H, W)
+                    extra[:, c] = pts / 0.5
+                    points.append(pts)
                 x = torch.cat([x, extra], 2)
             x = x.flatten(0, 1).contiguous(memory_format=torch.channels_last)
             fmap = self.trunk(x)  # (B*n, 256, h, w)
             logits, coords = self.keypoints(fmap)
             parts = [coords, fmap.float().mean(dim=(-2, -1))]
             feats = torch.cat(parts, -1).reshape(b, -1)
-            if points is not None:  # each keypoint's point, read at READOUT px
+            if points:  # each keypoint's point, read at READOUT px
                 h, w = logits.shape[-2:]
-                mine = logits.reshape(b, n, -1, h, w)[:, self.xyz_index]
-                up = F.interpolate(mine, size=(READOUT, READOUT), mode="bilinear")
-                pts = expected(up, F.adaptive_avg_pool2d(points, READOUT))  # (B, k, 3)
-                feats = torch.cat([feats, pts.reshape(b, -1)], -1)
+                per_cam = logits.reshape(b, n, -1, h, w)
+                reads = [feats]
+                for pts, c in zip(points, self.point_index, strict=True):
+                    up = F.interpolate(per_cam[:, c], size=(READOUT, READOUT), mode="bilinear")
+                    got = expected(up, F.adaptive_avg_pool2d(pts, READOUT))  # (B, k, 3)
+                    reads.append(got.reshape(b, -1))
+                feats = torch.cat(reads, -1)
             return self.mlp(feats)
 
-        def predict(self, images: Any, pose: Any = None) -> Any:
+        def predict(self, images: Any, poses: Any = None) -> Any:
             """The 24 environment values (B, 24), in the dataset's units (m, rotations)."""
-            return (self(images, pose).float() + 1) * 0.5 * self.span + self.low
+            return (self(images, poses).float() + 1) * 0.5 * self.span + self.low
 
-        def loss(self, images: Any, target: Any, pose: Any = None) -> tuple[Any, Any]:
+        def loss(self, images: Any, target: Any, poses: Any = None) -> tuple[Any, Any]:
             """Mean squared error in the [-1, 1] scale against ``target`` (B, 24, dataset
             units), and the root-mean-square error of the two objects' positions (m), detached.
             """
             want = 2 * (target.float() - self.low) / self.span - 1
-            got = self(images, pose).float()
+            got = self(images, poses).float()
             mse = F.mse_loss(got, want)
             with torch.no_grad():
                 err = (got - want) * 0.5 * self.span
@@ -321,10 +429,11 @@ def load(folder: Path, device: str) -> Any:
             f"{SETTINGS}: retrain it with stage=train force=true"
         )
     settings = json.loads(path.read_text())
-    if settings.get("schema_version") != SCHEMA_VERSION:
+    if settings.get("schema_version") not in READABLE_VERSIONS:
         raise PolicyError(
             f"{path}: schema_version {settings.get('schema_version')!r}, this factory reads "
-            f"{SCHEMA_VERSION}: retrain with stage=train force=true"
+            f"{' or '.join(map(str, READABLE_VERSIONS))}: retrain with stage=train force=true "
+            "(or load it with the factory that trained it)"
         )
     net = build(settings)
     try:

@@ -52,6 +52,7 @@ from factory.policy.checkpoint import (
 from factory.policy.inputs import (
     ACTION,
     BASE_RAW,
+    CAMERA_POSES,
     DEPTH_PREFIX,
     EE_POSE,
     ENV_STATE,
@@ -62,12 +63,11 @@ from factory.policy.inputs import (
     convert_sample,
     depth_image,
     env_features,
-    kinematics,
     model_actions,
     state_features,
     subtask_onehot,
 )
-from factory.policy.perception import CAMERA_POSE, XYZ_CAMERA, wrist_poses
+from factory.policy.perception import CAMERA_POSE, camera_poses, point_cameras_of
 from factory.policy.recipe import (
     STATE_DIFFUSION_DEFAULTS,
     STATE_DIFFUSION_LR,
@@ -247,9 +247,17 @@ class LowDimFrames:
         self.delta: dict[str, list[int]] = dict(base.delta_indices or {})
         if spec.mobile and SUBTASK_KEY in self.delta:  # the one-hot is read at its frames
             self.delta[ENV_STATE] = self.delta[SUBTASK_KEY]
-        if spec.perception and spec.depth and XYZ_CAMERA in spec.cameras and points:
-            # the wrist camera's pose of each frame (forward kinematics of the joints)
-            self.values[CAMERA_POSE] = wrist_poses(state)
+        self.point_cameras: list[str] = []
+        """The perception's cameras whose pixels become points (``train.perception_points``)."""
+        if spec.perception and points:
+            self.point_cameras = point_cameras_of(spec.cameras, spec.depth, spec.pose_cameras)
+        if self.point_cameras:
+            # each point camera's pose and field of view at each frame: the wrist camera's by
+            # forward kinematics of the joints, the others' from the recorded calibration
+            calib = column(CAMERA_POSES) if spec.pose_cameras else None
+            self.values[CAMERA_POSE] = camera_poses(
+                self.point_cameras, state, calib, spec.pose_cameras
+            )
         if spec.perception:  # the poses at the robot state's frames; the cameras' newest only
             if STATE in self.delta:
                 self.delta[ENV_STATE] = self.delta[STATE]
@@ -342,7 +350,8 @@ def delta_timestamps(cfg: Any, spec: InputSpec, fps: float) -> dict[str, list[fl
     obs = cfg.observation_delta_indices
     if obs is not None:
         for k in spec.raw_features():
-            out[k] = [i / fps for i in obs]
+            if k != CAMERA_POSES:  # the perception reads the calibration of the frame only
+                out[k] = [i / fps for i in obs]
     act = cfg.action_delta_indices
     if act is not None:
         out[ACTION] = [i / fps for i in act]
@@ -363,8 +372,9 @@ def open_dataset(
     Args:
         aux: the samples hold the auxiliary target (:data:`AUX_TARGET`) where the frames are
             in memory (the trainer drops the auxiliary loss otherwise).
-        points: a perception policy's samples hold the wrist camera's pose
-            (``train.perception_points``).
+        points: a perception policy's samples hold its point cameras' poses
+            (``train.perception_points``: the wrist camera's, and those of the cameras whose
+            calibration the spec reads, :attr:`~factory.policy.inputs.InputSpec.pose_cameras`).
         video_cache: ``memory`` decodes the videos the policy reads into memory once
             (:func:`~factory.policy.video_frames.decode_videos`), ``auto`` does so when they take
             less than half of the available memory, ``off`` decodes per sample (lerobot).
@@ -833,14 +843,14 @@ class Trainer:
         frames = self.trainset.frames
         assert frames is not None
         target = frames.values[AUX_TARGET]
-        fovy = kinematics().camera_fovy(XYZ_CAMERA) if CAMERA_POSE in frames.values else 0.0
         settings = perception.settings_of(
             list(self.spec.cameras),
             self.spec.depth,
             self.spec.image_size,
             target,
             self.spec.depth_max_m,
-            fovy,
+            frames.point_cameras,
+            self.spec.pose_cameras,
         )
         if resume is not None and (resume / PRETRAINED / perception.WEIGHTS).is_file():
             net = perception.load(resume / PRETRAINED, self.device)
@@ -868,11 +878,12 @@ class Trainer:
         self.noise_gen = torch.Generator(device=self.device).manual_seed(self.tc.seed + 17)
         self.last_perception_m: Any = None
         log.info(
-            "train: train.vision=perception: %d-parameter perception network over %s (%s), "
-            "position noise %.3g m",
+            "train: train.vision=perception: %d-parameter perception network over %s (%s; "
+            "points of %s), position noise %.3g m",
             sum(p.numel() for p in net.parameters()),
             ", ".join(self.spec.cameras),
             "RGB + depth" if self.spec.depth else "RGB",
+            ", ".join(net.point_cameras) or "no camera",
             float(getattr(self.tc, "perception_noise_m", 0.0)),
         )
 

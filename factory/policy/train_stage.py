@@ -225,6 +225,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         tc.action,
         getattr(tc, "vision", "") == "perception",
         list(getattr(tc, "cameras", None) or []),
+        bool(getattr(tc, "perception_points", True)),
     )
     if spec.mobile and spec.inputs == "state":
         log.warning(

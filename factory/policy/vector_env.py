@@ -6,7 +6,9 @@ gymnasium envs, one class for every registered task.
 per key with a leading batch axis (:class:`~factory.policy.obs_spec.ObsSpec`), resets by seed,
 recorded MuJoCo integration state (replay) or qpos, one action per env and frame, the step
 outcome (rewards, termination, truncation, info), the results, and the renderers of the
-observed cameras and of videos. The task's simulation (:class:`TaskSim`, :func:`task_sim`)
+observed cameras and of videos, and ``observation.camera_poses`` (the task's calibration of its
+cameras fixed in the scene, :meth:`~factory.tasks.base.Task.camera_calibration`: a constant of
+the scene, set once). The task's simulation (:class:`TaskSim`, :func:`task_sim`)
 does the rest as ``stage=demos`` does it for the task: the worlds stepped together on one batch
 (:class:`~factory.policy.batch_sim.BatchSim` with the task's rules, the fixed-base task) or the
 task's own simulation (:class:`~factory.tasks.mobile_pick_place.env.MobileSim`): the initial
@@ -28,6 +30,7 @@ configure_gl("auto")  # before the tasks' simulations import mujoco: the env ren
 
 import numpy as np  # noqa: E402
 
+from factory.demos.record.calibration import CAMERA_POSES_KEY  # noqa: E402
 from factory.policy.obs_spec import ObsSpec  # noqa: E402
 
 if TYPE_CHECKING:
@@ -213,6 +216,30 @@ class PickPlaceVecEnv:
             k: np.zeros((self.num_envs, *shape), dtype)
             for k, (shape, dtype) in self.spec.shapes().items()
         }
+        if self.spec.pose_cameras:  # the cameras' calibration: a constant of the scene
+            self._obs[CAMERA_POSES_KEY][:] = self._calibration()
+
+    def _calibration(self) -> np.ndarray:
+        """``observation.camera_poses`` of the scene (13 per camera of the spec's
+        ``pose_cameras``): the task's cameras as the scene placed them (no appearance jitter).
+
+        Raises:
+            PolicyError: a camera whose calibration the task does not know.
+        """
+        from factory.demos.record.calibration import calibration_vector
+        from factory.schema.errors import PolicyError
+        from factory.tasks import get_task
+
+        cams = self.spec.pose_cameras
+        poses, fovy = get_task(self.spec.task).camera_calibration(self.setup, cams)
+        missing = [c for c in cams if c not in poses]
+        if missing:
+            raise PolicyError(
+                f"task {self.spec.task!r} knows no calibration of the {', '.join(missing)} "
+                f"camera(s) for {CAMERA_POSES_KEY}: observe the cameras it calibrates, or "
+                "evaluate where the dataset came from"
+            )
+        return calibration_vector(poses, fovy, cams)
 
     def sample_qpos(self, seed: int) -> np.ndarray:
         """The initial qpos (nq,) of seed ``seed``: the demos' sampler or spawn (seed ``s``

@@ -137,6 +137,11 @@ CAMERAS: dict[str, str] = {
     "wrist": f"{PREFIX}wrist_camera",
 }
 """Recording camera name -> camera name in the composed model."""
+SCENE_CAMERAS = ("left", "right")
+"""The recording cameras fixed in the world (:func:`add_robot` places them per scene), whose pose
+in the robot's base frame an episode records as their calibration
+(:attr:`factory.schema.episode.EpisodeInfo.camera_poses`); the wrist camera rides on the hand
+(its pose is forward kinematics of the joints)."""
 
 
 @dataclass(frozen=True)

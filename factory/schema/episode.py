@@ -13,12 +13,19 @@ from typing import Any
 from factory.schema.errors import SchemaError
 from factory.schema.scene import _check_version, _from_dict, check_id, to_dict
 
-EPISODE_SCHEMA_VERSION = 3
-"""Version of the episode metadata written now (2 added ``appearance``, 3 ``recorder``)."""
+EPISODE_SCHEMA_VERSION = 4
+"""Version of the episode metadata written now (2 added ``appearance``, 3 ``recorder``, 4
+``camera_poses`` and ``camera_fovy``)."""
 
-READABLE_EPISODE_VERSIONS = (1, 2, 3)
+READABLE_EPISODE_VERSIONS = (1, 2, 3, 4)
 """Metadata versions this factory reads (a version-1 episode reads with ``appearance=None``,
-versions 1-2 with ``recorder=""``)."""
+versions 1-2 with ``recorder=""``, versions 1-3 with empty ``camera_poses`` and
+``camera_fovy``)."""
+
+CAMERA_POSE_SIZE = 12
+"""Values of one camera's pose in :attr:`EpisodeInfo.camera_poses`: position (3, m), then the
+rows of its rotation matrix (9; MuJoCo's ``cam_xmat``: its columns are the camera's x right,
+y up and z axes, the camera looking along -z)."""
 
 EPISODE_ARRAYS: dict[str, str] = {
     "time": "(F,) float64, s since the episode start",
@@ -154,6 +161,14 @@ class EpisodeInfo:
         recorder: the executor that simulated and rendered it: ``cpu`` (MuJoCo and its
             OpenGL renderer) or ``warp`` (MuJoCo Warp and its ray-traced batch renderer);
             empty before schema version 3.
+        camera_poses: the calibration of the recorded cameras placed in the scene (not those
+            riding on the robot, whose pose is forward kinematics): camera name ->
+            :data:`CAMERA_POSE_SIZE` values, its pose in the robot's base frame as its images
+            were drawn (after the scene's camera placement and the episode's appearance
+            jitter), constant over the episode; empty where the recorder knows none (the
+            mobile task, rendering off) and before schema version 4.
+        camera_fovy: camera name -> vertical field of view (deg) of the cameras of
+            ``camera_poses``.
     """
 
     episode_id: str
@@ -184,6 +199,8 @@ class EpisodeInfo:
     route: dict[str, Any] = field(default_factory=dict)
     appearance: EpisodeAppearance | None = None
     recorder: str = ""
+    camera_poses: dict[str, list[float]] = field(default_factory=dict)
+    camera_fovy: dict[str, float] = field(default_factory=dict)
     schema_version: int = EPISODE_SCHEMA_VERSION
 
 
@@ -195,14 +212,16 @@ def episode_info_to_dict(info: EpisodeInfo) -> dict[str, Any]:
 def episode_info_from_dict(data: Any) -> EpisodeInfo:
     """Reads episode metadata, checking its version and fields.
 
-    Version-1 metadata (before ``appearance``) and version-2 metadata (before ``recorder``)
-    read as version 3 without them.
+    Version-1 metadata (before ``appearance``), version-2 metadata (before ``recorder``) and
+    version-3 metadata (before ``camera_poses`` and ``camera_fovy``) read as version 4 without
+    them.
 
     Raises:
         SchemaVersionError: missing or unsupported ``schema_version``.
         SchemaError: malformed content.
     """
-    if isinstance(data, dict) and data.get("schema_version") in (1, 2) and "recorder" not in data:
+    old = (1, 2, 3)
+    if isinstance(data, dict) and data.get("schema_version") in old and "camera_poses" not in data:
         data = {**data, "schema_version": EPISODE_SCHEMA_VERSION}
     _check_version(
         data,
@@ -215,4 +234,12 @@ def episode_info_from_dict(data: Any) -> EpisodeInfo:
     check_id(info.episode_id, "episode id")
     if info.n_frames < 1:
         raise SchemaError(f"episode {info.episode_id!r}: n_frames must be >= 1")
+    for cam, pose in info.camera_poses.items():
+        size = len(pose) if isinstance(pose, list) else -1
+        if size != CAMERA_POSE_SIZE or cam not in info.camera_fovy:
+            raise SchemaError(
+                f"episode {info.episode_id!r}: camera_poses[{cam!r}] must hold "
+                f"{CAMERA_POSE_SIZE} values and have a camera_fovy entry, got {pose!r}: "
+                "re-record the episode"
+            )
     return info

@@ -21,6 +21,7 @@ that floor (:meth:`Task.part`): ``demos.py`` (``demo_scene``), ``dataset.py`` (`
 from __future__ import annotations
 
 import importlib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -211,6 +212,23 @@ class Task:
     def env_state_dim(self) -> int:
         """Size of the task's ``observation.environment_state`` (0, default: it has none)."""
         return 0
+
+    def calibrated_cameras(self, cameras: Sequence[str]) -> tuple[str, ...]:
+        """Of the recorded ``cameras``, in their order, those fixed in the scene whose
+        calibration (pose in the robot's base frame, vertical field of view) the task's episodes
+        record (``EpisodeInfo.camera_poses``), its datasets hold and its env observes
+        (``observation.camera_poses``, :mod:`factory.demos.record.calibration`); none by
+        default."""
+        return ()
+
+    def camera_calibration(
+        self, setup: Any, cameras: Sequence[str]
+    ) -> tuple[dict[str, list[float]], dict[str, float]]:
+        """The calibration of :meth:`calibrated_cameras` of ``cameras`` in a scene set up by
+        :meth:`env_scene` (the rig's placement, no appearance jitter): camera -> pose (12:
+        position m, rotation rows; the robot's base frame), camera -> vertical field of view
+        (deg); empty by default."""
+        return {}, {}
 
     def env_observations(self) -> dict[str, tuple[tuple[int, ...], str]]:
         """The env's observations besides the cameras' and the environment state, in the

@@ -60,6 +60,9 @@ def _episode(eid: str, scene_id: str, n: int, seed: int) -> tuple[EpisodeInfo, d
         image_size=[H, W],
         depth_format="uint16_mm",
         state_spec=int(STATE_SPEC),
+        # the left camera's calibration: position (m) and rotation rows, base frame
+        camera_poses={"left": [0.45, 0.01 * seed, 0.6, *np.eye(3).ravel().tolist()]},
+        camera_fovy={"left": 50.0},
     )
     arrays = {
         "time": t / 20.0,
@@ -123,6 +126,7 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
     )
     assert '`pick_place`; instruction(s): "pick up the mug and put it in the bowl"' in card.text
     assert "mm = 256 * R + G" in card.text and '"total_episodes": 4' in card.text
+    assert "**`observation.camera_poses`:** the calibration of the cameras placed" in card.text
     ds = LeRobotDataset("factory/demos", root=merged, video_backend="pyav")
     assert ds.num_episodes == 4 and ds.fps == 20
     index = 0
@@ -138,6 +142,9 @@ def test_export_merge_round_trip(cli, tmp_path: Path) -> None:
             assert np.array_equal(item["action"].numpy(), group["action"][f])
             env_state = item["observation.environment_state"].numpy()
             assert np.array_equal(env_state, group["env_state"][f])
+            calib = item["observation.camera_poses"].numpy()  # the left camera's, 13 values
+            seed = int(e["seed"])
+            assert np.allclose(calib, [0.45, 0.01 * seed, 0.6, *np.eye(3).ravel(), 50.0])
             for cam in CAMS:
                 depth = unpack_depth_mm(item[f"observation.depth.{cam}"])
                 assert np.array_equal(depth, group[f"depth/{cam}"][f])  # exact millimetres

@@ -139,7 +139,12 @@ def test_bounds_and_task_objects_untouched(setup, index) -> None:
 def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) -> None:
     from factory.config import DemosConfig
     from factory.demos.execute.cpu import STATE_SPEC, FrameRenderer, RecordConfig, execute
-    from factory.demos.record.appearance import apply_patch, episode_looks, setup_index
+    from factory.demos.record.appearance import (
+        apply_patch,
+        episode_looks,
+        place_cameras_and_lights,
+        setup_index,
+    )
     from factory.demos.record.episodes import EpisodeStore
     from factory.demos.record.slots import StageEnv, episode_seed
     from factory.tasks.pick_place.demos import PickPlaceScene
@@ -170,12 +175,27 @@ def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) 
         apply_patch(model, looks[1][1])
         mujoco.mj_setState(model, data, recs[1].state[frame], STATE_SPEC)
         mujoco.mj_forward(model, data)
+        place_cameras_and_lights(model, data)
         rgbs, _ = renderer.render(data)
+        # the recorded calibration is the pose the moved cameras were drawn from (base frame)
+        p = setup.placement
+        c, s = np.cos(p.yaw), np.sin(p.yaw)
+        base = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        for cam in ("left", "right"):
+            i = model.camera(f"camera_{cam}").id
+            pos = base.T @ (data.cam_xpos[i] - p.pos())
+            rot = base.T @ data.cam_xmat[i].reshape(3, 3)
+            want = np.concatenate([pos, rot.ravel()])
+            np.testing.assert_allclose(recs[1].camera_poses[cam], want, atol=1e-9)
+            assert recs[1].camera_fovy[cam] == float(model.cam_fovy[i])
     finally:
         for f, v in before.items():
             np.copyto(getattr(model, f), v)
         renderer.close()
     assert np.array_equal(rgbs[0], recs[1].rgb["left"][frame])
+    assert sorted(plain.camera_poses) == ["left", "right"]  # the wrist camera's: kinematics
+    for cam in ("left", "right"):  # each episode's look moves its cameras
+        assert recs[0].camera_poses[cam] != recs[1].camera_poses[cam] != plain.camera_poses[cam]
     # stored and read back with the episode
     env = StageEnv(str(tmp_path), str(tmp_path / "s.zarr"), DemosConfig(), "pick_place", 0, 1)
     seed = episode_seed(0, setup.scene.id, 0, 0)
@@ -183,11 +203,15 @@ def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) 
     store = EpisodeStore(tmp_path / "s.zarr")
     store.write(meta, arrays)
     info = store.info(meta.episode_id)
-    assert info.appearance == looks[1][0] and info.schema_version == 3
+    assert info.appearance == looks[1][0] and info.schema_version == 4
+    assert info.camera_poses == recs[1].camera_poses and info.camera_fovy["left"] > 0
 
 
-def test_version_1_metadata_still_reads() -> None:
+def test_older_metadata_still_reads() -> None:
+    """Versions 1-3 read as version 4 without what they lacked (``appearance``, ``recorder``,
+    the cameras' calibration); a malformed calibration is refused."""
     from factory.schema.episode import EpisodeInfo, RobotBase, episode_info_from_dict
+    from factory.schema.errors import SchemaError
     from factory.schema.scene import to_dict
 
     info = EpisodeInfo(
@@ -212,9 +236,18 @@ def test_version_1_metadata_still_reads() -> None:
     )
     old = to_dict(info)
     del old["appearance"], old["recorder"]
+    del old["camera_poses"], old["camera_fovy"]
     old["schema_version"] = 1
     assert episode_info_from_dict(old).appearance is None
     v2 = to_dict(info)
-    del v2["recorder"]
+    del v2["recorder"], v2["camera_poses"], v2["camera_fovy"]
     v2["schema_version"] = 2
     assert episode_info_from_dict(v2).recorder == ""
+    v3 = to_dict(info)  # before the cameras' calibration: read without it
+    del v3["camera_poses"], v3["camera_fovy"]
+    v3["schema_version"] = 3
+    got = episode_info_from_dict(v3)
+    assert got.camera_poses == {} and got.camera_fovy == {} and got.schema_version == 4
+    v4 = to_dict(replace(info, camera_poses={"left": [0.0] * 11}, camera_fovy={"left": 50.0}))
+    with pytest.raises(SchemaError, match="12 values"):
+        episode_info_from_dict(v4)

@@ -1,6 +1,6 @@
 """Appearance randomisation on the GPU executor (``WarpExecutor.execute(..., looks=...)``):
 the patch tables, the kernel that gives a starting episode its look, and agreement with the CPU
-executor's images of the same looks (padded and packed worlds).
+executor's images and cameras' calibration of the same looks (padded and packed worlds).
 
 Fast in CI: the tables and the kernel on Warp's CPU device. The end-to-end comparison runs on
 Warp's CPU device (``slow``: 20-35 s, mostly ray tracing on two shared cores) and on CUDA (``gpu``).
@@ -172,6 +172,11 @@ def test_gpu_looks_match_cpu_looks(setup, device: str) -> None:
     for i in range(3):
         assert gpu[i].appearance == cpu[i].appearance == looks[i][0]
         assert gpu_plain[i].appearance is None
+        # the cameras' calibration: the same numbers from the model and the episode's patch
+        assert gpu[i].camera_poses == cpu[i].camera_poses != cpu_plain[i].camera_poses
+        assert gpu[i].camera_fovy == cpu[i].camera_fovy
+        assert sorted(gpu[i].camera_poses) == ["left", "right"]
+        assert gpu_plain[i].camera_poses == cpu_plain[i].camera_poses
         atol = 1e-5 if device == "cpu" else 3e-3
         np.testing.assert_allclose(gpu[i].state, gpu_plain[i].state, atol=atol)
         for cam in CAMERAS:

@@ -154,6 +154,7 @@ def test_gpu_executor_agrees_with_cpu(setup) -> None:
         assert s["rgb_mean_abs"][cam] < RGB_TOLERANCE, s
         assert s["depth_median_abs_mm"][cam] < DEPTH_TOLERANCE_MM, s
     assert all(len(a.time) == len(b.time) for a, b in zip(cpu, gpu, strict=True))
+    assert all(a.camera_poses == b.camera_poses for a, b in zip(cpu, gpu, strict=True))
 
 
 @pytest.mark.slow

@@ -47,6 +47,7 @@ def test_reset_step_keys_shapes_and_spaces(policy_run: Path) -> None:
             "observation.state": ((8,), np.float32),
             "observation.ee_pose": ((7,), np.float32),
             "observation.environment_state": ((14,), np.float32),
+            "observation.camera_poses": ((13,), np.float32),  # the left camera's calibration
             "observation.images.left": ((32, 32, 3), np.uint8),
             "observation.images.wrist": ((32, 32, 3), np.uint8),
             "observation.depth.left": ((32, 32), np.uint16),
@@ -61,6 +62,15 @@ def test_reset_step_keys_shapes_and_spaces(policy_run: Path) -> None:
         # the environment state is the two objects' poses (unit quaternions, world frame)
         es = obs["observation.environment_state"]
         assert np.allclose(np.linalg.norm(es[3:7]), 1) and np.allclose(np.linalg.norm(es[10:]), 1)
+        # the left camera where the scene placed it: within the appearance jitter (1 cm) of
+        # where the recorded episodes of this kitchen had it, the same field of view
+        import pyarrow.parquet as pq
+
+        data = sorted((policy_run / "dataset" / "merged" / "data").glob("*/*.parquet"))[0]
+        recorded = np.asarray(pq.read_table(data).column("observation.camera_poses")[0].as_py())
+        calib = obs["observation.camera_poses"]
+        assert np.abs(calib[:3] - recorded[:3]).max() <= 0.01 + 1e-6
+        assert np.abs(calib[3:12] - recorded[3:12]).max() < 0.05 and calib[12] == recorded[12]
         hold = obs["observation.state"].copy()
         for k in range(3):
             obs, reward, term, trunc, info = env.step(hold)
@@ -195,8 +205,10 @@ def test_obs_spec_of_datasets_with_and_without_environment_state(
     (old / "meta").mkdir(parents=True)
     info = json.loads((merged / "meta" / "info.json").read_text())
     del info["features"]["observation.environment_state"]
+    del info["features"]["observation.camera_poses"]
     (old / "meta" / "info.json").write_text(json.dumps(info))
     assert obs_spec_of_dataset(old).env_state is False
+    assert spec.pose_cameras == ("left",) and obs_spec_of_dataset(old).pose_cameras == ()
     assert obs_spec_of_dataset(old, env_state=True).env_state is True
     assert DemosConfig().fps == spec.fps
 

@@ -205,6 +205,7 @@ def test_policy_features_the_env_cannot_give(policy_run: Path) -> None:
     ok = checkpoint.TrainInfo(**{**info.__dict__, "features": fits})
     narrowed = _spec_for_policy(ok, spec, False)
     assert narrowed.cameras == ("wrist",) and not narrowed.depth and not narrowed.env_state
+    assert spec.pose_cameras == ("left",) and narrowed.pose_cameras == ()  # not read
     assert {"observation.state", "observation.images.wrist"} <= set(spec.keys())
 
 

@@ -1,8 +1,11 @@
-"""``factory.policy.perception``: the wrist camera's pixels as points in the robot's base frame,
-checked against the recorded object poses of a real recorded dataset."""
+"""``factory.policy.perception``: the cameras' pixels as points in the robot's base frame,
+checked against the recorded object poses of a real recorded dataset (the wrist camera by
+forward kinematics, the left camera by its recorded calibration), and the network over several
+point cameras."""
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -14,40 +17,45 @@ if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the expor
     pytest.importorskip("robosuite")
 
 
-def test_wrist_pixels_land_on_the_recorded_pick_object(policy_run: Path) -> None:
-    """Forward kinematics of the recorded joints gives the wrist camera's pose; the pick
-    object's recorded position, projected into the camera with its field of view, falls on a
-    pixel whose point (depth along the optical axis, unprojected) lies within a few
-    centimetres of it: the camera model, the pixel order and the depth agree with the
-    renderer's."""
+def _dataset_frames(dataset: Path, camera: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A camera's depth (N, H, W) m and the first data file's columns (N rows each)."""
     import pyarrow.parquet as pq
-    import torch
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from factory.policy.inputs import base_poses, kinematics
-    from factory.policy.perception import XYZ_CAMERA, pixel_points
     from factory.policy.video_frames import decode_videos
 
-    dataset = policy_run / "dataset" / "merged"
     base = LeRobotDataset("factory/demos", root=dataset, video_backend="pyav")
-    depth_mm = decode_videos(base, [f"observation.depth.{XYZ_CAMERA}"], workers=1)
-    depth = depth_mm[f"observation.depth.{XYZ_CAMERA}"].astype(np.float32) / 1000.0
+    depth_mm = decode_videos(base, [f"observation.depth.{camera}"], workers=1)
+    depth = depth_mm[f"observation.depth.{camera}"].astype(np.float32) / 1000.0
     table = pq.read_table(sorted((dataset / "data").glob("*/*.parquet"))[0]).to_pydict()
-    state = np.asarray(table["observation.state"], np.float64)
-    ee = np.asarray(table["observation.ee_pose"], np.float64)
-    env = np.asarray(table["observation.environment_state"], np.float64)
-    n = min(len(state), len(depth))
-    kin = kinematics()
-    pose = kin.camera_poses(state[:n, :7], XYZ_CAMERA)
-    fovy = kin.camera_fovy(XYZ_CAMERA)
-    points = pixel_points(torch.from_numpy(depth[:n]), torch.from_numpy(pose), fovy).numpy()
-    base_pos, base_rot = base_poses(state[:n, :8], ee[:n])
-    pick = np.einsum("nji,nj->ni", base_rot, env[:n, :3] - base_pos)  # base frame
-    h, w = depth.shape[1:]
-    f = (h / 2) / np.tan(np.radians(fovy) / 2)
+    n = min(len(table["index"]), len(depth))
+    cols = {k: np.asarray(v[:n], np.float64) for k, v in table.items() if k.startswith("obs")}
+    cols["episode_index"] = np.asarray(table["episode_index"][:n])
+    return depth[:n], cols
+
+
+def _pick_errors(
+    depth: np.ndarray, pose: np.ndarray, fovy: np.ndarray, cols: dict[str, np.ndarray]
+) -> list[float]:
+    """Per frame where the pick object's recorded position projects into the camera (pose
+    (N, 12), fovy (N,) deg): the distance (m) from it to the nearest point of the 3 x 3 pixels
+    around its projection (:func:`~factory.policy.perception.pixel_points`)."""
+    import torch
+
+    from factory.policy.inputs import base_poses
+    from factory.policy.perception import pixel_points
+
+    n, h, w = depth.shape
+    fov = torch.from_numpy(np.asarray(fovy, np.float32))
+    points = pixel_points(torch.from_numpy(depth), torch.from_numpy(pose), fov).numpy()
+    state, ee = cols["observation.state"], cols["observation.ee_pose"]
+    base_pos, base_rot = base_poses(state[:, :8], ee)
+    env = cols["observation.environment_state"]
+    pick = np.einsum("nji,nj->ni", base_rot, env[:, :3] - base_pos)  # base frame
     errors = []
     for i in range(n):
-        rot = pose[i, 3:].reshape(3, 3)
+        f = (h / 2) / np.tan(np.radians(fovy[i]) / 2)
+        rot = pose[i, 3:12].reshape(3, 3)
         cam = rot.T @ (pick[i] - pose[i, :3])  # camera frame: x right, y up, -z ahead
         if cam[2] > -0.05:
             continue
@@ -55,6 +63,105 @@ def test_wrist_pixels_land_on_the_recorded_pick_object(policy_run: Path) -> None
         row = int(np.floor(-cam[1] / -cam[2] * f + h / 2))
         if 1 <= row < h - 1 and 1 <= col < w - 1:
             near = points[i, :, row - 1 : row + 2, col - 1 : col + 2].reshape(3, -1).T
-            errors.append(np.linalg.norm(near - pick[i], axis=1).min())
+            errors.append(float(np.linalg.norm(near - pick[i], axis=1).min()))
+    return errors
+
+
+def test_wrist_pixels_land_on_the_recorded_pick_object(policy_run: Path) -> None:
+    """Forward kinematics of the recorded joints gives the wrist camera's pose; the pick
+    object's recorded position, projected into the camera with its field of view, falls on a
+    pixel whose point (depth along the optical axis, unprojected) lies within a few
+    centimetres of it: the camera model, the pixel order and the depth agree with the
+    renderer's."""
+    from factory.policy.inputs import kinematics
+    from factory.policy.perception import XYZ_CAMERA
+
+    depth, cols = _dataset_frames(policy_run / "dataset" / "merged", XYZ_CAMERA)
+    kin = kinematics()
+    pose = kin.camera_poses(cols["observation.state"][:, :7], XYZ_CAMERA)
+    fovy = np.full(len(pose), kin.camera_fovy(XYZ_CAMERA))
+    errors = _pick_errors(depth, pose, fovy, cols)
     assert len(errors) >= 20, len(errors)
     assert float(np.median(errors)) < 0.03, np.percentile(errors, [10, 50, 90])
+
+
+def test_left_camera_calibration_lands_on_the_recorded_pick_object(policy_run: Path) -> None:
+    """The left camera's recorded calibration (``observation.camera_poses``: its pose in the
+    base frame after the scene's placement and the episode's appearance jitter, and its field of
+    view) projects the pick object's recorded position onto pixels whose points lie within a
+    few centimetres of it; it is constant within an episode and moves between episodes."""
+    from factory.demos.record.calibration import CAMERA_POSES_KEY, cameras_of_names
+
+    dataset = policy_run / "dataset" / "merged"
+    feats = json.loads((dataset / "meta" / "info.json").read_text())["features"]
+    assert cameras_of_names(feats[CAMERA_POSES_KEY]["names"]) == ("left",)  # not the wrist
+    depth, cols = _dataset_frames(dataset, "left")
+    calib = cols[CAMERA_POSES_KEY]
+    assert calib.shape == (len(depth), 13)
+    per_episode = [calib[cols["episode_index"] == e] for e in np.unique(cols["episode_index"])]
+    assert all(np.ptp(c, axis=0).max() == 0 for c in per_episode)
+    if len(per_episode) > 1:  # the appearance jitter moves the camera per episode
+        assert np.abs(per_episode[0][0] - per_episode[1][0]).max() > 1e-4
+    errors = _pick_errors(depth, calib[:, :12], calib[:, 12], cols)
+    assert len(errors) >= 20, len(errors)
+    assert float(np.median(errors)) < 0.05, np.percentile(errors, [10, 50, 90])
+
+
+def test_network_reads_the_points_of_several_cameras(tmp_path: Path) -> None:
+    """Points of the left camera (its calibration) and the wrist camera (kinematics) enter the
+    network; its settings name them, so a loaded network predicts the same; a version-1
+    network (the wrist camera's points alone) still loads and predicts; a point camera without
+    its calibration is refused with the fix."""
+    import torch
+
+    from factory.errors import PolicyError
+    from factory.policy import perception as P
+    from factory.policy.inputs import kinematics
+
+    torch.manual_seed(0)
+    target = np.random.default_rng(0).normal(size=(10, 24))
+    cams = ["left", "right", "wrist"]
+    points = P.point_cameras_of(cams, True, ["left", "right"])
+    assert points == cams and P.point_cameras_of(cams, True, [], points=False) == []
+    settings = P.settings_of(
+        cams, True, (32, 32), target, 2.0, ["left", "wrist"], ["left", "right"]
+    )
+    net = P.build(settings).eval()
+    assert net.point_cameras == ["left", "wrist"] and net.xyz
+    state = np.zeros((2, 8))
+    look = np.r_[0.5, 0.7, 0.6, np.eye(3).ravel(), 50.0]
+    calib = np.tile(np.r_[look, look + 0.1], (2, 1)).astype(np.float32)  # left, right
+    poses = P.camera_poses(net.point_cameras, state, calib, ["left", "right"])
+    assert poses.shape == (2, 2, 13)
+    np.testing.assert_array_equal(poses[:, 0], calib[:, :13])
+    assert poses[0, 1, 12] == pytest.approx(kinematics().camera_fovy("wrist"))
+    images = torch.rand(2, 3, 4, 32, 32)
+    with torch.no_grad():
+        out = net(images, torch.from_numpy(poses))
+        moved = poses.copy()
+        moved[:, 0, 0] += 0.3  # the left camera elsewhere: its points move
+        assert out.shape == (2, 24)
+        assert not torch.allclose(out, net(images, torch.from_numpy(moved)))
+    P.save(net, tmp_path)
+    again = P.load(tmp_path, "cpu")
+    assert again.point_cameras == ["left", "wrist"] and again.pose_cameras == ["left", "right"]
+    with torch.no_grad():
+        torch.testing.assert_close(again(images, torch.from_numpy(poses)), out)
+    with pytest.raises(PolicyError, match=r"observation\.camera_poses"):
+        P.camera_poses(net.point_cameras, state, None, ())
+    # a network saved before several cameras' points: the wrist camera's, by xyz_camera
+    old = {k: v for k, v in settings.items() if k not in ("point_cameras", "pose_cameras")}
+    old.update(schema_version=1, xyz_camera="wrist", xyz_fovy_deg=75.0)
+    (tmp_path / "v1").mkdir()
+    P.save(P.build(old), tmp_path / "v1")
+    v1 = P.load(tmp_path / "v1", "cpu")
+    assert v1.point_cameras == ["wrist"] and v1.pose_cameras == []
+    with torch.no_grad():
+        wrist = torch.from_numpy(P.camera_poses(v1.point_cameras, state))
+        assert v1(images, wrist).shape == (2, 24)
+    # one field of view for the batch or one per sample: the same points
+    depth = torch.rand(2, 8, 8) + 0.5
+    pose = torch.from_numpy(calib[:, :12])
+    torch.testing.assert_close(
+        P.pixel_points(depth, pose, 50.0), P.pixel_points(depth, pose, torch.full((2,), 50.0))
+    )

@@ -732,7 +732,9 @@ def test_perception_policy_trains_resumes_and_acts_without_poses(
     assert any(not torch.equal(first[k], moved[k]) for k in first)
     policy = load_policy("seen", tmp_path, device="cpu")
     assert policy.info.vision == "perception" and policy.perception is not None
-    assert policy.perception.xyz  # RGB-D with the wrist camera: its pixels' points are read
+    # RGB-D: the wrist camera's points (kinematics) and the left camera's (its calibration)
+    assert policy.perception.point_cameras == ["left", "wrist"]
+    assert policy.info.features["observation.camera_poses"] == [13]
     assert "observation.environment_state" not in policy.info.features
     obs = _frames(dataset, 2, list(policy.info.features))
     seen = {}
@@ -742,7 +744,8 @@ def test_perception_policy_trains_resumes_and_acts_without_poses(
     assert seen["env"].shape == (2, 24)
     # train.perception_points=false: the first version, images only
     _train(tmp_path, dataset, steps=1, **{**args, "name": "flat"}, perception_points=False)
-    assert not load_policy("flat", tmp_path, device="cpu").perception.xyz
+    flat = load_policy("flat", tmp_path, device="cpu")
+    assert not flat.perception.xyz and "observation.camera_poses" not in flat.info.features
     # lerobot-eval cannot run it (its policy alone would read the env's recorded poses)
     from factory.policy.lerobot_plugin import PolicyAdapter
 

@@ -64,6 +64,7 @@ def test_task_fills_the_hooks(name: str) -> None:
     observations = task.env_observations()
     assert observations["observation.state"][0] == tuple(features["observation.state"]["shape"])
     assert set(task.fisheye_cameras()) <= set(task.env_cameras())
+    assert set(task.calibrated_cameras(task.env_cameras())) <= set(task.env_cameras())
 
 
 def test_unknown_task_lists_the_choices() -> None:

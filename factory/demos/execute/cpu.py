@@ -22,7 +22,7 @@ from factory.demos.record.frame_render import CameraStrip, size_offscreen
 from factory.demos.record.payload import STATE_SPEC
 from factory.robots.panda import CAMERAS, RobotIndex
 from factory.tasks.pick_place.objects import Outcome, check_success
-from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup
+from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup, camera_calibration
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,10 @@ class Recording:
         depth: camera -> (F, H, W) uint16 mm or float32 m; env_state: (F, 14) pick object
         and target poses, see :func:`object_poses`; appearance: the episode's appearance
         randomisation as recorded (an :class:`~factory.schema.episode.EpisodeAppearance`),
-        ``None`` when none was applied.
+        ``None`` when none was applied; camera_poses, camera_fovy: the calibration of the
+        recorded cameras fixed in the scene as their images were drawn (camera -> pose (12,)
+        in the robot's base frame; camera -> vertical field of view, deg), see
+        :func:`calibrate_recordings`; empty without images.
     """
 
     time: np.ndarray
@@ -80,6 +83,8 @@ class Recording:
     env_state: np.ndarray = field(default_factory=lambda: np.zeros((0, 14)))
     outcome: Outcome | None = None
     appearance: Any = None
+    camera_poses: dict[str, list[float]] = field(default_factory=dict)
+    camera_fovy: dict[str, float] = field(default_factory=dict)
     sim_seconds: float = 0.0
     render_seconds: float = 0.0
 
@@ -213,6 +218,24 @@ def finish_recordings(
         )
 
 
+def calibrate_recordings(
+    setup: SceneSetup,
+    recs: list[Recording],
+    cfg: RecordConfig,
+    looks: list[tuple[Any, Any]] | None,
+) -> None:
+    """Sets each recording's ``camera_poses`` and ``camera_fovy``: the calibration of the
+    recorded cameras fixed in the scene with the episode's appearance patch (``looks[i][1]``;
+    None: the model's own), computed on the host from the model
+    (:func:`~factory.tasks.pick_place.plan.camera_calibration`), the same for both executors;
+    nothing without images (``cfg.render`` off)."""
+    if not cfg.render:
+        return
+    for i, rec in enumerate(recs):
+        patch = looks[i][1] if looks is not None else None
+        rec.camera_poses, rec.camera_fovy = camera_calibration(setup, cfg.cameras, patch)
+
+
 def execute(
     setup: SceneSetup,
     plans: list[EpisodePlan],
@@ -236,7 +259,8 @@ def execute(
             model as it is.
 
     Returns:
-        one recording per plan, with its success check.
+        one recording per plan, with its success check and its cameras' calibration
+        (:func:`calibrate_recordings`).
     """
     from mujoco.batch import Batch
 
@@ -275,7 +299,7 @@ def execute(
     recs = new_recordings(n_frames, cfg, nstate)
     sim_s = render_s = 0.0
     if looks is not None:
-        from factory.demos.record.appearance import apply_patch
+        from factory.demos.record.appearance import apply_patch, place_cameras_and_lights
 
     def record(frame: int, states: np.ndarray) -> float:
         """Records frame ``frame`` of every episode from the batch's states (n, nstate)."""
@@ -288,6 +312,8 @@ def execute(
                 apply_patch(model, looks[i][1])
             mujoco.mj_setState(model, data, states[i], STATE_SPEC)
             mujoco.mj_forward(model, data)
+            if looks is not None:  # the look's cameras and lights, where forward left them
+                place_cameras_and_lights(model, data)
             worst[i] = max(worst[i], robot_penetration(model, data, robot_geom, allowed))
             q, width, ee = robot_signals(model, data, robot)
             rec.state[frame] = states[i]
@@ -324,6 +350,7 @@ def execute(
     if renderer is None and own is not None:
         own.close()
     finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
+    calibrate_recordings(setup, recs, cfg, looks)
     for i, rec in enumerate(recs):
         rec.appearance = looks[i][0] if looks is not None else None
         rec.sim_seconds = sim_s / n

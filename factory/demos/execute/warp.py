@@ -15,7 +15,10 @@ Appearance randomisation (``looks``, as the CPU executor takes them): the call's
 row per world of the fields an appearance sets, and
 :func:`~factory.demos.execute.warp_kernels.set_looks` writes an episode's row of the patch tables
 into its world's fields when the episode starts (before the first ``forward``, and in the captured
-period after a packed world's reset), so each world renders its episode's look.
+period after a packed world's reset), so each world renders its episode's look. The recorded
+calibration of the cameras fixed in the scene (``camera_poses``, ``camera_fovy``) is computed on
+the host from the model and each episode's patch, as the CPU executor computes it
+(:func:`~factory.demos.execute.cpu.calibrate_recordings`).
 
 The recorded MuJoCo integration state has the layout of ``mj_getState(..., mjSTATE_INTEGRATION)``
 (:func:`state_layout`), so recordings replay on the CPU like the CPU executor's; the success
@@ -41,6 +44,7 @@ from factory.demos.execute.cpu import (
     STATE_SPEC,
     RecordConfig,
     Recording,
+    calibrate_recordings,
     finish_recordings,
 )
 from factory.demos.execute.world_schedule import WorldSchedule
@@ -378,8 +382,8 @@ class WarpExecutor:
                 :func:`~factory.demos.record.appearance.episode_looks` gives them and the CPU
                 executor takes them: each world's copy of those fields is set to its episode's
                 when the episode starts (:func:`~factory.demos.execute.warp_kernels.set_looks`), and
-                each recording's ``appearance`` is the episode's. ``None``: the model as it
-                is (``appearance`` None).
+                each recording's ``appearance`` is the episode's (its cameras' calibration
+                that patch's). ``None``: the model as it is (``appearance`` None).
 
         Worlds whose contact or constraint buffers overflowed are run again with doubled
         buffers (twice at most); if they still overflow their outcome is ``sim_overflow``.
@@ -752,6 +756,7 @@ class WarpExecutor:
         t3 = time.perf_counter()
         recs = frames.recordings(sched.rows, n_frames, cfg)
         finish_recordings(setup, plans, recs, n_frames, per_frame, worst, cfg.fps)
+        calibrate_recordings(setup, recs, cfg, looks)
         from factory.tasks.pick_place.objects import Outcome
 
         for i in map(int, np.flatnonzero(overflow)):

@@ -13,8 +13,9 @@ Per episode, from a seed derived from the episode's seed, :func:`choose` draws w
 :class:`ModelPatch`: whole arrays of ``geom_rgba``, ``geom_matid``, ``light_pos``,
 ``light_diffuse``, ``light_specular``, ``light_active``, ``cam_pos``, ``cam_quat``) and
 :func:`apply_patch` writes them into an ``MjModel`` (the CPU executor does so before it draws
-each episode's frame and restores the model after). Only rendering reads these fields, so
-physics is untouched. Every field is per-world in MuJoCo Warp's kinematics and batch
+each episode's frame and restores the model after; :func:`place_cameras_and_lights` then moves
+the cameras and lights that ``mj_forward`` does not recompute). Only rendering reads these
+fields, so physics is untouched. Every field is per-world in MuJoCo Warp's kinematics and batch
 renderer (a model array of leading size ``nworld`` is indexed by world); the GPU executor
 keeps the episodes' patches as :class:`PatchTables` (only the elements some patch changes) and
 copies an episode's row into its world's fields when the episode starts.
@@ -282,6 +283,42 @@ def apply_patch(model: mujoco.MjModel, patch: ModelPatch) -> None:
     """Writes a patch's fields into ``model`` (in place)."""
     for f in PATCH_FIELDS:
         np.copyto(getattr(model, f), getattr(patch, f))
+
+
+def place_cameras_and_lights(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Recomputes the world pose of every fixed camera and light of a body welded to the world
+    (``cam_xpos``, ``cam_xmat``, ``light_xpos``, ``light_xdir`` of ``data``) from the model's
+    ``cam_pos``, ``cam_quat``, ``light_pos`` and ``light_dir``, as ``mj_camlight`` does.
+
+    Call it after ``mj_forward`` of a state drawn with a patch written by :func:`apply_patch`:
+    with island sleeping on (the demos' models), MuJoCo's ``mj_forward`` never recomputes what
+    hangs on static bodies (the world body's left and right cameras and ceiling lights) and
+    keeps their poses as ``MjData`` first computed them, so the patch's camera and light moves
+    would not show on the CPU renderer. MuJoCo Warp's ``camlight`` recomputes every camera and
+    light in every world. (The patch moves nothing else: the wrist camera's shift rides on the
+    hand, which ``mj_forward`` recomputes.)
+    """
+    fixed = int(mujoco.mjtCamLight.mjCAMLIGHT_FIXED)
+    static = model.body_weldid == 0
+    cams = np.flatnonzero((model.cam_mode == fixed) & static[model.cam_bodyid])
+    if cams.size:
+        body = model.cam_bodyid[cams]
+        rot = data.xmat[body].reshape(-1, 3, 3)
+        data.cam_xpos[cams] = data.xpos[body] + np.einsum("nij,nj->ni", rot, model.cam_pos[cams])
+        local = np.empty((len(cams), 9))
+        for k, c in enumerate(cams):
+            quat = model.cam_quat[c] / np.linalg.norm(model.cam_quat[c])
+            mujoco.mju_quat2Mat(local[k], quat)
+        data.cam_xmat[cams] = (rot @ local.reshape(-1, 3, 3)).reshape(-1, 9)
+    lights = np.flatnonzero((model.light_mode == fixed) & static[model.light_bodyid])
+    if lights.size:
+        body = model.light_bodyid[lights]
+        rot = data.xmat[body].reshape(-1, 3, 3)
+        data.light_xpos[lights] = data.xpos[body] + np.einsum(
+            "nij,nj->ni", rot, model.light_pos[lights]
+        )
+        xdir = np.einsum("nij,nj->ni", rot, model.light_dir[lights])
+        data.light_xdir[lights] = xdir / np.linalg.norm(xdir, axis=1, keepdims=True)
 
 
 PATCH_GROUPS: dict[str, tuple[str, ...]] = {

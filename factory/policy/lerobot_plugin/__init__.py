@@ -16,8 +16,10 @@ the command line is parsed.) Observations follow LeRobot's raw env convention, w
 ``lerobot.envs.utils.preprocess_observation`` turns into the dataset's keys: ``agent_pos`` ->
 ``observation.state``, ``environment_state`` -> ``observation.environment_state``,
 ``pixels/<cam>`` -> ``observation.images.<cam>`` (a task's other observations, such as the
-mobile task's ``subtask_index``, have no LeRobot key and are left out). LeRobot's env pipeline
-has no depth input, so depth policies are evaluated with ``stage=eval`` instead.
+mobile task's ``subtask_index`` and the fixed-base task's ``observation.camera_poses``, have no
+LeRobot key and are left out; the perception policies that read the latter are refused, below).
+LeRobot's env pipeline has no depth input, so depth policies are evaluated with ``stage=eval``
+instead.
 ``info["is_success"]`` is the demos' success check. LeRobot's seed ``s`` (``--seed`` plus the
 episode number) becomes the evaluation seed ``2**32 + s`` of the demos' sampler, disjoint from
 the demos' own seeds.

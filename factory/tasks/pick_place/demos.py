@@ -5,7 +5,8 @@ the demos machinery plans and stores with (its plans run together on a batch of 
 ``demo_execution = "batch"``).
 
 Stored episodes fill :class:`~factory.schema.episode.EpisodeInfo`'s ``pick_id``,
-``target_id``, ``support_id``, ``robot`` (the base spot), ``frozen`` and ``appearance``, and
+``target_id``, ``support_id``, ``robot`` (the base spot), ``frozen``, ``appearance`` and the
+left and right cameras' calibration (``camera_poses``, ``camera_fovy``), and
 add the ``env_state`` array (F, 14): the pick object's and the target's poses.
 """
 
@@ -113,8 +114,9 @@ class PickPlaceScene(DemoScene):
     def payload(
         self, slot: int, seed: int, plan: Any, rec: Any, rec_cfg: Any, recorder: str = "cpu"
     ) -> tuple[EpisodeInfo, dict[str, np.ndarray]]:
-        """The episode with its task objects, base spot, frozen objects, appearance and the
-        objects' poses (``env_state``)."""
+        """The episode with its task objects, base spot, frozen objects, appearance, the
+        calibration of its cameras fixed in the scene (``camera_poses``, ``camera_fovy``) and
+        the objects' poses (``env_state``)."""
         setup = self.setup
         objects = setup.objects
         placement = setup.placement
@@ -134,6 +136,8 @@ class PickPlaceScene(DemoScene):
             robot=RobotBase(placement.x, placement.y, placement.z, placement.yaw),
             frozen=list(getattr(setup, "frozen", ())),
             appearance=getattr(rec, "appearance", None),
+            camera_poses=dict(getattr(rec, "camera_poses", {})),
+            camera_fovy=dict(getattr(rec, "camera_fovy", {})),
         )
         return meta, episode_arrays(rec, env_state=rec.env_state.astype(np.float32))
 

@@ -18,6 +18,7 @@ from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -36,9 +37,11 @@ from factory.demos.plan.timing import Limits, time_path
 from factory.errors import TaskError
 from factory.robots.ik import IKConfig, IKSolver
 from factory.robots.panda import (
+    CAMERAS,
     GRIP_CLOSED,
     GRIP_OPEN,
     HOME_QPOS,
+    SCENE_CAMERAS,
     CameraRig,
     RobotIndex,
     RobotPlacement,
@@ -518,6 +521,26 @@ def aim_cameras(
             log.info("scene %s: every %s camera pose is partly blocked", scene.id, side)
         chosen[side] = best
     return replace(rig, left_offset=chosen["left"], right_offset=chosen["right"])
+
+
+def camera_calibration(
+    setup: SceneSetup, cameras: Sequence[str], patch: Any = None
+) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """The calibration of those of ``cameras`` fixed in the scene
+    (:data:`~factory.robots.panda.SCENE_CAMERAS`, as :func:`aim_cameras` placed them): each
+    one's pose in the robot's base frame (the base spot's frame) and vertical field of view, as
+    drawn with an episode's appearance ``patch`` (a
+    :class:`~factory.demos.record.appearance.ModelPatch`; None: the rig's pose)
+    (:func:`factory.demos.record.calibration.camera_calibration`).
+
+    Returns:
+        camera name -> 12 values (position m, rotation rows), camera name -> fovy (deg).
+    """
+    from factory.demos.record.calibration import camera_calibration as calibrate
+
+    cams = {c: CAMERAS[c] for c in cameras if c in SCENE_CAMERAS}
+    p = setup.placement
+    return calibrate(setup.model, cams, p.pos(), rot_z(p.yaw), patch)
 
 
 def _surface_height(model: mujoco.MjModel, body: int, pose: np.ndarray) -> float:

@@ -4,6 +4,7 @@ poses, success; :mod:`factory.tasks.pick_place.plan`: grasp, IK, RRTConnect, ruc
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 from factory.tasks.base import Task
@@ -57,6 +58,22 @@ class PickPlaceTask(Task):
         from factory.tasks.pick_place.env import CAMERAS
 
         return CAMERAS
+
+    def calibrated_cameras(self, cameras: Sequence[str]) -> tuple[str, ...]:
+        """The left and right cameras among ``cameras``: fixed in the world, placed per scene
+        (:data:`~factory.robots.panda.SCENE_CAMERAS`); the wrist camera's pose is forward
+        kinematics."""
+        from factory.robots.panda import SCENE_CAMERAS
+
+        return tuple(c for c in cameras if c in SCENE_CAMERAS)
+
+    def camera_calibration(
+        self, setup: Any, cameras: Sequence[str]
+    ) -> tuple[dict[str, list[float]], dict[str, float]]:
+        """:func:`factory.tasks.pick_place.plan.camera_calibration` without a patch."""
+        from factory.tasks.pick_place.plan import camera_calibration
+
+        return camera_calibration(setup, self.calibrated_cameras(cameras))
 
     def env_scene(self, run_dir: Any, scene_id: str, dc: Any) -> tuple[Any, Any]:
         """The demos' set-up and planner (
