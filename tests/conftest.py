@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 from factory.sim.gl import configure_gl
 
@@ -348,7 +349,7 @@ def small_run(tmp_path_factory: pytest.TempPathFactory) -> CliRun:
 
     Shared by every test that asks for it: read it, or copy it before changing anything.
     """
-    pytest.importorskip("robosuite")
+    require_robot_models()
     pytest.importorskip("lerobot")
     run = tmp_path_factory.mktemp("small") / "run"
     out = run_cli("stage=all", "profile=small", f"run_dir={run}", env={"OMP_NUM_THREADS": "1"})

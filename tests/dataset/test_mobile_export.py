@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 pytest.importorskip("lerobot")
 
@@ -37,7 +38,8 @@ def _module(path: Path, name: str) -> ModuleType:
 def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     """A recorded mobile episode -> stage=dataset -> LeRobotDataset with five cameras, the base
     pose in the state, 11 action columns, sub-task labels and done flags; the card names them."""
-    for mod in ("robosuite", "ruckig", "ompl", "mink"):
+    require_robot_models()
+    for mod in ("ruckig", "ompl", "mink"):
         pytest.importorskip(mod)
     from huggingface_hub import DatasetCard
     from lerobot.datasets.lerobot_dataset import LeRobotDataset

@@ -10,6 +10,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 from factory.config import AppearanceConfig
 from factory.schema import Scene
@@ -77,7 +78,7 @@ def test_renders_are_neither_dark_nor_washed_out(kitchen) -> None:
 
 @pytest.fixture(scope="module")
 def setup(kitchen):
-    pytest.importorskip("robosuite")
+    require_robot_models()
     pytest.importorskip("ompl")
     from factory.tasks.pick_place.plan import setup_scene
 

@@ -13,9 +13,10 @@ import os
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
-    pytest.importorskip("robosuite")
+    require_robot_models()
 pytest.importorskip("ompl")
 
 from factory.config import AppearanceConfig

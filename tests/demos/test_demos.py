@@ -10,8 +10,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
-pytest.importorskip("robosuite")
+require_robot_models()
 pytest.importorskip("ompl")
 
 from factory.assets import AssetLibrary

@@ -9,13 +9,14 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 from factory.schema import Scene
 
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory: pytest.TempPathFactory, make_kitchen):
-    pytest.importorskip("robosuite")
+    require_robot_models()
     pytest.importorskip("ompl")
     from factory.tasks.pick_place.plan import setup_scene
 

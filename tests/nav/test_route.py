@@ -7,6 +7,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 from factory.nav.errors import NavError
 from factory.nav.goals import BasePose
@@ -227,7 +228,7 @@ def _compiled(scene: Scene) -> mujoco.MjModel:
 def test_robot_numbers_are_the_mobile_robots() -> None:
     """:mod:`factory.nav.task_poses` keeps the robot's footprint and arm position as numbers
     (nav does not import the robot): they stay equal to the robot's."""
-    pytest.importorskip("robosuite")
+    require_robot_models()
     from factory.nav.task_poses import ARM_X, CARRY_X, MOBILE_FOOTPRINT
     from factory.robots.mobile_panda import ARM_MOUNT, BASE_FOOTPRINT
     from factory.tasks.mobile_pick_place.scene import CARRY_TOOL

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from robot_models import require_robot_models
 
 REPO = Path(__file__).resolve().parents[2]
 EPISODES = 3
@@ -34,7 +35,7 @@ def policy_run(tmp_path_factory: pytest.TempPathFactory, make_kitchen) -> Path:
     """``run/`` with scenes ``kitchen_a`` (3 recorded demos at 32x32 px, left + wrist cameras,
     in ``dataset/merged``) and ``kitchen_b`` (the same room, added after the dataset: held out)."""
     if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
-        pytest.importorskip("robosuite")
+        require_robot_models()
     pytest.importorskip("lerobot")
     from factory.schema import scene_to_json
 

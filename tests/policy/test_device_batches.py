@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 pytest.importorskip("lerobot")
-pytest.importorskip("robosuite")
+require_robot_models()
 
 from factory.config import TrainConfig
 from factory.errors import ConfigError, PolicyError

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
-pytest.importorskip("robosuite")
+require_robot_models()
 pytest.importorskip("gymnasium")
 
 from factory.config import DemosConfig

@@ -7,8 +7,9 @@ import shutil
 from pathlib import Path
 
 import pytest
+from robot_models import require_robot_models
 
-pytest.importorskip("robosuite")
+require_robot_models()
 pytest.importorskip("lerobot")
 
 from factory.policy.env import EVAL_SEED_OFFSET

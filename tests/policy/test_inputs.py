@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 from factory.errors import PolicyError
 from factory.policy.inputs import (
@@ -90,7 +91,7 @@ def _mat_to_quat(m: np.ndarray) -> np.ndarray:
 def test_poses_in_the_base_frame_do_not_depend_on_where_the_robot_stands() -> None:
     """The same arm and objects seen from the base give the same features wherever the robot
     stands in the world and whichever way it faces."""
-    pytest.importorskip("robosuite")
+    require_robot_models()
     from factory.policy.inputs import base_poses, env_features, kinematics, robot_features
 
     joints = np.array(
@@ -136,7 +137,7 @@ def test_quaternions_and_rotations_agree_with_mujoco() -> None:
 def test_depth_is_converted_identically_from_the_dataset_and_from_the_env() -> None:
     """The dataset's packed depth video (decoded to floats in [0, 1]) and the env's uint16
     millimetres become the same image."""
-    pytest.importorskip("robosuite")
+    require_robot_models()
     import torch
 
     from factory.dataset.lerobot_export import pack_depth_mm, unpack_depth_mm
@@ -182,7 +183,7 @@ def test_tool_actions_are_the_joint_targets_tool_pose_and_track_back_to_it() -> 
     """``train.action=tool``: the model's action is the forward kinematics of the dataset's
     joint target; the tracker's IK turns a path of such poses back into joint targets that
     reach them (to 1 mm, 1 degree), starting from the measured joints."""
-    pytest.importorskip("robosuite")
+    require_robot_models()
     from factory.policy.inputs import (
         ToolActionTracker,
         kinematics,

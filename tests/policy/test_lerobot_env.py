@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from robot_models import require_robot_models
 
-pytest.importorskip("robosuite")
+require_robot_models()
 pytest.importorskip("lerobot")
 
 

@@ -13,13 +13,15 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
-for _mod in ("robosuite", "ruckig", "ompl", "mink"):
+require_robot_models()
+for _mod in ("ruckig", "ompl", "mink"):
     pytest.importorskip(_mod)
 
-from factory.policy.obs_spec import ObsSpec  # noqa: E402
-from factory.policy.vector_env import PickPlaceVecEnv  # noqa: E402
-from factory.tasks.mobile_pick_place import (  # noqa: E402
+from factory.policy.obs_spec import ObsSpec
+from factory.policy.vector_env import PickPlaceVecEnv
+from factory.tasks.mobile_pick_place import (
     ALL_CAMERAS,
     MobileEpisodePlan,
     MobilePlanner,
@@ -28,7 +30,7 @@ from factory.tasks.mobile_pick_place import (  # noqa: E402
     mobile_setup,
     render_frames,
 )
-from factory.tasks.mobile_pick_place.env import MobileSim  # noqa: E402
+from factory.tasks.mobile_pick_place.env import MobileSim
 
 FPS = 10.0
 TASK = "mobile_pick_place"

@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 pytest.importorskip("lerobot")
 if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
-    pytest.importorskip("robosuite")
+    require_robot_models()
 
 
 def _dataset_frames(dataset: Path, camera: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:

@@ -16,10 +16,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 pytest.importorskip("lerobot")
 if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
-    pytest.importorskip("robosuite")
+    require_robot_models()
 
 from factory.config import FactoryConfig, TrainConfig
 from factory.context import StageContext

@@ -8,8 +8,9 @@ import sys
 import mujoco
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
-pytest.importorskip("robosuite")
+require_robot_models()
 pytest.importorskip("ruckig")
 
 from factory.nav import (

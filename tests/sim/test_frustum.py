@@ -10,7 +10,7 @@ from factory.sim.gl import configure_gl
 configure_gl("auto")
 mujoco = pytest.importorskip("mujoco")
 
-from factory.sim.frustum import FrustumCuller  # noqa: E402
+from factory.sim.frustum import FrustumCuller
 
 
 def _model() -> mujoco.MjModel:

@@ -7,8 +7,8 @@ import pytest
 
 wp = pytest.importorskip("warp")
 
-from factory.sim.backend import init_warp  # noqa: E402
-from factory.sim.kernel_preload import dry_launches, preload  # noqa: E402
+from factory.sim.backend import init_warp
+from factory.sim.kernel_preload import dry_launches, preload
 
 init_warp()
 

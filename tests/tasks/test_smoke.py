@@ -10,10 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robot_models import require_robot_models
 
 from factory.tasks import TASKS, get_task
 
-pytest.importorskip("robosuite")
+require_robot_models()
 pytest.importorskip("ompl")
 pytest.importorskip("lerobot")
 
