@@ -4,7 +4,8 @@ Warp compiles a kernel's module when the module is first launched, one module af
 a MuJoCo Warp scene's first step, its renderer and the executor's own kernels took 261 s on a
 bare H100 (63 modules; ``benchmarks/results/demos-gpu16-h100-bare.json``), nearly all of it
 in the compiler. Which modules a path needs, and with which block sizes, is decided on the
-host by the model (MuJoCo Warp builds kernels specialised to it), not by values on the device:
+host by the model (MuJoCo Warp builds kernels specialised to it), not by values on the device
+(a grid size may come from an occupancy query, never a kernel's choice):
 MuJoCo Warp's step is CUDA-graph capturable, its only control flow being
 ``wp.capture_while`` and ``wp.capture_if``.
 
@@ -66,8 +67,11 @@ def _block_dim(ctx: Any, device: Any, block_dim: int | None) -> int:
 @contextlib.contextmanager
 def dry_launches(wp: Any) -> Iterator[dict[tuple[int, int, str], tuple[Any, Any, int]]]:
     """Within the block, ``wp.launch`` and ``wp.launch_tiled`` record the launched kernel's
-    module, device and block size instead of running it, and ``wp.capture_while`` and
-    ``wp.capture_if`` call their bodies once (each branch).
+    module, device and block size instead of running it, ``wp.capture_while`` and
+    ``wp.capture_if`` call their bodies once (each branch), and
+    ``wp.get_suggested_block_size`` records the module variant its occupancy query would load
+    (and compile: 26-38 s for each of MuJoCo Warp's CCD kernels on a bare H200) and answers
+    256 threads.
 
     Yields:
         ``(id(module), block_dim, device alias) -> (module, device, block_dim)``, filled as the
@@ -92,7 +96,20 @@ def dry_launches(wp: Any) -> Iterator[dict[tuple[int, int, str], tuple[Any, Any,
             if callable(branch):
                 branch(**kw)
 
+    def suggested_block_size(kernel: Any, device: Any = None) -> tuple[int, int]:
+        # Warp loads the module's default variant for the occupancy query (MuJoCo Warp asks it
+        # for its CCD kernels' grid size): record that variant; the grid size does not change
+        # which kernels a path launches.
+        dev = ctx.get_device(device)
+        if not dev.is_cuda:
+            return (1, 1)
+        bd = _block_dim(ctx, dev, kernel.module.options.get("block_dim"))
+        found[(id(kernel.module), bd, dev.alias)] = (kernel.module, dev, bd)
+        return (256, max(1, int(getattr(dev, "sm_count", 1) or 1)))
+
     patched = {
+        (wp, "get_suggested_block_size"): suggested_block_size,
+        (ctx, "get_suggested_block_size"): suggested_block_size,
         (wp, "launch"): launch,
         (ctx, "launch"): launch,
         (wp, "capture_while"): capture_while,
