@@ -395,6 +395,43 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
     pool.close()
 
 
+@pytest.mark.slow
+def test_overflowing_worlds_run_again_with_more_room_then_fail_cleanly(
+    setup, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """On Warp's CPU device: worlds whose contact and constraint buffers overflow (one contact
+    and one constraint row more than the dofs) are run again with more room and then record
+    what a call with room records; where they overflow every time, their outcome is
+    ``sim_overflow`` (retried by the CPU executor with the next seed), never a recording of a
+    wrong simulation, and the call does not fail."""
+    import logging
+
+    from factory.demos.execute import warp as wx
+
+    planner = EpisodePlanner(setup)
+    plans = [p for p in (planner.plan_episode(s) for s in range(6)) if isinstance(p, EpisodePlan)]
+    plans = [dataclasses.replace(p, ctrl=p.ctrl[:60], targets=p.targets[:60]) for p in plans[:2]]
+    ex = wx.WarpExecutor(setup, RecordConfig(width=16, height=16), device="cpu")
+    want = ex.execute(plans)
+    real = wx.buffer_sizes
+
+    def tight(model, qpos, headroom=3.0):  # type: ignore[no-untyped-def]
+        return (1, model.nv + 1) if headroom <= 3.0 else real(model, qpos, headroom)
+
+    monkeypatch.setattr(wx, "buffer_sizes", tight)
+    with caplog.at_level(logging.INFO, logger="factory.demos.execute.warp"):
+        again = ex.execute(plans)
+    assert "2 world(s) overflowed; re-running with more room" in caplog.text
+    for a, b in zip(want, again, strict=True):
+        np.testing.assert_allclose(a.state, b.state, atol=1e-5)
+        assert a.outcome is not None and b.outcome is not None
+        assert a.outcome.reason == b.outcome.reason != wx.OVERFLOW
+    monkeypatch.setattr(wx, "buffer_sizes", lambda model, qpos, headroom=3.0: (1, model.nv + 1))
+    failed = ex.execute(plans)
+    assert [r.outcome.reason for r in failed if r.outcome] == [wx.OVERFLOW] * 2
+    assert not any(r.outcome.success for r in failed if r.outcome)
+
+
 def test_image_store_rows_past_two_gib_of_a_camera() -> None:
     """Regression of the H100 crash at production size (CUDA error 700): the image store was one
     camera-major ``(ncam, rows, 3 H W)`` array, whose first stride (a camera's block, 2 GiB at
