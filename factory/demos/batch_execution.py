@@ -32,6 +32,7 @@ from factory.demos.execute.gpu_calls import (
     gpu_calls,
     lock_first_arena,
     memory_budget,
+    sizing_line,
     split_tail,
 )
 from factory.demos.execute.shared_frames import ArenaPool, share
@@ -154,13 +155,20 @@ class BatchGpu(GpuRecorder):
         self.rec_cfg = record_config(run.env.demos)
         self.shared = shared_frames.supported()
         self.keep = self.shared and run.env.demos.gpu_images_on_device
-        budget = memory_budget(2 * HOST_MEMORY_SHARE if self.keep else HOST_MEMORY_SHARE)
+        share = 2 * HOST_MEMORY_SHARE if self.keep else HOST_MEMORY_SHARE
+        budget = memory_budget(share)
         capacity = memory_budget(2 * HOST_MEMORY_SHARE)  # every arena together
         dev = run.device or ("cuda:0" if cuda_available() else "cpu")
         on_device = device_budget(dev) if self.keep else None
+        host = budget
         if on_device is not None:
             budget = on_device if budget is None else min(budget, on_device)
         self.budget = budget
+        log.info(
+            sizing_line(
+                dev, budget, host, on_device, run.env.demos.gpu_batch, bool(self.keep), share
+            )
+        )
         # Each GPU call's writes and the shared memory they read, oldest first.
         self.in_flight: list[tuple[list[Future[Any]], list[Any]]] = []
         self.reclaimed = 0.0  # seconds the arena pool waited for writers

@@ -243,10 +243,14 @@ def test_quat_from_mat_is_mujocos() -> None:
     assert np.allclose(quat_from_mat(mats.reshape(500, 3, 3)), ref, atol=1e-12)
 
 
-def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_gpu_calls_pack_a_scene_into_calls_that_fit(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
     """A scene's episodes go to the GPU in as few calls as memory allows, each packing its
     episodes onto at most ``gpu_batch`` worlds with little idle time; calls share the mix of
-    lengths and stay within the memory budget."""
+    lengths and stay within the memory budget. Each scene's split and the stage's sizing are
+    one log line each."""
+    import logging
     import os
     from types import SimpleNamespace
 
@@ -273,8 +277,15 @@ def test_gpu_calls_pack_a_scene_into_calls_that_fit(monkeypatch: pytest.MonkeyPa
     big = RecordConfig(fps=20.0, width=128, height=128, cameras=("left", "right", "wrist"))
     budget = gpu_calls.memory_budget()
     assert budget is not None
-    calls = gpu_calls.gpu_calls(planned, 512, big, 0.002)
+    with caplog.at_level(logging.INFO, logger="factory.demos.execute.gpu_calls"):
+        calls = gpu_calls.gpu_calls(planned, 512, big, 0.002, "kitchen_x")
     assert len(calls) > 3
+    line = caplog.records[-1].getMessage()
+    assert line.startswith(f"scene kitchen_x: 1100 episode(s) in {len(calls)} GPU call(s) of ")
+    assert "demos.gpu_batch=512" in line and f"budget {budget / 1e9:.1f} GB" in line
+    text = gpu_calls.sizing_line("cuda:0", 3 * 10**9, 4 * 10**9, 3 * 10**9, 512, True, 0.7)
+    assert "may take 3.0 GB (the least of: host 4.0 GB (70% of its available memory)" in text
+    assert "cuda:0 3.0 GB (60% of its free memory)" in text and "gpu_batch=512" in text
     assert sorted(k for c, _ in calls for k, _, _ in c) == list(range(1100))
     for c, w in calls:
         assert sum(gpu_calls.episode_bytes(p, big, 0.002) for _, _, p in c) <= budget

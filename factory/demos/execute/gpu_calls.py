@@ -25,6 +25,7 @@ __all__ = [
     "gpu_calls",
     "lock_first_arena",
     "memory_budget",
+    "sizing_line",
     "split_tail",
 ]
 
@@ -137,14 +138,6 @@ def gpu_calls(
         if budget is None or max(used) <= budget or calls >= len(order):
             break
         calls += 1
-    if calls > 1:
-        log.info(
-            "scene %s: %d GPU calls of %s episodes (memory for the recordings: %.1f GB a call)",
-            scene_id,
-            calls,
-            "/".join(str(len(g)) for g in groups),
-            (budget or 0) / 1e9,
-        )
     from factory.demos.execute.world_schedule import worlds_for
 
     per_frame = max(1, round(1.0 / (rec_cfg.fps * timestep)))
@@ -152,7 +145,47 @@ def gpu_calls(
     for g in groups:
         frames = [-(-len(p.ctrl) // per_frame) + 1 for _, _, p in g]
         out.append((g, worlds_for(frames, gpu_batch)))
+    log.info(
+        "scene %s: %d episode(s) in %d GPU call(s) of %s episodes on %s worlds (at most "
+        "demos.gpu_batch=%d); recordings %s GB a call, budget %s",
+        scene_id,
+        len(order),
+        calls,
+        "/".join(str(len(g)) for g in groups),
+        "/".join(str(w) for _, w in out),
+        gpu_batch,
+        "/".join(f"{u / 1e9:.1f}" for u in used),
+        "none" if budget is None else f"{budget / 1e9:.1f} GB",
+    )
     return out
+
+
+def sizing_line(
+    device: str,
+    budget: int | None,
+    host: int | None,
+    on_device: int | None,
+    gpu_batch: int,
+    images_on_device: bool,
+    host_share: float = HOST_MEMORY_SHARE,
+) -> str:
+    """The GPU demos stage's sizing decision in one line: how many bytes a call's recordings
+    may take and why (the host's share of its available memory, the device's share of its free
+    memory where images stay on the device until a call ends), and the most worlds a call
+    runs."""
+    parts = []
+    if host is not None:
+        parts.append(f"host {host / 1e9:.1f} GB ({host_share:.0%} of its available memory)")
+    if on_device is not None:
+        share = f"{GPU_MEMORY_SHARE:.0%} of its free memory"
+        parts.append(f"{device} {on_device / 1e9:.1f} GB ({share})")
+    limit = "no limit" if budget is None else f"{budget / 1e9:.1f} GB"
+    where = "on the device until the call ends" if images_on_device else "copied to the host"
+    return (
+        f"GPU sizing on {device}: a call's recordings may take {limit} (the least of: "
+        f"{', '.join(parts) or 'nothing known'}); at most demos.gpu_batch={gpu_batch} worlds "
+        f"a call; images {where}"
+    )
 
 
 def split_tail(
