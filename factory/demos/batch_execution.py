@@ -215,6 +215,7 @@ class BatchGpu(GpuRecorder):
             images_on_device=self.keep,
         )
         reclaimed_before = self.reclaimed
+        executor.warm_up()  # the kernels compile while the scene's plans are made
         while futures:
             t_wait = time.perf_counter()
             results = [f.result() for f in futures]

@@ -228,6 +228,18 @@ def test_gpu_demos_stage_cli(cli, make_kitchen, tmp_path: Path) -> None:
     assert json.loads((run / "episodes" / "summary-0-of-1.json").read_text())["new_successes"] == 0
 
 
+def test_njmax_comes_in_size_classes() -> None:
+    """Constraint buffers are rounded up to 2^k or 3 * 2^k rows, so that MuJoCo Warp's
+    solver kernel specialised to ``njmax`` compiles for a few sizes, not for every call."""
+    from factory.demos.execute.warp import size_class
+
+    asked = (1, 3, 5, 7, 9, 13, 100, 1537)
+    assert [size_class(n) for n in asked] == [1, 3, 6, 8, 12, 16, 128, 2048]
+    sizes = [size_class(n) for n in range(1, 5000)]
+    assert all(n <= c < 1.5 * n + 1 for n, c in zip(range(1, 5000), sizes, strict=True))
+    assert len(set(sizes)) == 25  # 1, 2, 3, 4, 6, 8, ..., 4096, 6144
+
+
 def test_quat_from_mat_is_mujocos() -> None:
     """The vectorized rotation-to-quaternion of the GPU recording equals mju_mat2Quat."""
     from factory.demos.execute.warp import quat_from_mat
@@ -309,8 +321,8 @@ def test_packed_worlds_record_what_padded_worlds_record(
     as soon as it ends, through ``mujoco_warp.reset_data``; on CUDA inside the captured
     graph) record the states and images that three worlds starting together record.
 
-    The executor's kernel preload (its dry trace, then the modules in parallel) leaves no
-    module for the calls to compile."""
+    The executor's kernel warm-up (a dry trace of its launches, then the modules in parallel)
+    leaves no module for the calls to compile."""
     from factory.demos.execute.warp import WarpExecutor
 
     late = _modules_compiled_after_preload(monkeypatch)
@@ -325,6 +337,7 @@ def test_packed_worlds_record_what_padded_worlds_record(
     ]
     cfg = RecordConfig(width=16, height=16)
     ex = WarpExecutor(setup, cfg, device=device)
+    ex.warm_up()  # as the GPU pipeline does while the plans are made
     padded = ex.execute(plans)
     packed = ex.execute(plans, worlds=2)
     for a, b in zip(padded, packed, strict=True):
@@ -341,8 +354,8 @@ def test_packed_worlds_record_what_padded_worlds_record(
 
 
 def _modules_compiled_after_preload(monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    """Names of the Warp modules first loaded after a :func:`factory.sim.kernel_preload.preload`
-    has run and did not report an early stop (filled as the test goes on). Modules an earlier
+    """Names of the Warp modules first loaded outside a :func:`factory.sim.kernel_preload.preload`
+    after one has run without an early stop (filled as the test goes on). Modules an earlier
     test of the session loaded are loaded already and do not count."""
     import warp._src.context as ctx
 
@@ -353,18 +366,24 @@ def _modules_compiled_after_preload(monkeypatch: pytest.MonkeyPatch) -> list[str
     armed: list[bool] = []
     real_preload, real_load = kp.preload, ctx.Module.load
 
+    inside: list[bool] = []
+
     def preload(*args, **kwargs):  # type: ignore[no-untyped-def]
-        report = real_preload(*args, **kwargs)
+        inside.append(True)
+        try:
+            report = real_preload(*args, **kwargs)
+        finally:
+            inside.pop()
         assert not report.error, report.error
         armed.append(True)
         return report
 
     def load(self, device, block_dim=None, *args, **kwargs):  # type: ignore[no-untyped-def]
         # Warp calls load at every launch; a variant not loaded yet, of a module no earlier
-        # load named (reset_data makes new module objects of the same kernels per call), is
-        # a compile the preload missed.
+        # load named (reset_data makes new module objects of the same kernels per call), and
+        # not loaded by a preload, is a compile the preloads missed.
         key = (device.context, ctx._resolve_launch_block_dim(device, block_dim))
-        if armed and key not in self.execs and self.name not in seen:
+        if armed and not inside and key not in self.execs and self.name not in seen:
             late.append(self.name)
         seen.add(self.name)
         return real_load(self, device, block_dim, *args, **kwargs)

@@ -226,9 +226,21 @@ def quat_from_mat(mat: np.ndarray) -> np.ndarray:
     return out.reshape(*np.shape(mat)[:-2], 4)
 
 
+def size_class(n: int) -> int:
+    """The smallest of 1, 2, 3, 4, 6, 8, 12, 16, 24, ... (``2^k`` and ``3 * 2^k``) that is at
+    least ``n``: less than half as much again as asked, and few distinct sizes."""
+    n = max(1, int(n))
+    k = (n - 1).bit_length()  # 2^(k-1) < n <= 2^k
+    return 3 << (k - 2) if k >= 2 and 3 << (k - 2) >= n else 1 << k
+
+
 def buffer_sizes(model: mujoco.MjModel, qpos: np.ndarray, headroom: float = 3.0) -> tuple[int, int]:
     """``(nconmax, njmax)`` per world: ``headroom`` times the contacts of the initial states
-    (sampled) plus room for the gripper's contacts and every free body touching twice."""
+    (sampled) plus room for the gripper's contacts and every free body touching twice.
+
+    ``njmax`` is rounded up to its :func:`size_class`: MuJoCo Warp compiles its solver's tiled
+    gradient kernel for the exact ``njmax`` (its loop bound), so every call of another size
+    compiled that kernel again; with the classes, scenes and calls share a few variants."""
     data = mujoco.MjData(model)
     most = 0
     for q in qpos[np.linspace(0, len(qpos) - 1, min(len(qpos), 8)).astype(int)]:
@@ -238,7 +250,7 @@ def buffer_sizes(model: mujoco.MjModel, qpos: np.ndarray, headroom: float = 3.0)
     free = int(np.sum(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE))
     nconmax = int(headroom * most) + 4 * free + 64
     rows = 4 if model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL else 6
-    njmax = rows * nconmax + model.nv
+    njmax = size_class(rows * nconmax + model.nv)
     return nconmax, njmax
 
 
@@ -334,6 +346,7 @@ class WarpExecutor:
         init_warp()
         self.wp, self.mjw = wp, mjw
         self._kernels_ready = False
+        self._warmed = False
         self.setup = setup
         self.cfg = cfg
         self.device = device or ("cuda:0" if cuda_available() else "cpu")
@@ -437,6 +450,27 @@ class WarpExecutor:
             for f in names:
                 inputs.append(wp.array(tables.rows[f], dtype=getattr(m, f).dtype))
         return m, inputs + [getattr(m, f) for f in PATCH_FIELDS]
+
+    def warm_up(self) -> None:
+        """Compiles (or loads from Warp's kernel cache) the kernels of this scene's calls now,
+        on every core (:meth:`_preload_kernels` with the model's own initial state): call it
+        while the scene's episodes are still being planned, so that the first call finds them
+        ready. Idempotent; the first call's own preload then finds nothing left to load."""
+        if self._warmed:
+            return
+        model = self.setup.model
+        data = mujoco.MjData(model)
+        nconmax, njmax = buffer_sizes(model, model.qpos0[None].copy(), 3.0)
+        ncam = len(self.cfg.cameras) if self.cfg.render else 0
+        t0 = time.perf_counter()
+        with self.wp.ScopedDevice(self.device):
+            self._preload_kernels(self.m, data, nconmax, njmax, ncam, True)
+        self._warmed = True
+        log.info(
+            "demos %s: GPU kernels warmed up in %.1f s while the plans are made",
+            self.setup.scene.id,
+            time.perf_counter() - t0,
+        )
 
     def _preload_kernels(
         self, m: Any, data: mujoco.MjData, nconmax: int, njmax: int, ncam: int, looks: bool
