@@ -16,6 +16,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +27,13 @@ from factory.schema.sage import scene_to_sage
 from factory.store import RunStore, atomic_copy, atomic_write_text, sha256_bytes
 
 log = logging.getLogger(__name__)
+
+ARTICULATION_SUFFIX = ".articulation.json"
+"""Name ending of the side file :func:`export_sage` writes beside ``<id>.json`` for a scene with
+joint states (SAGE's layout has no place for them)."""
+
+ARTICULATION_SCHEMA_VERSION = 1
+"""``schema_version`` of that side file."""
 
 
 def read_ply(
@@ -155,11 +163,31 @@ def import_sage_mesh(store: RunStore, ply: Path, texture: Path | None, license: 
     return asset_id
 
 
+def articulation_record(scene: Scene) -> dict[str, Any] | None:
+    """The side file's content for ``scene``: ``{schema_version, objects: {object id:
+    {asset_id, joint_states}}}`` over the objects with joint states (rad or m, 0 = closed),
+    or ``None`` when no object has any."""
+    objects = {
+        o.id: {
+            "asset_id": o.asset.asset_id if o.asset is not None else "",
+            "joint_states": dict(o.joint_states),
+        }
+        for o in scene.objects
+        if o.joint_states
+    }
+    if not objects:
+        return None
+    return {"schema_version": ARTICULATION_SCHEMA_VERSION, "objects": objects}
+
+
 def export_sage(scene: Scene, store: RunStore | None, out_dir: str | Path) -> Path:
     """Writes a packed SAGE scene: ``<id>.json`` and ``objects/<source_id>.ply/_texture.png``.
 
     Meshes are the original bytes kept at import; objects without a SAGE mesh are written as
-    layout entries only. Returns the layout JSON's path.
+    layout entries only. SAGE's layout has no joints: an articulated object is a layout entry
+    like any other (SAGE sees one rigid object of its closed dimensions), and the objects' joint
+    states go to a side file ``<id>.articulation.json`` (:func:`articulation_record`; written
+    only when some object has joint states). Returns the layout JSON's path.
     """
     out = Path(out_dir)
     layout = scene_to_sage(scene)
@@ -177,7 +205,21 @@ def export_sage(scene: Scene, store: RunStore | None, out_dir: str | Path) -> Pa
             raise StoreError(f"object {obj.id!r}: asset folder {folder} is missing")
     path = out / f"{scene.id}.json"
     atomic_write_text(path, json.dumps(layout, indent=2, ensure_ascii=False) + "\n")
+    side = out / f"{scene.id}{ARTICULATION_SUFFIX}"
+    record = articulation_record(scene)
+    if record is not None:
+        atomic_write_text(side, json.dumps(record, indent=2, ensure_ascii=False) + "\n")
+    elif side.is_file():
+        side.unlink()  # an earlier export of this scene had joint states
     return path
 
 
-__all__ = ["export_sage", "import_sage_mesh", "obj_text", "read_ply"]
+__all__ = [
+    "ARTICULATION_SCHEMA_VERSION",
+    "ARTICULATION_SUFFIX",
+    "articulation_record",
+    "export_sage",
+    "import_sage_mesh",
+    "obj_text",
+    "read_ply",
+]

@@ -1,6 +1,15 @@
 """The data contracts every stage shares; imports nothing else of factory."""
 
-from factory.schema.asset import AssetMeta, load_asset_meta
+from factory.schema.asset import (
+    ASSET_SCHEMA_VERSION,
+    Articulation,
+    AssetMeta,
+    HandleMeta,
+    JointMeta,
+    LinkMeta,
+    SweptBox,
+    load_asset_meta,
+)
 from factory.schema.errors import FactoryError, SchemaError, SchemaVersionError, UnsafePathError
 from factory.schema.scene import (
     SCHEMA_VERSION,
@@ -28,13 +37,18 @@ from factory.schema.scene import (
 )
 
 __all__ = [
+    "ASSET_SCHEMA_VERSION",
     "SCHEMA_VERSION",
     "Appearance",
+    "Articulation",
     "AssetMeta",
     "AssetRef",
     "Door",
     "Euler",
     "FactoryError",
+    "HandleMeta",
+    "JointMeta",
+    "LinkMeta",
     "Physics",
     "Placement",
     "Room",
@@ -43,6 +57,7 @@ __all__ = [
     "SchemaError",
     "SchemaVersionError",
     "Size3",
+    "SweptBox",
     "Task",
     "UnsafePathError",
     "Vec3",

@@ -342,7 +342,10 @@ def _place_id(obj: SceneObject) -> str:
 def scene_to_sage(scene: Scene) -> dict[str, Any]:
     """Converts a scene to SAGE's layout dict (the inverse of :func:`sage_to_scene`).
 
-    Fields SAGE has no place for (friction, rgba, license, task roles) are not written.
+    Fields SAGE has no place for (friction, rgba, license, task roles, joint states and the
+    task joint) are not written: SAGE's format has no joints, so an articulated object is
+    written as one rigid object of its closed dimensions
+    (``factory.scenes.sage_assets.export_sage`` puts the joint states in a side file).
     """
     rooms = []
     for room in scene.rooms:

@@ -31,9 +31,15 @@ from pathlib import Path
 from typing import Any, Literal
 
 from factory.schema.errors import SchemaError, SchemaVersionError, UnsafePathError
+from factory.schema.migrate import upgrade
 
-SCHEMA_VERSION = 1
-"""Version of ``scene.json`` written by this factory."""
+SCHEMA_VERSION = 2
+"""Version of ``scene.json`` written by this factory (2 added ``SceneObject.joint_states`` and
+``task_joint``). Older versions are upgraded on reading (:mod:`factory.schema.migrate`)."""
+
+RESERVED_JOINT_NAMES: tuple[str, ...] = ("free",)
+"""Names an object's joints may not take: the compiler names an object's free joint
+``<object id>/free``."""
 
 PlacementKind = Literal["floor", "wall", "on_top"]
 PLACEMENT_KINDS: tuple[str, ...] = ("floor", "wall", "on_top")
@@ -257,7 +263,13 @@ class Appearance:
 
 @dataclass
 class SceneObject:
-    """One object: ``position`` is its bottom centre in the world frame (m)."""
+    """One object: ``position`` is its bottom centre in the world frame (m).
+
+    ``joint_states`` holds the positions of an articulated object's joints (the asset's
+    ``meta.json: articulation.joints``) by joint name: radians for a hinge, metres for a slide,
+    0 = closed; a joint left out is closed. ``task_joint`` names the joint the task acts on (a
+    key of ``joint_states``), ``None`` when the task acts on no joint.
+    """
 
     id: str
     room_id: str
@@ -272,6 +284,8 @@ class SceneObject:
     appearance: Appearance = field(default_factory=Appearance)
     license: str = ""
     task_role: str | None = None
+    joint_states: dict[str, float] = field(default_factory=dict)
+    task_joint: str | None = None
     extras: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -456,13 +470,40 @@ def _positive(value: float, where: str) -> None:
         raise SchemaError(f"{where} must be > 0, got {value}")
 
 
+def _check_joints(obj: SceneObject, where: str) -> None:
+    """Checks an object's ``joint_states`` and ``task_joint`` (``where`` names the object)."""
+    if not isinstance(obj.joint_states, dict):
+        raise SchemaError(f"{where}: joint_states must be an object {{joint name: value}}")
+    for name, value in obj.joint_states.items():
+        check_id(name, f"{where}: joint_states key")
+        if name in RESERVED_JOINT_NAMES:
+            raise SchemaError(
+                f"{where}: joint_states key {name!r} is reserved (reserved: "
+                f"{list(RESERVED_JOINT_NAMES)}): name the asset's joints"
+            )
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SchemaError(
+                f"{where}: joint_states[{name!r}] must be a number (rad or m), got {value!r}"
+            )
+        if not math.isfinite(value):
+            raise SchemaError(f"{where}: joint_states[{name!r}] must be finite, got {value}")
+    if obj.task_joint is not None and obj.task_joint not in obj.joint_states:
+        raise SchemaError(
+            f"{where}: task_joint {obj.task_joint!r} is not a key of joint_states (allowed: "
+            f"{sorted(obj.joint_states)}): list the joint in joint_states (0 = closed)"
+        )
+
+
 def validate(scene: Scene) -> Scene:
     """Checks a scene's internal consistency.
 
     Checks: ``schema_version``, safe ids, unique ids, positive dimensions, walls/doors/windows
     refer to existing walls, every object's centre lies inside some room (within
     :data:`ROOM_TOLERANCE`), every ``room_id`` and
-    ``support_id`` exists, and ``on_top`` supports form no cycle.
+    ``support_id`` exists, ``on_top`` supports form no cycle, ``joint_states`` names are safe
+    ids (not :data:`RESERVED_JOINT_NAMES`) with finite values, and ``task_joint`` is one of them.
+    (Whether the joints are the asset's and the values within their ranges is checked by the
+    compiler, which reads the assets.)
 
     Returns:
         the scene, unchanged.
@@ -576,6 +617,7 @@ def validate(scene: Scene) -> Scene:
             len(obj.appearance.rgba) != 4 or not all(0 <= c <= 1 for c in obj.appearance.rgba)
         ):
             raise SchemaError(f"{where}: appearance.rgba must be 4 numbers in [0, 1]")
+        _check_joints(obj, where)
 
     for start in supports:
         seen = {start}
@@ -595,10 +637,14 @@ def validate(scene: Scene) -> Scene:
 def scene_from_dict(data: Any) -> Scene:
     """Builds and validates a :class:`Scene` from its JSON dict.
 
+    A dict of an older ``schema_version`` is upgraded first
+    (:func:`factory.schema.migrate.upgrade`).
+
     Raises:
         SchemaVersionError: missing or unsupported ``schema_version``.
         SchemaError: malformed or inconsistent content.
     """
+    data = upgrade(data)
     _check_version(
         data,
         "scene JSON",

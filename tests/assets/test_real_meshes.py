@@ -20,6 +20,7 @@ from factory.assets.geometry import MAX_HULL_VERTICES
 from factory.assets.packaged import ROBOSUITE, choose, import_robosuite, robosuite_source
 from factory.assets.realmesh import read_obj_uv
 from factory.schema import (
+    ASSET_SCHEMA_VERSION,
     AssetRef,
     Physics,
     Placement,
@@ -113,7 +114,7 @@ def test_every_object_has_licence_provenance_and_hulls(assets: Path, metas: dict
         folder = assets / meta.asset_id
         assert meta.backend == "mesh_library" and meta.license == "MIT", name
         saved = json.loads((folder / "meta.json").read_text())
-        assert saved["schema_version"] == 1
+        assert saved["schema_version"] == ASSET_SCHEMA_VERSION
         prov = meta.provenance
         assert prov["package"] == "robosuite" and prov["version"] and prov["library_entry"] == name
         assert prov["copyright"].startswith("Copyright (c)")

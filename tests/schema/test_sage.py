@@ -116,3 +116,25 @@ def test_not_a_zip(tmp_path: Path) -> None:
     p.write_text("hello")
     with pytest.raises(SchemaError, match="not a readable zip"):
         extract_zip(p, tmp_path / "o")
+
+
+def test_joint_states_go_to_a_side_file(tmp_path: Path, sage_dict: dict[str, Any]) -> None:
+    """SAGE's layout has no joints: the export writes the layout unchanged and the joint
+    states beside it, which ingest does not take for a scene."""
+    from factory.scenes.ingest import discover
+    from factory.scenes.sage_assets import export_sage
+
+    scene = sage_to_scene(copy.deepcopy(sage_dict))
+    layout = export_sage(scene, None, tmp_path / "plain")
+    assert sorted(p.name for p in layout.parent.iterdir()) == [layout.name]
+    stand = scene.object("nightstand_0")
+    stand.joint_states = {"drawer_0": 0.12}
+    stand.task_joint = "drawer_0"
+    layout = export_sage(scene, None, tmp_path / "out")
+    assert json.loads(layout.read_text()) == sage_dict
+    side = json.loads(layout.with_name(f"{scene.id}.articulation.json").read_text())
+    assert side == {
+        "schema_version": 1,
+        "objects": {"nightstand_0": {"asset_id": "", "joint_states": {"drawer_0": 0.12}}},
+    }
+    assert [(i.kind, i.path) for i in discover(tmp_path / "out")] == [("sage", layout)]

@@ -24,6 +24,7 @@ from factory.schema import (
     scene_to_json,
     to_dict,
 )
+from factory.schema.migrate import MIGRATIONS, upgrade
 
 
 @pytest.fixture
@@ -78,7 +79,15 @@ def _set(d: dict[str, Any], path: str, value: Any) -> None:
 
 
 BAD = [
-    ("schema_version", 2, SchemaVersionError, "schema_version is 2"),
+    ("schema_version", 3, SchemaVersionError, "schema_version is 3, this factory reads 2"),
+    ("schema_version", 0, SchemaVersionError, "schema_version is 0"),
+    ("objects.0.joint_states", {"a/b": 0.1}, UnsafePathError, "joint_states key 'a/b' contains"),
+    ("objects.0.joint_states", {"free": 0.0}, SchemaError, r"key 'free' is reserved"),
+    ("objects.0.joint_states", {"door_0": "ajar"}, SchemaError, r"\['door_0'\] must be a number"),
+    ("objects.0.joint_states", {"door_0": True}, SchemaError, "must be a number"),
+    ("objects.0.joint_states", {"door_0": float("inf")}, SchemaError, "must be finite"),
+    ("objects.0.joint_states", [0.1], SchemaError, "expected an object"),
+    ("objects.0.task_joint", "door_0", SchemaError, r"task_joint 'door_0' is not a key.*\[\]"),
     ("rooms.0.dimensions.width", 0.0, SchemaError, r"dimensions\.width must be > 0"),
     ("rooms.0.dimensions.length", -3.0, SchemaError, r"dimensions\.length must be > 0"),
     ("objects.0.dimensions.height", 0, SchemaError, r"dimensions\.height must be > 0"),
@@ -115,6 +124,52 @@ def test_bad_scene_is_refused(
         scene_from_dict(bad)
 
 
+def _as_version_1(scene_dict: dict[str, Any]) -> dict[str, Any]:
+    old = copy.deepcopy(scene_dict)
+    old["schema_version"] = 1
+    for o in old["objects"]:
+        del o["joint_states"], o["task_joint"]
+    return old
+
+
+def test_version_1_scene_reads_and_writes_current(
+    scene_dict: dict[str, Any], example_scene_path: Path
+) -> None:
+    assert SCHEMA_VERSION == 2
+    old = _as_version_1(scene_dict)
+    before = copy.deepcopy(old)
+    scene = scene_from_dict(old)
+    assert old == before  # the upgrade copies
+    assert scene.schema_version == 2 and all(o.joint_states == {} for o in scene.objects)
+    assert scene_to_json(scene) == example_scene_path.read_text()
+
+
+def test_every_migration_reaches_the_current_version() -> None:
+    for version in MIGRATIONS:
+        assert upgrade({"schema_version": version})["schema_version"] == SCHEMA_VERSION
+    assert upgrade({"schema_version": 3}) == {"schema_version": 3}
+    assert upgrade([1]) == [1]
+
+
+def test_committed_scenes_load() -> None:
+    """Every scene file under factory/data/ (the mobile task's example is still version 1)."""
+    data = Path(__file__).resolve().parents[2] / "factory" / "data"
+    paths = sorted(data.rglob("scene.json"))
+    assert len(paths) >= 2
+    for path in paths:
+        assert load_scene(path).schema_version == SCHEMA_VERSION
+
+
+def test_joint_states_round_trip(scene_dict: dict[str, Any]) -> None:
+    obj = scene_dict["objects"][0]
+    obj["joint_states"] = {"drawer_0": 0.25, "door_0": 1.2, "lid": 0}
+    obj["task_joint"] = "drawer_0"
+    scene = scene_from_dict(scene_dict)
+    assert scene.objects[0].joint_states["door_0"] == 1.2
+    assert scene.objects[0].task_joint == "drawer_0"
+    assert json.loads(scene_to_json(scene)) == scene_dict
+
+
 def test_missing_schema_version(scene_dict: dict[str, Any]) -> None:
     del scene_dict["schema_version"]
     with pytest.raises(SchemaVersionError, match=f"reads {SCHEMA_VERSION}"):
@@ -140,3 +195,25 @@ def test_wall_length_is_geometry(scene_dict: dict[str, Any]) -> None:
     scene = scene_from_dict(scene_dict)
     wall = scene.rooms[0].walls[0]
     assert math.isclose(wall.length, 4.0)
+
+
+def test_ingest_keeps_an_older_runs_scene(tmp_path: Path, scene_dict: dict[str, Any]) -> None:
+    """A run's version-1 scene.json is the same scene: ingest skips it and leaves its bytes
+    (the later stages' stamps hash them); a changed scene still needs force."""
+    from factory.errors import StoreError
+    from factory.scenes.ingest import SceneInput, ingest_one
+    from factory.store import RunStore
+
+    store = RunStore(tmp_path / "run")
+    old_text = json.dumps(_as_version_1(scene_dict), indent=2) + "\n"
+    stored = store.scene_json(scene_dict["id"])
+    stored.parent.mkdir(parents=True)
+    stored.write_text(old_text)
+    source = tmp_path / "scene.json"
+    source.write_text(json.dumps(scene_dict))
+    assert ingest_one(store, SceneInput("scene", source)) == "skipped"
+    assert stored.read_text() == old_text
+    scene_dict["description"] = "changed"
+    source.write_text(json.dumps(scene_dict))
+    with pytest.raises(StoreError, match="force=true"):
+        ingest_one(store, SceneInput("scene", source))
