@@ -27,8 +27,8 @@ import yaml
 
 from factory.assets import grammar
 from factory.assets import templates as T
+from factory.assets.errors import CatalogError as CatalogError
 from factory.assets.physics import MATERIALS
-from factory.errors import ConfigError
 
 RGBA = tuple[float, float, float, float]
 
@@ -52,10 +52,6 @@ FIELDS = (
     "description",
 )
 REQUIRED = ("template", "dims", "materials", "mass")
-
-
-class CatalogError(ConfigError):
-    """A catalogue entry is invalid (unknown template kind, bad field or value)."""
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from factory.assets.articulation import JointSpec
 from factory.assets.uv import revolve_labels
+from factory.schema.asset import HandleMeta
 
 MAX_HULL_VERTICES = 64
 
@@ -38,6 +40,9 @@ class Part:
             mesh); for ``rounded`` parts (:func:`.primitives.rounded_box`), each vertex's
             unit offset direction from the inner box, the radius and the box's rotation
             (V, 13, :func:`.uv.rounded_uv`); else ``None``.
+        link: the moving link that carries it (``""``: the root body; see
+            :class:`~.articulation.JointSpec`).
+        handle: the name of the handle it is a piece of (``""``: none; see :mod:`.handles`).
     """
 
     visual: trimesh.Trimesh
@@ -48,6 +53,8 @@ class Part:
     name: str = "part"
     mapping: str = "planar"
     labels: np.ndarray | None = None
+    link: str = ""
+    handle: str = ""
 
     @property
     def volume(self) -> float:
@@ -58,30 +65,41 @@ class Part:
 @dataclass(frozen=True)
 class Support:
     """An upward support surface: rectangle ``[x0, x1] x [y0, y1]`` at height ``z`` (m), with
-    ``clearance`` (m) of free height above it (the next board; large for open tops)."""
+    ``clearance`` (m) of free height above it (the next board; large for open tops); ``link``
+    is the link carrying it (``""``: the root) and ``access`` the joint to open first to reach
+    it (``""``: none). Closed pose, object frame."""
 
     name: str
     z: float
     rect: tuple[float, float, float, float]
     clearance: float = 10.0
+    link: str = ""
+    access: str = ""
 
 
 @dataclass(frozen=True)
 class Container:
-    """An interior volume: axis-aligned box ``lo..hi`` (m, object frame)."""
+    """An interior volume: axis-aligned box ``lo..hi`` (m, object frame, closed pose), on
+    ``link`` (``""``: the root), reached by opening ``access`` first (``""``: open)."""
 
     name: str
     lo: tuple[float, float, float]
     hi: tuple[float, float, float]
+    link: str = ""
+    access: str = ""
 
 
 @dataclass
 class Shape:
-    """Parts plus their annotations."""
+    """Parts plus their annotations: support surfaces, interior volumes and, for an
+    articulated shape, the joints of its links (tree order: a parent's joint first) and the
+    handles on them (each handle's pieces are the parts whose ``handle`` is its name)."""
 
     parts: list[Part] = field(default_factory=list)
     supports: list[Support] = field(default_factory=list)
     containers: list[Container] = field(default_factory=list)
+    joints: list[JointSpec] = field(default_factory=list)
+    handles: list[HandleMeta] = field(default_factory=list)
 
     def add(self, part: Part) -> Part:
         self.parts.append(part)

@@ -16,16 +16,12 @@ import numpy as np
 import trimesh
 
 from factory.assets.catalog import CATEGORIES, Category
+from factory.assets.errors import AssetError as AssetError
 from factory.assets.geometry import Container, Shape, Support, assemble
 from factory.assets.physics import material
-from factory.errors import FactoryError
 
 MIN_DIM = 0.003
 MAX_DIM = 12.0
-
-
-class AssetError(FactoryError):
-    """An asset cannot be made (bad request, bad mesh, backend failure)."""
 
 
 @dataclass

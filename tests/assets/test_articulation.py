@@ -1,0 +1,126 @@
+"""Articulated shapes (issue 35, S2): joint transforms and link poses, the swept box, the
+catalogue's joint physics, handles, and an articulated category built into an asset."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from factory.assets.articulation import (
+    JOINT_DEFAULTS,
+    JointSpec,
+    applied,
+    link_transform,
+    parse_physics,
+    pose_of,
+    swept_box,
+)
+from factory.assets.catalog import CatalogError
+from factory.assets.geometry import Shape, box
+from factory.assets.procedural import AssetError
+from factory.schema.asset import Articulation, JointMeta, LinkMeta, SweptBox
+
+WOOD = (0.6, 0.4, 0.2, 1.0)
+
+
+def _joint(name: str, kind: str, link: str, anchor, axis, rng, parent: str = "") -> JointMeta:
+    role = "door" if kind == "hinge" else "drawer"
+    return JointMeta(name, kind, role, link, list(anchor), list(axis), list(rng))  # type: ignore[arg-type]
+
+
+def _art() -> Articulation:
+    """A drawer sliding out along -y, carrying a small door hinged about z at x = 0.1."""
+    return Articulation(
+        links=[LinkMeta("drawer"), LinkMeta("flap", parent="drawer")],
+        joints=[
+            _joint("drawer", "slide", "drawer", (0, -0.2, 0.5), (0, -1, 0), (0, 0.4)),
+            _joint("flap", "hinge", "flap", (0.1, -0.25, 0.5), (0, 0, 1), (0, 2)),
+        ],
+        swept=SweptBox([0, 0, 0], [0, 0, 0]),
+    )
+
+
+def test_slide_and_hinge_transforms() -> None:
+    slide = _joint("s", "slide", "s", (1, 2, 3), (0, -1, 0), (0, 0.5))
+    tf = link_transform(slide, 0.3)
+    assert np.allclose(tf[:3, :3], np.eye(3)) and np.allclose(tf[:3, 3], (0, -0.3, 0))
+    hinge = _joint("h", "hinge", "h", (0.5, 0, 0), (0, 0, 1), (0, 2))
+    tf = link_transform(hinge, math.pi / 2)
+    # the anchor stays; a point 1 m along +x from it swings to +y
+    assert np.allclose(tf @ [0.5, 0, 0, 1], [0.5, 0, 0, 1])
+    assert np.allclose(tf @ [1.5, 0, 0.7, 1], [0.5, 1, 0.7, 1])
+    assert np.allclose(link_transform(hinge, 0.0), np.eye(4))
+
+
+def test_link_poses_compose_through_parents() -> None:
+    art = _art()
+    states = {"drawer": 0.3, "flap": math.pi / 2}
+    assert np.allclose(pose_of(art, states, ""), np.eye(4))
+    assert np.allclose(pose_of(art, states, "drawer")[:3, 3], (0, -0.3, 0))
+    flap = pose_of(art, states, "flap")
+    # the flap's hinge rides out with the drawer, then turns the flap about it
+    hinge_closed = np.array([0.1, -0.25, 0.5, 1.0])
+    assert np.allclose(flap @ hinge_closed, [0.1, -0.55, 0.5, 1])
+    assert np.allclose(flap @ [0.2, -0.25, 0.5, 1], [0.1, -0.45, 0.5, 1])
+    assert np.allclose(pose_of(art, {}, "flap"), np.eye(4))
+    with pytest.raises(KeyError):
+        pose_of(art, states, "lid")
+
+
+def test_swept_box_covers_the_limits() -> None:
+    s = Shape([box((0.6, 0.5, 0.8), (0, 0, 0.4), "oak", WOOD, "carcass")])
+    door = box((0.5, 0.02, 0.6), (0, -0.26, 0.4), "oak", WOOD, "door")
+    door.link = "door"
+    drawer = box((0.5, 0.4, 0.1), (0, 0.0, 0.75), "oak", WOOD, "drawer")
+    drawer.link = "drawer"
+    s.parts += [door, drawer]
+    s.joints = [
+        JointSpec("door", "hinge", "door", "door", (-0.25, -0.26, 0.4), (0, 0, -1), (0, 2.0)),
+        JointSpec("drawer", "slide", "drawer", "drawer", (0, -0.2, 0.75), (0, -1, 0), (0, 0.3)),
+    ]
+    sw = swept_box(s)
+    lo, hi = np.array(sw.lo), np.array(sw.hi)
+    for name, link in (("door", "door"), ("drawer", "drawer")):
+        j = next(x for x in s.joints if x.name == name)
+        for q in j.range:
+            tf = link_transform(j, q)
+            part = next(p for p in s.parts if p.link == link)
+            pts = part.visual.vertices @ tf[:3, :3].T + tf[:3, 3]
+            assert (pts >= lo - 1e-9).all() and (pts <= hi + 1e-9).all()
+    assert lo[1] < -0.25 - 0.3 + 0.01  # the open drawer reaches out
+    assert lo[1] < -0.26 - 0.45  # the door swings out almost its width
+
+
+def test_joint_spec_is_validated() -> None:
+    with pytest.raises(AssetError, match="kind 'twist' is not one of"):
+        JointSpec("j", "twist", "door", "l", (0, 0, 0), (0, 0, 1), (0, 1))
+    with pytest.raises(AssetError, match="unit vector"):
+        JointSpec("j", "hinge", "door", "l", (0, 0, 0), (0, 0, 2), (0, 1))
+    with pytest.raises(AssetError, match="lo <= 0 <= hi"):
+        JointSpec("j", "hinge", "door", "l", (0, 0, 0), (0, 0, 1), (0.2, 1))
+
+
+def test_physics_defaults_and_parse_errors_name_the_field() -> None:
+    phys = parse_physics("cab", {"drawer": {"range": [0, 0.5], "damping": 2.0}})
+    assert set(phys) == set(JOINT_DEFAULTS)
+    assert phys["drawer"].range == (0.0, 0.5) and phys["drawer"].damping == 2.0
+    assert phys["drawer"].frictionloss == JOINT_DEFAULTS["drawer"]["friction"]
+    assert phys["lid"].hold
+    door = JointSpec("d", "hinge", "door", "d", (0, 0, 0), (0, 0, 1), (0, 3))
+    assert np.allclose(applied(door, phys["door"]).range, (0, math.radians(110)))
+    drawer = JointSpec("s", "slide", "drawer", "s", (0, 0, 0), (0, -1, 0), (0, 0.4))
+    assert np.allclose(applied(drawer, phys["drawer"]).range, (0, 0.2))
+    cases = [
+        ({"hatch": {}}, "articulation.hatch.*valid roles: door, drawer"),
+        ({"door": {"range": [10, 90]}}, "articulation.door.range"),
+        ({"door": {"friction": -1}}, "articulation.door.friction"),
+        ({"door": {"spring": 3}}, "articulation.door.spring"),
+        ({"lid": {"hold": "yes"}}, "articulation.lid.hold"),
+        ({"door": {"stiff": 1}}, "articulation.door.stiff.*valid keys: range"),
+        ([1, 2], "field 'articulation'"),
+    ]
+    for raw, match in cases:
+        with pytest.raises(CatalogError, match=match):
+            parse_physics("cab", raw)
