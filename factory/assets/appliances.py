@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from factory.assets.geometry import Part, Shape, Support, cylinder
+from factory.assets.handles import front_bar as _bar
 from factory.assets.primitives import moved, ring, rounded_box
 
 RGBA = tuple[float, float, float, float]
@@ -87,40 +88,6 @@ def _door(
             segments=1,
         )
     )
-
-
-def _bar(
-    s: Shape,
-    name: str,
-    center: tuple[float, float, float],
-    length: float,
-    vertical: bool,
-    y_face: float,
-    depth: float,
-    mat: str = "steel",
-    rgba: RGBA = _CHROME,
-) -> None:
-    """A bar handle ``length`` long on two posts, standing ``depth`` proud of ``y_face``."""
-    t = min(0.018, 0.6 * depth)
-    ext = (t, t, length) if vertical else (length, t, t)
-    y = y_face - depth + t / 2
-    s.add(rounded_box(ext, (center[0], y, center[2]), mat, rgba, 0.45 * t, name, segments=1))
-    for k, off in enumerate((-0.4 * length, 0.4 * length)):
-        px = center[0] + (0 if vertical else off)
-        pz = center[2] + (off if vertical else 0)
-        post = depth - t
-        if post > 1e-3:
-            s.add(
-                rounded_box(
-                    (0.6 * t, post, 0.6 * t),
-                    (px, y_face - post / 2, pz),
-                    mat,
-                    rgba,
-                    0.25 * t,
-                    f"{name}_post_{k}",
-                    segments=1,
-                )
-            )
 
 
 def _knobs(s: Shape, n: int, x: tuple[float, float], z: float, y_face: float, r: float) -> None:

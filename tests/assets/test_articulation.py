@@ -124,3 +124,35 @@ def test_physics_defaults_and_parse_errors_name_the_field() -> None:
     for raw, match in cases:
         with pytest.raises(CatalogError, match=match):
             parse_physics("cab", raw)
+
+
+@pytest.mark.parametrize("style", ["bar", "knob", "pull", "edge"])
+def test_handle_pieces_are_convex_and_the_meta_validates(style: str) -> None:
+    from factory.assets.geometry import MAX_HULL_VERTICES
+    from factory.assets.handles import handle
+    from factory.schema.asset import AssetMeta
+
+    parts, meta = handle(style, "h", (0.1, -0.3, 0.5), (1, 0, 0), (0, -1, 0), 0.12, 0.04, "door")
+    pieces = [c for p in parts for c in p.collision]
+    assert all(p.link == "door" and p.handle == "h" for p in parts)
+    for c in pieces:
+        assert c.is_convex and c.volume > 0 and len(c.vertices) <= MAX_HULL_VERTICES
+    if pieces:  # in front of the face (y <= -0.3), within its depth and length
+        lo, hi = np.min([c.bounds[0] for c in pieces], 0), np.max([c.bounds[1] for c in pieces], 0)
+        assert hi[1] <= -0.3 + 1e-9 and lo[1] >= -0.34 - 1e-9
+        assert hi[0] - lo[0] <= 0.12 + 1e-9
+    meta.collision = list(range(len(pieces)))
+    link = LinkMeta("door", collision=list(range(len(pieces))), handles=[meta])
+    joint = _joint("door", "hinge", "door", (0.3, -0.3, 0), (0, 0, 1), (0, 2))
+    AssetMeta(
+        "a",
+        "procedural",
+        "visual.obj",
+        [1, 1, 1],
+        collision=[f"c{k}.obj" for k in range(len(pieces))],
+        articulation=Articulation([link], [joint], SweptBox([0, 0, 0], [1, 1, 1])),
+    )
+    if style == "bar":
+        assert meta.clearance >= 0.025
+    with pytest.raises(AssetError, match="is not one of"):
+        handle("hook", "h", (0, 0, 0), (1, 0, 0), (0, -1, 0), 0.1, 0.03)
