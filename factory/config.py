@@ -52,6 +52,9 @@ class AssetsConfig:
         real_meshes: with the procedural backend, use the textured real meshes that installed
             packages ship with a licence (robosuite's can, bottle, milk, cereal, bread, lemon)
             where one matches the request; ``false``: procedural only.
+        articulated: build articulated categories (a cabinet's drawer and door) with moving
+            links and joints (``meta.articulation``); ``false``: as one rigid body, closed.
+            Other categories are the same either way.
     """
 
     backend: str = "procedural"
@@ -62,6 +65,7 @@ class AssetsConfig:
     fallback: bool = True
     texture_size: int = 256
     real_meshes: bool = True
+    articulated: bool = False
 
 
 @dataclass

@@ -9,7 +9,8 @@ goes, ``rooms`` the room types that hold it (the keys of ``factory/data/rooms/ro
 the room programs' file: one list of room types for both floors), ``synonyms`` words that
 name it, ``fill`` the solid fraction of the shape's volume (a box standing in for a hollow
 appliance, a frame or a cushion is mostly air; calibrated so that the typical size falls
-inside the documented mass range).
+inside the documented mass range), ``articulation`` the joint physics per front role of an
+articulated template (:func:`.articulation.parse_physics`).
 
 A bad entry raises :class:`CatalogError`, naming the category, the field and the valid
 choices.
@@ -25,8 +26,9 @@ from typing import Any
 
 import yaml
 
-from factory.assets import grammar
+from factory.assets import cabinets, grammar
 from factory.assets import templates as T
+from factory.assets.articulation import JointPhysics, parse_physics
 from factory.assets.errors import CatalogError as CatalogError
 from factory.assets.physics import MATERIALS
 
@@ -50,13 +52,15 @@ FIELDS = (
     "fill",
     "extra",
     "description",
+    "articulation",
 )
 REQUIRED = ("template", "dims", "materials", "mass")
 
 
 @dataclass(frozen=True)
 class Category:
-    """One procedural category."""
+    """One procedural category (``articulated``: its template has moving links;
+    ``articulation``: joint physics per role, over ``articulation.JOINT_DEFAULTS``)."""
 
     template: T.Template
     dims: tuple[float, float, float]
@@ -70,6 +74,8 @@ class Category:
     fill: float = 1.0
     extra: dict[str, str] = field(default_factory=dict)
     description: str = ""
+    articulated: bool = False
+    articulation: dict[str, JointPhysics] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -81,11 +87,13 @@ class TemplateKind:
         params: parameter name -> type (``number``, ``bool``, ``int_pair`` or ``any``, which
             the factory validates); empty for a plain template.
         required: the parameters that must be given.
+        articulated: its shapes have moving links (``Shape.joints``).
     """
 
     build: Callable[..., Any]
     params: Mapping[str, str] = field(default_factory=dict)
     required: tuple[str, ...] = ()
+    articulated: bool = False
 
 
 TEMPLATE_KINDS: dict[str, TemplateKind] = {
@@ -133,6 +141,9 @@ TEMPLATE_KINDS: dict[str, TemplateKind] = {
     "dumbbell": TemplateKind(T.dumbbell),
     "piano": TemplateKind(T.piano),
     "toilet": TemplateKind(T.toilet),
+    "cabinet": TemplateKind(
+        cabinets.cabinet, {"handles": "any", "drawer_share": "number"}, articulated=True
+    ),
     "parts": TemplateKind(grammar.parts, {"parts": "any", "containers": "any"}, ("parts",)),
 }
 """Template kind (the data's ``template: {kind: ...}``) -> builder and parameters."""
@@ -281,6 +292,10 @@ def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> C
         fill=float(fill),
         extra=dict(extra),
         description=description,
+        articulated=TEMPLATE_KINDS[entry["template"]["kind"]].articulated,
+        articulation=parse_physics(name, entry.get("articulation"))
+        if "articulation" in entry or TEMPLATE_KINDS[entry["template"]["kind"]].articulated
+        else {},
     )
 
 

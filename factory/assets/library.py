@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import time
 import urllib.error
 import urllib.request
@@ -38,15 +39,17 @@ from typing import Any
 
 import numpy as np
 
+from factory.assets.articulation import JointSpec
 from factory.assets.cache import asset_id_for, build, cached, write_obj
 from factory.assets.catalog import CATEGORIES
-from factory.assets.geometry import Part, Support
+from factory.assets.geometry import Container, Part, Support
 from factory.assets.meshproc import decompose, load_mesh, repair, to_object_frame
 from factory.assets.physics import material
-from factory.assets.procedural import AssetError, AssetSpec, generate
+from factory.assets.procedural import AssetError, AssetSpec, Generated, generate
 from factory.assets.resolver import Resolution, resolve
 from factory.assets.uv import uv_of
 from factory.schema import AssetMeta
+from factory.schema.asset import Articulation, HandleMeta, JointMeta, LinkMeta
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +82,9 @@ class AssetLibrary:
         texture_size: size (px) of the procedural parts' textures (64..512).
         real_meshes: the procedural backend uses installed packages' textured meshes where one
             matches the request (:func:`.packaged.choose`).
+        articulated: articulated categories are built with moving links (``meta.articulation``;
+            request key ``rig: joints``); off, as one rigid body, closed (``rig: fused``).
+            Other categories are the same either way.
     """
 
     def __init__(
@@ -90,6 +96,7 @@ class AssetLibrary:
         fallback: bool = True,
         texture_size: int = 256,
         real_meshes: bool = True,
+        articulated: bool = False,
     ) -> None:
         if backend not in BACKENDS:
             raise AssetError(f"asset backend {backend!r} is not one of {', '.join(BACKENDS)}")
@@ -108,6 +115,7 @@ class AssetLibrary:
         self.trellis = trellis or TrellisConfig()
         self.fallback = fallback
         self.real_meshes = bool(real_meshes)
+        self.articulated = bool(articulated)
 
     @classmethod
     def from_config(cls, cfg: Any, assets_dir: str | Path) -> AssetLibrary:
@@ -122,6 +130,7 @@ class AssetLibrary:
             fallback=cfg.fallback,
             texture_size=getattr(cfg, "texture_size", 256),
             real_meshes=getattr(cfg, "real_meshes", True),
+            articulated=getattr(cfg, "articulated", False),
         )
 
     # ---- front
@@ -145,6 +154,9 @@ class AssetLibrary:
         """The asset for a resolved spec (cached)."""
         if spec.texture_size != self.texture_size:
             spec = replace(spec, texture_size=self.texture_size)
+        cat = CATEGORIES.get(spec.category)
+        if cat is not None and cat.articulated:
+            spec = replace(spec, rig="joints" if self.articulated else "fused")
         if self.backend == "procedural":
             return (self._real_mesh(spec) if self.real_meshes else None) or self._procedural(spec)
         key = spec.key() | {"text": spec.text}
@@ -178,16 +190,19 @@ class AssetLibrary:
         def fill(folder: Path) -> AssetMeta:
             gen = generate(spec)
             write_obj(gen.visual, folder / "visual.obj")
-            parts = [
-                self._textured_part(group, k, spec, folder)
-                for k, group in enumerate(_same_look(gen.shape.parts))
-            ]
+            groups = _same_look(gen.shape.parts)
+            parts = [self._textured_part(group, k, spec, folder) for k, group in enumerate(groups)]
             collision: list[str] = []
+            pieces: dict[int, list[int]] = {}  # part (by id) -> its collision indices
             for p in gen.shape.parts:
                 for c in p.collision:
                     name = f"collision_{len(collision)}.obj"
                     write_obj(c, folder / name)
+                    pieces.setdefault(id(p), []).append(len(collision))
                     collision.append(name)
+            if gen.shape.joints:
+                for k, group in enumerate(groups):
+                    parts[k]["link"] = group[0].link
             return AssetMeta(
                 asset_id=asset_id,
                 backend="procedural",
@@ -203,14 +218,12 @@ class AssetLibrary:
                 category=spec.category,
                 visual_parts=parts,
                 supports=[_support(s) for s in gen.shape.supports],
-                containers=[
-                    {"name": c.name, "lo": [float(v) for v in c.lo], "hi": [float(v) for v in c.hi]}
-                    for c in gen.shape.containers
-                ],
+                containers=[_container(c) for c in gen.shape.containers],
                 mass=gen.mass,
                 friction=gen.friction,
                 materials=list(gen.materials),
                 request=spec.key(),
+                articulation=_articulation(gen, groups, pieces),
             )
 
         return build(self.assets_dir, asset_id, fill)
@@ -471,22 +484,107 @@ def _factors(spec: AssetSpec) -> tuple[float, float, float]:
 
 
 def _same_look(parts: list[Part]) -> list[list[Part]]:
-    """The parts grouped by material and colour, in first-seen order: each group becomes one
-    visual mesh (a table's top and legs are drawn at once: fewer draws per camera frame)."""
-    groups: dict[tuple[str, tuple[float, ...]], list[Part]] = {}
+    """The parts grouped by link, material and colour, in first-seen order: each group
+    becomes one visual mesh (a table's top and legs are drawn at once: fewer draws per camera
+    frame; a moving link's pieces stay its own)."""
+    groups: dict[tuple[str, str, tuple[float, ...]], list[Part]] = {}
     for p in parts:
-        key = (p.material, tuple(round(float(c), 4) for c in p.rgba))
+        key = (p.link, p.material, tuple(round(float(c), 4) for c in p.rgba))
         groups.setdefault(key, []).append(p)
     return list(groups.values())
 
 
 def _support(s: Support) -> dict[str, Any]:
-    return {
+    out: dict[str, Any] = {
         "name": s.name,
         "z": float(s.z),
         "rect": [float(v) for v in s.rect],
         "clearance": float(s.clearance),
     }
+    return out | _on_link(s)
+
+
+def _container(c: Container) -> dict[str, Any]:
+    out = {"name": c.name, "lo": [float(v) for v in c.lo], "hi": [float(v) for v in c.hi]}
+    return out | _on_link(c)
+
+
+def _on_link(item: Support | Container) -> dict[str, Any]:
+    """``link`` and ``access`` of a support or container, only where set (a rigid asset's
+    meta stays as it was)."""
+    return {k: getattr(item, k) for k in ("link", "access") if getattr(item, k)}
+
+
+def _articulation(
+    gen: Generated, groups: list[list[Part]], pieces: dict[int, list[int]]
+) -> Articulation | None:
+    """The asset's ``articulation`` from the shape's joints (``None`` without joints):
+    each link claims its parts' collision pieces and its visual groups; handles list their
+    parts' pieces."""
+    shape = gen.shape
+    if not shape.joints:
+        return None
+    links, joints = [], []
+    for j in shape.joints:
+        own = [p for p in shape.parts if p.link == j.link]
+        handles = []
+        for h in shape.handles:
+            mine = [k for p in own if p.handle == h.name for k in pieces.get(id(p), [])]
+            if any(p.handle == h.name for p in own) or (
+                not any(p.handle == h.name for p in shape.parts) and _handle_link(gen, h) == j.link
+            ):
+                handles.append(replace(h, collision=mine))
+        links.append(
+            LinkMeta(
+                name=j.link,
+                parent=j.parent,
+                collision=[k for p in own for k in pieces.get(id(p), [])],
+                visual=[k for k, g in enumerate(groups) if g[0].link == j.link],
+                handles=handles,
+            )
+        )
+        phys = gen.physics[j.name]
+        ref = math.radians(phys.springref) if j.kind == "hinge" else phys.springref
+        joints.append(
+            JointMeta(
+                name=j.name,
+                kind=j.kind,  # type: ignore[arg-type]
+                role=j.role,  # type: ignore[arg-type]
+                link=j.link,
+                anchor=list(j.anchor),
+                axis=list(j.axis),
+                range=list(j.range),
+                damping=phys.damping,
+                frictionloss=phys.frictionloss,
+                armature=phys.armature,
+                stiffness=phys.stiffness,
+                springref=ref,
+                rest=_rest(j),
+            )
+        )
+    assert gen.swept is not None
+    return Articulation(links=links, joints=joints, swept=gen.swept)
+
+
+def _handle_link(gen: Generated, h: HandleMeta) -> str:
+    """The link an ``edge`` handle (no parts of its own) belongs to: the link whose parts'
+    bounds hold its centre (the root if none)."""
+    c = np.asarray(h.center)
+    for p in gen.shape.parts:
+        lo, hi = p.visual.bounds
+        if p.link and (c >= lo - 1e-6).all() and (c <= hi + 1e-6).all():
+            return p.link
+    return ""
+
+
+def _rest(j: JointSpec) -> list[list[float]]:
+    """Where a joint holds by itself: over its whole range when gravity does no work on it (a
+    hinge about a vertical axis, a horizontal slide); else not known yet (empty)."""
+    vertical = abs(abs(j.axis[2]) - 1.0) < 1e-9
+    level = abs(j.axis[2]) < 1e-9
+    if (j.kind == "hinge" and vertical) or (j.kind == "slide" and level):
+        return [[float(j.range[0]), float(j.range[1])]]
+    return []
 
 
 def _format(content_type: str, data: bytes) -> str:

@@ -9,16 +9,18 @@ per-seed shade variation.
 from __future__ import annotations
 
 import colorsys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import trimesh
 
+from factory.assets.articulation import JointPhysics, applied, fuse, swept_box
 from factory.assets.catalog import CATEGORIES, Category
 from factory.assets.errors import AssetError as AssetError
-from factory.assets.geometry import Container, Shape, Support, assemble
+from factory.assets.geometry import Shape, assemble
 from factory.assets.physics import material
+from factory.schema.asset import SweptBox
 
 MIN_DIM = 0.003
 MAX_DIM = 12.0
@@ -39,6 +41,8 @@ class AssetSpec:
         finish: condition kinds for the surfaces (``rust``, ``dust``, ``polished``, ``gold``,
             ...: :mod:`factory.textures.conditions`), read from the text or given by the scene.
         texture_size: texture images' size (px).
+        rig: for an articulated category, ``joints`` (moving links) or ``fused`` (one rigid
+            body, closed; also what ``""`` builds); ``""`` for the others.
     """
 
     category: str
@@ -51,16 +55,19 @@ class AssetSpec:
     extra: dict[str, Any] = field(default_factory=dict)
     finish: tuple[str, ...] = ()
     texture_size: int = 256
+    rig: str = ""
 
     def key(self) -> dict[str, Any]:
-        """The normalised request (what the asset id hashes; ``finish`` and ``texture_size``
-        only when set, so assets without them keep their ids)."""
+        """The normalised request (what the asset id hashes; ``finish``, ``texture_size`` and
+        ``rig`` only when set, so assets without them keep their ids)."""
         looks: dict[str, Any] = {}
         finish = sorted(set(self.finish) - {"clean"})  # "clean" changes nothing
         if finish:
             looks["finish"] = finish
         if self.texture_size != 256:
             looks["texture_size"] = int(self.texture_size)
+        if self.rig:
+            looks["rig"] = self.rig
         return looks | {
             "category": self.category,
             "dims": None if self.dims is None else [round(float(v), 6) for v in self.dims],
@@ -75,7 +82,8 @@ class AssetSpec:
 
 @dataclass
 class Generated:
-    """A generated asset before it is written to the cache."""
+    """A generated asset before it is written to the cache (``physics``: by joint name, for
+    the shape's joints; ``swept``: the box its links fill over their ranges, if any)."""
 
     shape: Shape
     dims: tuple[float, float, float]
@@ -85,6 +93,8 @@ class Generated:
     roughness: float
     category: str
     materials: tuple[str, str]
+    physics: dict[str, JointPhysics] = field(default_factory=dict)
+    swept: SweptBox | None = None
 
     @property
     def visual(self) -> trimesh.Trimesh:
@@ -138,6 +148,8 @@ def generate(spec: AssetSpec) -> Generated:
     else:
         cols = (_shade(m0.rgba, rng), _shade(m1.rgba, rng))
     shape = cat.template(np.array(dims, dtype=float), (mats[0], mats[1]), cols, rng)  # type: ignore[arg-type]
+    if spec.rig != "joints":
+        fuse(shape)
     # exact size: scale the assembled parts onto the requested box (templates are built to it;
     # this removes rounding from revolved or segmented parts)
     visual = assemble(shape)
@@ -162,20 +174,23 @@ def generate(spec: AssetSpec) -> Generated:
         return float((v - centre[2]) * scale[2])
 
     shape.supports = [
-        Support(
-            s.name,
-            _z(s.z),
-            (_x(s.rect[0]), _y(s.rect[1]), _x(s.rect[2]), _y(s.rect[3])),
-            s.clearance * float(scale[2]),
+        replace(
+            s,
+            z=_z(s.z),
+            rect=(_x(s.rect[0]), _y(s.rect[1]), _x(s.rect[2]), _y(s.rect[3])),
+            clearance=s.clearance * float(scale[2]),
         )
         for s in shape.supports
     ]
     shape.containers = [
-        Container(
-            c.name, (_x(c.lo[0]), _y(c.lo[1]), _z(c.lo[2])), (_x(c.hi[0]), _y(c.hi[1]), _z(c.hi[2]))
+        replace(
+            c,
+            lo=(_x(c.lo[0]), _y(c.lo[1]), _z(c.lo[2])),
+            hi=(_x(c.hi[0]), _y(c.hi[1]), _z(c.hi[2])),
         )
         for c in shape.containers
     ]
+    physics = _scale_joints(shape, tf, scale, cat)
     mass = cat.fill * sum(p.volume * material(p.material).density * p.fill for p in shape.parts)
     return Generated(
         shape=shape,
@@ -186,4 +201,39 @@ def generate(spec: AssetSpec) -> Generated:
         roughness=m0.roughness,
         category=spec.category,
         materials=(mats[0], mats[1]),
+        physics=physics,
+        swept=swept_box(shape) if shape.joints else None,
     )
+
+
+def _scale_joints(
+    shape: Shape, tf: np.ndarray, scale: np.ndarray, cat: Category
+) -> dict[str, JointPhysics]:
+    """Moves the shape's joints and handles by the final scale ``tf`` (anchors and centres as
+    points, directions scaled and renormalised, slide travel and handle length by the scale
+    along them), then applies the category's physics per role; returns it by joint name."""
+
+    def point(v: Any) -> tuple[float, float, float]:
+        p = tf @ np.array([*v, 1.0])
+        return (float(p[0]), float(p[1]), float(p[2]))
+
+    def direction(v: Any) -> tuple[tuple[float, float, float], float]:
+        u = np.asarray(v, float) * scale
+        n = float(np.linalg.norm(u))
+        return (float(u[0] / n), float(u[1] / n), float(u[2] / n)), n
+
+    physics = {}
+    for k, j in enumerate(shape.joints):
+        axis, stretch = direction(j.axis)
+        rng = j.range if j.kind == "hinge" else (j.range[0] * stretch, j.range[1] * stretch)
+        j = replace(j, anchor=point(j.anchor), axis=axis, range=rng)
+        phys = cat.articulation[j.role]
+        shape.joints[k] = applied(j, phys)
+        physics[j.name] = phys
+    for h in shape.handles:
+        along, stretch = direction(h.along)
+        normal, _ = direction(h.normal)
+        h.center = list(point(h.center))
+        h.along, h.normal = list(along), list(normal)
+        h.length *= stretch
+    return physics

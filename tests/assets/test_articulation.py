@@ -156,3 +156,32 @@ def test_handle_pieces_are_convex_and_the_meta_validates(style: str) -> None:
         assert meta.clearance >= 0.025
     with pytest.raises(AssetError, match="is not one of"):
         handle("hook", "h", (0, 0, 0), (1, 0, 0), (0, -1, 0), 0.1, 0.03)
+
+
+def test_articulated_category_asset_validates_and_switch_off_changes_nothing(tmp_path) -> None:
+    from factory.assets import AssetLibrary, AssetSpec
+    from factory.assets.cache import cached
+
+    on = AssetLibrary(tmp_path / "on", texture_size=64, articulated=True)
+    off = AssetLibrary(tmp_path / "off", texture_size=64)
+    meta = on.get(AssetSpec("base_cabinet", seed=1))
+    art = meta.articulation
+    assert art is not None and meta.request["rig"] == "joints"
+    assert [x.name for x in art.links] == ["drawer", "door"]
+    assert {j.name: j.kind for j in art.joints} == {"drawer": "slide", "door": "hinge"}
+    assert all(h.collision for link in art.links for h in link.handles)
+    assert {s["name"]: s.get("link", "") for s in meta.supports}["drawer_floor"] == "drawer"
+    assert cached(tmp_path / "on", meta.asset_id) == meta  # written and read back, validated
+    door = art.joint("door")
+    opened = pose_of(art, {"door": door.range[1]}, "door")
+    handle = np.array([*art.link("door").handles[0].center, 1.0])
+    assert (opened @ handle)[1] < handle[1] - 0.2  # +q swings the door out to the front
+    assert art.swept.lo[1] < -meta.extents[1] / 2 - 0.3
+    fused = off.get(AssetSpec("base_cabinet", seed=1))
+    assert fused.articulation is None and fused.request["rig"] == "fused"
+    assert fused.asset_id != meta.asset_id and len(fused.collision) == len(meta.collision)
+    # a rigid category: the same id and meta with the switch on or off (no rig key)
+    a = on.get(AssetSpec("nightstand", seed=1))
+    b = off.get(AssetSpec("nightstand", seed=1))
+    assert a.asset_id == b.asset_id and "rig" not in a.request and a.articulation is None
+    assert a.supports == b.supports and a.visual_parts == b.visual_parts
