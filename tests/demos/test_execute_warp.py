@@ -165,7 +165,8 @@ def test_gpu_pipeline_on_warp_cpu(
     """The GPU pipeline end to end on Warp's CPU device (kernels compile in about 2-3 min):
     four slots: the longest left to the CPU executor (``demos.gpu_tail``), three packed onto
     two worlds of one call, stored by the writer processes, replayable; the kernels' loading
-    is announced with the cache it reads, and its end with the seconds it took."""
+    is announced with the cache it reads, and its end with the seconds it took; the kernels
+    are warmed up while the scene's plans are made."""
     import logging
 
     caplog.set_level(logging.INFO, logger="factory.demos.execute.warp")
@@ -188,6 +189,7 @@ def test_gpu_pipeline_on_warp_cpu(
     assert out["cpu_tail"] == 1
     assert "loading the GPU kernels (Warp kernel cache" in caplog.text
     assert re.search(r"GPU kernels ready in [0-9.]+ s", caplog.text), caplog.text[-2000:]
+    assert "GPU kernels warmed up in" in caplog.text  # while the plans were made
     store = EpisodeStore(store_path)
     assert len(store.episode_ids()) == out["new"]
     infos = [store.info(e) for e in store.episode_ids()]
