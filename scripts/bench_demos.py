@@ -112,17 +112,13 @@ def _per_scene(run: Path) -> list[dict[str, float | str]]:
     return rows
 
 
-def _kernel_cache(setting: str | None, env: dict[str, str]) -> dict[str, object]:
+def _kernel_cache(setting: str | None) -> dict[str, object]:
     """The Warp kernel cache the stage will use and what it holds before the first run:
     ``bare_machine`` when it holds no compiled module (every kernel is compiled in the run)."""
-    from factory.sim.kernel_cache import cached_modules
+    from factory.sim.kernel_cache import cached_modules, kernel_cache_dir
 
-    if setting:
-        folder = str(Path(os.path.expanduser(setting)).resolve())
-    elif env.get("WARP_CACHE_PATH"):
-        folder = os.path.realpath(env["WARP_CACHE_PATH"])
-    else:
-        folder = str(Path("~/.cache/warp").expanduser())
+    # unset: the stage inherits this environment (WARP_CACHE_PATH or Warp's default)
+    folder = str(Path(os.path.expanduser(setting)).resolve()) if setting else kernel_cache_dir()
     n = cached_modules(folder)
     return {"folder": folder, "modules_at_start": n, "bare_machine": n == 0}
 
@@ -217,7 +213,7 @@ def main() -> None:
         extra.append(f"demos.gpu_batch={args.gpu_batch}")
     if args.kernel_cache:
         extra.append(f"sim.kernel_cache={args.kernel_cache}")
-    cache = _kernel_cache(args.kernel_cache, env) if gpu else None
+    cache = _kernel_cache(args.kernel_cache) if gpu else None
     workers = args.workers or (max(1, args.cores - 1) if args.executor == "warp" else args.cores)
     results = {}
     for label in args.runs:

@@ -108,7 +108,7 @@ def main() -> None:
         *([f"sim.kernel_cache={args.kernel_cache}"] if args.kernel_cache else []),
         *args.set,
     ]
-    cache = _kernel_cache(args.kernel_cache, env) if args.executor == "warp" else None
+    cache = _kernel_cache(args.kernel_cache) if args.executor == "warp" else None
     # 1. Run, kill -9 mid-way.
     t0 = time.perf_counter()
     proc = subprocess.Popen(
