@@ -13,7 +13,9 @@ frame (``tool_rel``, the mobile base), RGB scaled to [0, 1] and depth to metres 
 compares both). Image augmentation (``train.augment_images``) is done on the batch: a random
 shift of up to :data:`SHIFT` of the image (border pixels repeated) and brightness and contrast
 factors in ``1 +- JITTER``, drawn per sample and camera, the same over a sample's observation
-steps (the DataLoader path uses lerobot's ``ImageTransforms`` per sample instead).
+steps; a camera's depth image gets its RGB image's shift (no colour change), so that each depth
+pixel stays under its colour (the DataLoader path uses lerobot's ``ImageTransforms`` per sample
+instead, without its affine transform when depth is read).
 
 Samples are drawn without replacement, epoch after epoch, from the frames the sampler allows
 (lerobot's ``EpisodeAwareSampler``: the episodes trained on, without the frames the policy
@@ -105,7 +107,8 @@ class DeviceBatches:
         batch_size: samples per batch.
         indices: the frames samples are drawn from (the sampler's); None: every frame.
         seed: seed of the sample order and of the augmentation.
-        augment: augment the RGB images (never depth).
+        augment: augment the images (colour: RGB only; the shift: a camera's RGB and depth
+            alike).
     """
 
     def __init__(
@@ -221,6 +224,7 @@ class DeviceBatches:
                 assert self.base_pose is not None
                 act[..., -BASE_DIM:] = base_relative_t(act[..., -BASE_DIM:], self.base_pose[idx])
             out[ACTION] = act
+        shifts: dict[str, Any] = {}  # camera -> (B, 2): its RGB and depth move together
         for key, frames in self.videos.items():
             at = self._window(idx, key, start, end)
             where = (idx if at is None else at).to(frames.device)
@@ -230,7 +234,14 @@ class DeviceBatches:
             else:
                 out[key] = pix.movedim(-1, -3).to(torch.float32) / 255.0
                 if self.augment:
-                    out[key] = self._augment(out[key])
+                    out[key] = self._jitter(out[key])
+            if self.augment:
+                cam = key.rsplit(".", 1)[-1]
+                if cam not in shifts:
+                    shifts[cam] = (
+                        torch.rand((len(idx), 2), generator=self.gen, device=self.device) * 2 - 1
+                    ) * (2 * SHIFT)
+                out[key] = _shift(out[key], shifts[cam])
         for key in [*self.raw_keys, ACTION]:
             delta = self.delta.get(key)
             if delta is not None:
@@ -238,27 +249,39 @@ class DeviceBatches:
                 out[f"{key}_is_pad"] = (q < start) | (q >= end)
         return out
 
-    def _augment(self, img: Any) -> Any:
-        """Random shift, brightness and contrast of RGB images (B, [T,] 3, H, W) in [0, 1],
-        drawn per sample and the same over its observation steps."""
+    def _jitter(self, img: Any) -> Any:
+        """Random brightness and contrast of RGB images (B, [T,] 3, H, W) in [0, 1], drawn per
+        sample and the same over its observation steps."""
         import torch
-        import torch.nn.functional as F
 
         shape = img.shape
         b = shape[0]
-        flat = img.reshape(b, -1, *shape[-3:])
-        t = flat.shape[1]
-        rand = torch.rand((b, 4), generator=self.gen, device=self.device)
-        shift = (rand[:, :2] * 2 - 1) * (2 * SHIFT)  # affine_grid spans [-1, 1]: 2 = the size
-        theta = torch.zeros((b, 2, 3), device=self.device)
-        theta[:, 0, 0] = theta[:, 1, 1] = 1.0
-        theta[:, :, 2] = shift
-        theta = theta.repeat_interleave(t, 0)
-        x = flat.reshape(b * t, *shape[-3:])
-        grid = F.affine_grid(theta, list(x.shape), align_corners=False)
-        x = F.grid_sample(x, grid, mode="nearest", padding_mode="border", align_corners=False)
-        bright = (1 + (rand[:, 2] * 2 - 1) * JITTER).repeat_interleave(t)[:, None, None, None]
-        contrast = (1 + (rand[:, 3] * 2 - 1) * JITTER).repeat_interleave(t)[:, None, None, None]
+        t = img.reshape(b, -1, *shape[-3:]).shape[1]
+        x = img.reshape(b * t, *shape[-3:])
+        rand = torch.rand((b, 2), generator=self.gen, device=self.device)
+        bright = (1 + (rand[:, 0] * 2 - 1) * JITTER).repeat_interleave(t)[:, None, None, None]
+        contrast = (1 + (rand[:, 1] * 2 - 1) * JITTER).repeat_interleave(t)[:, None, None, None]
         mean = x.mean(dim=(-3, -2, -1), keepdim=True)
         x = ((x * bright - mean * bright) * contrast + mean * bright).clamp(0.0, 1.0)
         return x.reshape(shape)
+
+
+def _shift(img: Any, shift: Any) -> Any:
+    """Images (B, [T,] C, H, W) moved by ``shift`` ((B, 2), x and y as shares of twice the
+    size: ``affine_grid``'s [-1, 1] span), the same over a sample's observation steps; the
+    uncovered border repeats the edge pixels. A camera's RGB and depth get the same shift, so
+    that a depth pixel stays under its colour (the perception's points read both)."""
+    import torch
+    import torch.nn.functional as F
+
+    shape = img.shape
+    b = shape[0]
+    t = img.reshape(b, -1, *shape[-3:]).shape[1]
+    theta = torch.zeros((b, 2, 3), device=img.device, dtype=img.dtype)
+    theta[:, 0, 0] = theta[:, 1, 1] = 1.0
+    theta[:, :, 2] = shift.to(img.dtype)
+    theta = theta.repeat_interleave(t, 0)
+    x = img.reshape(b * t, *shape[-3:])
+    grid = F.affine_grid(theta, list(x.shape), align_corners=False)
+    x = F.grid_sample(x, grid, mode="nearest", padding_mode="border", align_corners=False)
+    return x.reshape(shape)

@@ -11,7 +11,8 @@
 * lerobot's ``save_checkpoint`` / ``load_training_state`` for ``checkpoints/<step>/``
   (``pretrained_model`` + ``training_state``), written aside and renamed into place;
 * lerobot's ``ImageTransforms`` on the RGB images when ``train.augment_images`` is on (never on
-  depth), and a random crop to 90 % for policies that have one (diffusion's ``crop_shape``).
+  depth; without its affine transform when depth is read, which would move RGB off depth),
+  and a random crop to 90 % for policies that have one (diffusion's ``crop_shape``).
 
 One private touch of lerobot: the loaded dataset's ``meta.info["features"]`` loses the video
 features the policy does not read, because ``LeRobotDataset.__getitem__`` decodes every video
@@ -396,7 +397,13 @@ def open_dataset(
     if augment and spec.cameras:
         from lerobot.datasets.transforms import ImageTransforms, ImageTransformsConfig
 
-        transforms = ImageTransforms(ImageTransformsConfig(enable=True))
+        tcfg = ImageTransformsConfig(enable=True)
+        if spec.depth:
+            # the affine transform would move the RGB image and not its depth image: a depth
+            # pixel would no longer lie under its colour (the perception reads both)
+            tcfg.tfs.pop("affine", None)
+            tcfg.max_num_transforms = min(tcfg.max_num_transforms, len(tcfg.tfs))
+        transforms = ImageTransforms(tcfg)
     videos = None
     keys = spec.visual_keys()
     if keys and video_cache != "off":

@@ -92,27 +92,53 @@ def test_epochs_draw_every_allowed_frame_once(
     assert torch.equal(c._order, b._order)
 
 
-def test_augmentation_shifts_and_jitters_rgb_only(
-    policy_run: Path, tiny_options: dict[str, Any]
+def test_augmentation_shifts_a_cameras_rgb_and_depth_alike(
+    policy_run: Path, tiny_options: dict[str, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Augmented RGB stays in [0, 1] and differs from the plain batch; depth is untouched; a
-    sample's observation steps get the same draw (at an episode's first frame both steps are
-    that frame, and stay equal)."""
+    """Augmented RGB stays in [0, 1] and differs from the plain batch; a camera's depth image
+    gets its RGB image's shift (so that a depth pixel stays under its colour) and no colour
+    change; cameras get their own shifts; a sample's observation steps get the same draw (at an
+    episode's first frame both steps are that frame, and stay equal)."""
     import torch
 
+    from factory.policy import device_batches
     from factory.policy.device_batches import DeviceBatches
 
     two_steps = {"diffusion": {**tiny_options["diffusion"], "n_obs_steps": 2}}
     _, trainset = _opened(policy_run, "rgbd", "tool", two_steps)
     plain = DeviceBatches(trainset.frames, "cpu", batch_size=4)
     aug = DeviceBatches(trainset.frames, "cpu", batch_size=4, augment=True, seed=3)
+    shifts: list[Any] = []
+    real = device_batches._shift
+
+    def recording(img: Any, shift: Any) -> Any:
+        shifts.append(shift)
+        return real(img, shift)
+
+    monkeypatch.setattr(device_batches, "_shift", recording)
     idx = torch.tensor([0, 5, 9, 20])
     p, a = plain.gather(idx), aug.gather(idx)
-    img = "observation.images.left"
+    img, depth = "observation.images.left", "observation.depth.left"
     assert a[img].shape == p[img].shape and a[img].min() >= 0 and a[img].max() <= 1
     assert not torch.allclose(a[img], p[img])
-    assert torch.equal(a["observation.depth.left"], p["observation.depth.left"])
+    keys = list(trainset.frames.videos)
+    by_key = dict(zip(keys, shifts, strict=True))
+    assert by_key[img] is by_key[depth]
+    assert not torch.equal(by_key[img], by_key["observation.images.wrist"])
+    assert torch.equal(a[depth], real(p[depth], by_key[depth]))  # shifted, colours kept
+    assert not torch.equal(a[depth], p[depth])
     assert a[img].shape[1] == 2 and torch.equal(a[img][0, 0], a[img][0, 1])
+
+
+def test_shift_moves_whole_pixels() -> None:
+    import torch
+
+    from factory.policy.device_batches import _shift
+
+    x = torch.arange(16.0).reshape(1, 1, 4, 4)
+    moved = _shift(x, torch.tensor([[0.5, 0.0]]))  # a quarter of twice the width: one pixel
+    assert torch.equal(moved[0, 0, :, :3], x[0, 0, :, 1:])  # content moves left by one pixel
+    assert torch.equal(moved[0, 0, :, 3], x[0, 0, :, 3])  # the border repeats the edge
 
 
 def test_base_relative_on_tensors_matches_numpy() -> None:
