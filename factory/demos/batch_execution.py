@@ -20,6 +20,7 @@ executed and recorded together on a batch of worlds (the fixed-base task).
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
@@ -169,6 +170,9 @@ class BatchGpu(GpuRecorder):
                 dev, budget, host, on_device, run.env.demos.gpu_batch, bool(self.keep), share
             )
         )
+        # Executors made and warmed up ahead in the set-up thread, by scene id (at most two).
+        self._prepared: dict[str, Any] = {}
+        self._lock = threading.Lock()
         # Each GPU call's writes and the shared memory they read, oldest first.
         self.in_flight: list[tuple[list[Future[Any]], list[Any]]] = []
         self.reclaimed = 0.0  # seconds the arena pool waited for writers
@@ -179,6 +183,38 @@ class BatchGpu(GpuRecorder):
         if self.arena_pool is not None and self.keep and budget and dev.startswith("cuda"):
             self._pin = ThreadPoolExecutor(1)
             self.early = self._pin.submit(lock_first_arena, self.arena_pool, budget, dev)
+
+    def _executor(self, scene: DemoScene) -> Any:
+        from factory.demos.execute.warp import WarpExecutor
+
+        return WarpExecutor(
+            scene.setup,
+            self.rec_cfg,
+            device=self.run.device,
+            arenas=self.arena_pool,
+            images_on_device=self.keep,
+        )
+
+    def prepare(self, scene: DemoScene) -> None:
+        """Makes the scene's executor and compiles its kernels (:meth:`WarpExecutor.warm_up`),
+        in the set-up thread: a later scene's kernels (MuJoCo Warp specialises some to the
+        model's degrees of freedom: 21-33 s of an H100 node per scene) compile while the scene
+        before runs on the GPU. An error is logged; :meth:`record_scene` then makes the
+        executor again and shows it."""
+        try:
+            executor = self._executor(scene)
+            executor.warm_up()
+        except Exception as e:
+            log.warning(
+                "demos %s: readying the GPU executor ahead failed (%s: %s); it is made when the "
+                "scene's turn comes",
+                scene.scene_id,
+                type(e).__name__,
+                e,
+            )
+            return
+        with self._lock:
+            self._prepared[scene.scene_id] = executor
 
     def _settle(self, writes: list[Future[Any]], arenas: list[Any]) -> None:
         for w in writes:
@@ -203,19 +239,15 @@ class BatchGpu(GpuRecorder):
     ) -> float:
         """Takes the scene's plans together, executes them in GPU calls, retries the slots
         that failed in execution (see the class); returns the GPU seconds."""
-        from factory.demos.execute.warp import WarpExecutor
 
         run, rec_cfg, dc = self.run, self.rec_cfg, self.run.env.demos
         sid = scene.scene_id
-        executor = WarpExecutor(
-            scene.setup,
-            rec_cfg,
-            device=run.device,
-            arenas=self.arena_pool,
-            images_on_device=self.keep,
-        )
+        with self._lock:
+            executor = self._prepared.pop(sid, None)
+        if executor is None:  # not prepared, or its preparation failed
+            executor = self._executor(scene)
         reclaimed_before = self.reclaimed
-        executor.warm_up()  # the kernels compile while the scene's plans are made
+        executor.warm_up()  # the kernels compile while the scene's plans are made (if not yet)
         while futures:
             t_wait = time.perf_counter()
             results = [f.result() for f in futures]

@@ -179,6 +179,13 @@ class GpuRecorder(ABC):
             waited: seconds waited for ``plans`` and for earlier ``writes`` (added to).
         """
 
+    def prepare(self, scene: DemoScene) -> None:
+        """Readies what the scene's GPU calls need, in the pipeline's set-up thread once the
+        scene is set up: for every scene after the first, while the scene before records on
+        the GPU. A failure here must not lose the scene (:meth:`record_scene` then readies it
+        itself). Default: nothing."""
+        return None
+
     @abstractmethod
     def close(self) -> None:
         """Waits for the last writes and releases what the run holds."""

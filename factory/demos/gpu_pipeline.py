@@ -156,6 +156,13 @@ def run_gpu(
                 first = {k: at[k] for k in part}
                 cpu_runs.append((out, len(part), pool.submit(run_item_logged, env, item, first)))
 
+        def set_up(scene_id: str) -> Any:
+            """The scene set up without its planner, and readied for its GPU calls (its
+            kernels compiled) while the scene before records on the GPU."""
+            scene = task.demo_scene(env, scene_id, False)
+            gpu.prepare(scene)
+            return scene
+
         def submit_ahead(current: int) -> None:
             """Submits scenes until the next one is in and enough slots are pending."""
             while ahead[0] < len(scenes):
@@ -167,7 +174,7 @@ def run_gpu(
                 sid = scenes[ahead[0]]
                 todo = [k for k in by_scene[sid] if episode_id(sid, k) not in store]
                 pending[sid] = submit(sid, todo, attempts[sid])
-                setups[sid] = prep.submit(task.demo_scene, env, sid, False)
+                setups[sid] = prep.submit(set_up, sid)
                 ahead[0] += 1
 
         gpu = execution.gpu_recorder(

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -71,7 +72,8 @@ def dry_launches(wp: Any) -> Iterator[dict[tuple[int, int, str], tuple[Any, Any,
     ``wp.capture_if`` call their bodies once (each branch), and
     ``wp.get_suggested_block_size`` records the module variant its occupancy query would load
     (and compile: 26-38 s for each of MuJoCo Warp's CCD kernels on a bare H200) and answers
-    256 threads.
+    256 threads. Only the calling thread's calls are recorded; other threads' launches run
+    as usual, and one trace runs at a time.
 
     Yields:
         ``(id(module), block_dim, device alias) -> (module, device, block_dim)``, filled as the
@@ -107,33 +109,53 @@ def dry_launches(wp: Any) -> Iterator[dict[tuple[int, int, str], tuple[Any, Any,
         found[(id(kernel.module), bd, dev.alias)] = (kernel.module, dev, bd)
         return (256, max(1, int(getattr(dev, "sm_count", 1) or 1)))
 
-    patched = {
-        (wp, "get_suggested_block_size"): suggested_block_size,
-        (ctx, "get_suggested_block_size"): suggested_block_size,
-        (wp, "launch"): launch,
-        (ctx, "launch"): launch,
-        (wp, "capture_while"): capture_while,
-        (ctx, "capture_while"): capture_while,
-        (wp, "capture_if"): capture_if,
-        (ctx, "capture_if"): capture_if,
+    dry: dict[str, Callable[..., Any]] = {
+        "get_suggested_block_size": suggested_block_size,
+        "launch": launch,
+        "capture_while": capture_while,
+        "capture_if": capture_if,
     }
-    saved = {key: getattr(*key) for key in patched}
-    try:
-        for (owner, name), fn in patched.items():
-            setattr(owner, name, fn)
-        yield found
-    finally:
-        for (owner, name), fn in saved.items():
-            setattr(owner, name, fn)
+    with _TRACE_LOCK:
+        tracer = threading.get_ident()
+        saved = {(owner, name): getattr(owner, name) for owner in (wp, ctx) for name in dry}
+        try:
+            for (owner, name), real in saved.items():
+                setattr(owner, name, _this_thread(tracer, dry[name], real))
+            yield found
+        finally:
+            for (owner, name), real in saved.items():
+                setattr(owner, name, real)
 
 
-def preload(wp: Any, trace: Callable[[], None], workers: int | None = None) -> PreloadReport:
+_TRACE_LOCK = threading.Lock()
+"""One trace at a time: :func:`dry_launches` patches Warp's module-level functions."""
+
+
+def _this_thread(tracer: int, dry: Callable[..., Any], real: Callable[..., Any]) -> Any:
+    """``dry`` for calls from the ``tracer`` thread, ``real`` for every other thread's (a
+    scene's kernels are traced while another scene's call launches on the device)."""
+
+    def call(*args: Any, **kwargs: Any) -> Any:
+        if threading.get_ident() == tracer:
+            return dry(*args, **kwargs)
+        return real(*args, **kwargs)
+
+    return call
+
+
+def preload(
+    wp: Any,
+    trace: Callable[[], None],
+    workers: int | None = None,
+    around_trace: contextlib.AbstractContextManager[Any] | None = None,
+) -> PreloadReport:
     """Runs ``trace`` under :func:`dry_launches` and loads the modules it launched, those not
     loaded yet, on ``workers`` threads (default: the cores this process may use).
 
     ``trace`` must repeat the launches of the real path (same model, options and block sizes;
     the number of worlds may be smaller) and keep nothing it makes. An exception in it is
-    logged and ends the trace; what it found by then is still loaded.
+    logged and ends the trace; what it found by then is still loaded. ``around_trace`` (e.g.
+    a lock) is held during the trace only, not during the load.
     """
     if workers is None:
         try:
@@ -142,7 +164,7 @@ def preload(wp: Any, trace: Callable[[], None], workers: int | None = None) -> P
             workers = os.cpu_count() or 1
     t0 = time.perf_counter()
     error = ""
-    with dry_launches(wp) as found:
+    with around_trace or contextlib.nullcontext(), dry_launches(wp) as found:
         try:
             trace()
         except Exception as e:  # the real path shows any real error

@@ -203,6 +203,40 @@ def test_gpu_pipeline_on_warp_cpu(
 
 
 @pytest.mark.gpu
+def test_gpu_pipeline_readies_the_next_scene_while_one_records(
+    make_kitchen, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Two kitchens: the second's executor is made and its kernels warmed up in the set-up thread
+    while the first records on the GPU (its CUDA graph captured under
+    ``warp.DEVICE_LOCK``), and both scenes store their episodes."""
+    import logging
+
+    caplog.set_level(logging.INFO, logger="factory.demos")
+    from factory.demos.gpu_pipeline import run_gpu
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.demos.record.slots import StageEnv, WorkItem
+    from factory.schema import scene_to_json
+
+    run = tmp_path / "run"
+    scenes = [make_kitchen(run / "assets", seed=s, scene_id=f"kitchen_{s}") for s in (3, 4)]
+    for scene in scenes:
+        (run / "scenes" / scene.id).mkdir(parents=True)
+        (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    dc = DemosConfig(sleep=False, width=32, height=32, gpu_batch=8, gpu_tail=0.0)
+    store_path = run / "episodes" / "shard-0.zarr"
+    env = StageEnv(str(run), str(store_path), dc, "pick_place", 0, 1)
+    items = [WorkItem(s.id, tuple(range(4))) for s in scenes]
+    outs = run_gpu(env, items, 2, device="cuda:0")
+    for out in outs:
+        assert out["error"] is None and out["new"] >= 3, dict(out["failures"])
+    assert "readying the GPU executor ahead failed" not in caplog.text
+    warmed = re.findall(r"demos (\S+): GPU kernels warmed up in", caplog.text)
+    assert warmed == [s.id for s in scenes], caplog.text[-3000:]
+    store = EpisodeStore(store_path)
+    assert len(store.episode_ids()) == sum(o["new"] for o in outs)
+
+
+@pytest.mark.gpu
 def test_gpu_demos_stage_cli(cli, make_kitchen, tmp_path: Path) -> None:
     """``demos.executor=warp`` through the CLI: planned in worker processes, executed on the
     GPU, stored like the CPU executor's episodes; a re-run resumes (nothing left to do)."""

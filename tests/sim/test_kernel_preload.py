@@ -86,3 +86,37 @@ def test_a_trace_that_fails_still_loads_what_it_found() -> None:
     assert report.modules == 1
     assert "ValueError: garbage size" in report.error
     assert (wp.get_device("cpu").context, 1) in add_one.module.execs
+
+
+def test_other_threads_launch_for_real_during_a_trace() -> None:
+    """A trace records only its own thread's launches: another thread's launches during it
+    run (the GPU pipeline traces the next scene while the current one runs); ``around_trace``
+    is held during the trace only; the functions are Warp's own again afterwards."""
+    import threading
+
+    a = wp.array(np.ones(4, np.float32), device="cpu")
+    b = wp.array(np.ones(4, np.float32), device="cpu")
+    lock = threading.Lock()
+    inside, other_done = threading.Event(), threading.Event()
+    held: list[bool] = []
+
+    def other() -> None:
+        inside.wait(30)
+        wp.launch(times_two, dim=4, inputs=[b], device="cpu")
+        other_done.set()
+
+    def trace() -> None:
+        inside.set()
+        assert other_done.wait(30)
+        held.append(lock.locked())
+        wp.launch(add_one, dim=4, inputs=[a], device="cpu")
+
+    real = wp.launch
+    t = threading.Thread(target=other)
+    t.start()
+    report = preload(wp, trace, workers=1, around_trace=lock)
+    t.join()
+    assert b.numpy().tolist() == [2.0] * 4  # the other thread's launch ran
+    assert a.numpy().tolist() == [1.0] * 4  # the trace's did not
+    assert report.modules == 1 and held == [True] and not lock.locked()
+    assert wp.launch is real

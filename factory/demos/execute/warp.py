@@ -33,6 +33,7 @@ states the tolerances).
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -53,6 +54,14 @@ from factory.robots.panda import CAMERAS
 from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup
 
 log = logging.getLogger(__name__)
+
+DEVICE_LOCK = threading.Lock()
+"""Held while a call captures its CUDA graph and while an executor is made or warmed up on the
+device. The next scene's executor is made and its kernels traced in the GPU pipeline's set-up
+thread while the current scene's call runs (:meth:`WarpExecutor.warm_up`): Warp's current
+stream belongs to the device, not to the thread, so that thread's copies during a capture
+would be recorded into the call's graph. Copies and launches outside captures are ordered on
+the device's stream; the kernels' compilation itself is not held."""
 
 OVERFLOW = "sim_overflow"
 """Failure reason of a world whose contact or constraint buffers overflowed."""
@@ -354,7 +363,7 @@ class WarpExecutor:
         model = setup.model
         self.layout = state_layout(model)
         self.per_frame = max(1, round(1.0 / (cfg.fps * float(model.opt.timestep))))
-        with wp.ScopedDevice(self.device):
+        with DEVICE_LOCK, wp.ScopedDevice(self.device):
             self.m = mjw.put_model(model)
         if broadphase is not None:
             self.m.opt.broadphase = mjw.BroadphaseType[broadphase.upper()]
@@ -454,8 +463,10 @@ class WarpExecutor:
     def warm_up(self) -> None:
         """Compiles (or loads from Warp's kernel cache) the kernels of this scene's calls now,
         on every core (:meth:`_preload_kernels` with the model's own initial state): call it
-        while the scene's episodes are still being planned, so that the first call finds them
-        ready. Idempotent; the first call's own preload then finds nothing left to load."""
+        while the scene's episodes are still being planned, or from another thread while the
+        scene before runs on the device (the GPU pipeline's set-up thread does; see
+        :data:`DEVICE_LOCK`), so that the first call finds them ready. Idempotent; the first
+        call's own preload then finds nothing left to load."""
         if self._warmed:
             return
         model = self.setup.model
@@ -467,7 +478,7 @@ class WarpExecutor:
             self._preload_kernels(self.m, data, nconmax, njmax, ncam, True)
         self._warmed = True
         log.info(
-            "demos %s: GPU kernels warmed up in %.1f s while the plans are made",
+            "demos %s: GPU kernels warmed up in %.1f s, ahead of the scene's calls",
             self.setup.scene.id,
             time.perf_counter() - t0,
         )
@@ -498,7 +509,7 @@ class WarpExecutor:
                 mjw.refit_bvh(m, d, rc)
                 mjw.render(m, d, rc)
 
-        r = preload(wp, trace)
+        r = preload(wp, trace, around_trace=DEVICE_LOCK)
         log.info(
             "demos %s: GPU kernels: %d modules to load of the %d the call launches, on %d "
             "threads in %.1f s (trace %.1f s)%s",
@@ -745,7 +756,7 @@ class WarpExecutor:
                 t1 = time.perf_counter()
                 if b + 1 < nb:  # boundary b + 1 runs on the GPU while boundary b is filed
                     if self.graph and captured is None:
-                        with wp.ScopedCapture() as cap:
+                        with DEVICE_LOCK, wp.ScopedCapture() as cap:
                             period()
                         captured = cap.graph
                     if captured is not None:
