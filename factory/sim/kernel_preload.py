@@ -2,12 +2,12 @@
 
 Warp compiles a kernel's module when the module is first launched, one module after the other:
 a MuJoCo Warp scene's first step, its renderer and the executor's own kernels took 261 s on a
-bare H100 (63 modules; ``benchmarks/results/demos-gpu16-h100-bare.json``), nearly all of it
-in the compiler. Which modules a path needs, and with which block sizes, is decided on the
-host by the model (MuJoCo Warp builds kernels specialised to it), not by values on the device
-(a grid size may come from an occupancy query, never a kernel's choice):
-MuJoCo Warp's step is CUDA-graph capturable, its only control flow being
-``wp.capture_while`` and ``wp.capture_if``.
+bare H100, nearly all of it in the compiler; with this module 75 s (86 module variants on 16
+threads; ``benchmarks/results/demos-gpu16-h100-bare.json``). Which modules a path needs, and
+with which block sizes, is decided on the host by the model (MuJoCo Warp builds kernels
+specialised to it), not by values on the device (a grid size may come from an occupancy
+query, never a kernel's choice): MuJoCo Warp's step is CUDA-graph capturable, its only
+control flow being ``wp.capture_while`` and ``wp.capture_if``.
 
 :func:`dry_launches` runs such a path with every launch recorded instead of run (the
 conditional nodes run their bodies once), and :func:`preload` then loads the recorded modules

@@ -418,7 +418,10 @@ def _modules_compiled_after_preload(monkeypatch: pytest.MonkeyPatch) -> list[str
         # Warp calls load at every launch; a variant not loaded yet, of a module no earlier
         # load named (reset_data makes new module objects of the same kernels per call), and
         # not loaded by a preload, is a compile the preloads missed.
-        key = (device.context, ctx._resolve_launch_block_dim(device, block_dim))
+        # Without a block size, Warp loads the module's own (``get_suggested_block_size``
+        # does: MuJoCo Warp's CCD modules have 64), not the launch default of 256.
+        own = block_dim if block_dim is not None else self.options.get("block_dim")
+        key = (device.context, ctx._resolve_launch_block_dim(device, own))
         if armed and not inside and key not in self.execs and self.name not in seen:
             late.append(self.name)
         seen.add(self.name)
