@@ -10,7 +10,7 @@ catalogue's ``articulation`` field, per role, over :data:`JOINT_DEFAULTS`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
@@ -25,6 +25,8 @@ from factory.schema.asset import (
     Articulation,
     SweptBox,
 )
+from factory.schema.joint_pose import Posed as _Posed
+from factory.schema.joint_pose import link_transform
 
 JOINT_DEFAULTS: dict[str, dict[str, Any]] = {
     "door": {"range": [0.0, 110.0], "damping": 0.3, "friction": 0.4, "armature": 0.01},
@@ -108,15 +110,6 @@ class JointPhysics:
     stiffness: float = 0.0
     springref: float = 0.0
     hold: bool = False
-
-
-class _Posed(Protocol):
-    @property
-    def kind(self) -> str: ...
-    @property
-    def anchor(self) -> Sequence[float]: ...
-    @property
-    def axis(self) -> Sequence[float]: ...
 
 
 class Shape(Protocol):
@@ -218,24 +211,6 @@ def applied(joint: JointSpec, physics: JointPhysics) -> JointSpec:
         travel = joint.range[1] if joint.range[1] > 0 else -joint.range[0]
         rng = (lo * travel, hi * travel)
     return replace(joint, range=rng)
-
-
-def link_transform(joint: _Posed, value: float) -> np.ndarray:
-    """The (4, 4) transform (object frame) that moves a link from its closed pose by its own
-    joint at ``value`` (rad about the axis through the anchor, or m along the axis)."""
-    axis = np.asarray(joint.axis, dtype=float)
-    tf = np.eye(4)
-    if joint.kind == "slide":
-        tf[:3, 3] = axis * value
-        return tf
-    x, y, z = axis
-    c, s = math.cos(value), math.sin(value)
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    rot = np.eye(3) + s * k + (1 - c) * (k @ k)
-    anchor = np.asarray(joint.anchor, dtype=float)
-    tf[:3, :3] = rot
-    tf[:3, 3] = anchor - rot @ anchor
-    return tf
 
 
 def _compose(

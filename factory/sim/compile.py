@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from factory.errors import CompileError
 from factory.schema import (
@@ -45,6 +46,8 @@ from factory.schema import (
     Window,
     load_asset_meta,
 )
+from factory.schema.asset import ROOT_LINK, Articulation
+from factory.schema.joint_pose import link_transform
 from factory.sim.lights import LightSpec, ceiling_lights, lamp_light
 from factory.sim.materials import (
     DEFAULT_FLOOR,
@@ -177,6 +180,15 @@ def _kept_pieces(
         hu, ht = (sx, sy) if along_x else (sy, sx)
         out.append(((p.x0 + p.x1) / 2, (p.y0 + p.y1) / 2, hu, ht))
     return out
+
+
+@dataclass(frozen=True)
+class _Joint:
+    """A joint's kind, anchor (m) and axis in the object frame, scaled (``link_transform``)."""
+
+    kind: str
+    anchor: list[float]
+    axis: list[float]
 
 
 class _Builder:
@@ -502,6 +514,10 @@ class _Builder:
             assert obj.asset is not None
             scale = list(obj.asset.scale.as_tuple())
             aid = meta.asset_id
+            # the link bodies (articulated assets) and which of them carries each piece
+            carrier: dict[tuple[str, int], mujoco.MjsBody] = {}
+            if meta.articulation is not None:
+                carrier = self._links(obj, body, meta.articulation, scale)
             visual_mesh = f"{aid}/visual"
             if visual_mesh not in self.mesh_assets and not (meta.collision and meta.visual_parts):
                 spec.add_mesh(name=visual_mesh, file=f"{aid}/{meta.visual}", scale=scale)
@@ -538,7 +554,7 @@ class _Builder:
                         )
                     else:
                         part_mat = self.material(f"obj/{obj.id}/{k}", "", rgba_k)
-                    body.add_geom(
+                    carrier.get(("visual", k), body).add_geom(
                         name=f"{obj.id}/visual_{k}",
                         type=mujoco.mjtGeom.mjGEOM_MESH,
                         meshname=part_mesh,
@@ -576,7 +592,7 @@ class _Builder:
                     spec.add_mesh(name=mesh_name, file=f"{aid}/{part}", scale=scale)
                     self.mesh_assets[mesh_name] = meta
                 geoms.append(
-                    body.add_geom(
+                    carrier.get(("collision", k), body).add_geom(
                         name=f"{obj.id}/collision_{k}",
                         type=mujoco.mjtGeom.mjGEOM_MESH,
                         meshname=mesh_name,
@@ -585,10 +601,75 @@ class _Builder:
                         group=GROUP_COLLISION,
                     )
                 )
-        if not obj.is_static:
+        if not obj.is_static or (meta is not None and meta.articulation is not None):
+            # a static articulated object's links move: its pieces get the object's density
             for g in geoms:
                 g.density = 1.0
             self.dynamic_geoms[obj.id] = geoms
+
+    def _links(
+        self, obj: SceneObject, body: mujoco.MjsBody, art: Articulation, scale: list[float]
+    ) -> dict[tuple[str, int], mujoco.MjsBody]:
+        """Adds an articulated object's link bodies under its body, each with its joint.
+
+        A link body's frame is the object frame when every joint is closed; at the scene's
+        joint state ``q`` (``SceneObject.joint_states``, default 0: closed) it is placed where
+        its joint moves it, and the joint's ``ref`` is ``q``: ``qpos0`` is the scene's state
+        while joint positions keep their meaning (0 closed, ``range`` and ``springref`` as in
+        the asset). Anchors and slide travel follow the asset's scale.
+
+        Returns:
+            ``("collision" | "visual", piece index) -> the link body that carries it`` (the
+            pieces of no link stay on the object's body).
+        """
+        sx, sy, sz = scale
+        bodies = {ROOT_LINK: body}
+        carrier: dict[tuple[str, int], mujoco.MjsBody] = {}
+        for link in art.links:
+            joint = art.joint(next(j.name for j in art.joints if j.link == link.name))
+            lo, hi = joint.range
+            travel = 1.0
+            if joint.kind == "slide":
+                travel = float(
+                    abs(joint.axis[0] * sx) + abs(joint.axis[1] * sy) + abs(joint.axis[2] * sz)
+                )
+            anchor = [joint.anchor[0] * sx, joint.anchor[1] * sy, joint.anchor[2] * sz]
+            q = float(obj.joint_states.get(joint.name, 0.0)) * travel
+            rng = [lo * travel, hi * travel]
+            if not rng[0] - 1e-9 <= q <= rng[1] + 1e-9:
+                raise CompileError(
+                    f"object {obj.id!r}: joint_states[{joint.name!r}] = {q:g} is outside the "
+                    f"joint's range {rng} (closed: 0)"
+                )
+            posed = _Joint(joint.kind, anchor, list(joint.axis))
+            tf = link_transform(posed, q)
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, tf[:3, :3].flatten())
+            child = bodies[link.parent].add_body(
+                name=f"{obj.id}/{link.name}", pos=list(tf[:3, 3]), quat=list(quat)
+            )
+            child.add_joint(
+                name=f"{obj.id}/{joint.name}",
+                type=mujoco.mjtJoint.mjJNT_SLIDE
+                if joint.kind == "slide"
+                else mujoco.mjtJoint.mjJNT_HINGE,
+                pos=anchor,
+                axis=list(joint.axis),
+                range=rng,
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                damping=joint.damping,
+                frictionloss=joint.frictionloss,
+                armature=joint.armature,
+                stiffness=joint.stiffness,
+                springref=joint.springref * travel,
+                ref=q,
+            )
+            bodies[link.name] = child
+            for k in link.collision:
+                carrier[("collision", k)] = child
+            for k in link.visual:
+                carrier[("visual", k)] = child
+        return carrier
 
 
 def _build(
@@ -641,7 +722,7 @@ def compile_scene(
         for obj in scene.objects:
             if obj.id not in dynamic:
                 continue
-            volume = float(model.body_mass[model.body(obj.id).id])
+            volume = float(model.body_subtreemass[model.body(obj.id).id])  # its links too
             if volume <= 0:
                 raise CompileError(f"object {obj.id!r}: its collision geometry has no volume")
             for g in dynamic[obj.id]:
