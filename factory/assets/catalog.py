@@ -53,6 +53,7 @@ FIELDS = (
     "extra",
     "description",
     "articulation",
+    "fixed",
 )
 REQUIRED = ("template", "dims", "materials", "mass")
 
@@ -60,7 +61,9 @@ REQUIRED = ("template", "dims", "materials", "mass")
 @dataclass(frozen=True)
 class Category:
     """One procedural category (``articulated``: its template has moving links;
-    ``articulation``: joint physics per role, over ``articulation.JOINT_DEFAULTS``)."""
+    ``articulation``: joint physics per role, over ``articulation.JOINT_DEFAULTS``;
+    ``fixed``: fixed to the floor or wall in simulation, as built-in furniture is, so that
+    pulling its doors and drawers does not move it)."""
 
     template: T.Template
     dims: tuple[float, float, float]
@@ -76,6 +79,7 @@ class Category:
     description: str = ""
     articulated: bool = False
     articulation: dict[str, JointPhysics] = field(default_factory=dict)
+    fixed: bool = False
 
 
 @dataclass(frozen=True)
@@ -279,6 +283,9 @@ def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> C
     description = entry.get("description", "")
     if not isinstance(description, str):
         raise _fail(name, "description", "expected a string")
+    fixed = entry.get("fixed", False)
+    if not isinstance(fixed, bool):
+        raise _fail(name, "fixed", f"expected true or false, got {fixed!r}")
     return Category(
         template=build_template(name, entry["template"]),
         dims=(dims[0], dims[1], dims[2]),
@@ -296,6 +303,7 @@ def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> C
         articulation=parse_physics(name, entry.get("articulation"))
         if "articulation" in entry or TEMPLATE_KINDS[entry["template"]["kind"]].articulated
         else {},
+        fixed=fixed,
     )
 
 

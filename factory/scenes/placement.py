@@ -213,7 +213,9 @@ class SceneState:
             placement=placement,
             asset=AssetRef(backend=meta.backend, asset_id=meta.asset_id),
             physics=Physics(
-                mass=float(meta.mass or 1.0), friction=float(meta.friction or 0.6), static=static
+                mass=float(meta.mass or 1.0),
+                friction=float(meta.friction or 0.6),
+                static=static or _fixed(res.spec.category),
             ),
             license=meta.license,
             task_role=task_role,
@@ -527,3 +529,11 @@ def place_on(
         candidates=len(cands),
         detail={"critic": {"summary": last.get("summary"), "suggestion": last.get("suggestion")}},
     )
+
+
+def _fixed(category: str) -> bool:
+    """The catalogue's ``fixed`` of a category (built-in furniture: static in simulation)."""
+    from factory.assets import CATEGORIES
+
+    cat = CATEGORIES.get(category)
+    return bool(cat is not None and cat.fixed)

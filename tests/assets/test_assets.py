@@ -109,6 +109,7 @@ def test_catalogue_data_rejects_a_bad_entry_naming_the_field() -> None:
         ({"placement": "ceiling"}, r"field 'placement'.*floor, wall, on_top"),
         ({"group": "toys"}, r"field 'group'.*manipulable"),
         ({"mass": [9, 1]}, r"field 'mass'"),
+        ({"fixed": "yes"}, r"field 'fixed': expected true or false"),
         ({"dims": [1, 1]}, r"field 'dims'.*3 numbers"),
         ({"colour": [0, 0, 0, 1]}, r"field 'colour': unknown field.*colors"),
         (

@@ -102,3 +102,17 @@ def test_a_state_outside_the_range_is_refused(cabinet_scene) -> None:
     scene, assets, oid = cabinet_scene
     with pytest.raises(CompileError, match=r"joint_states\['drawer'\] = 2 is outside"):
         compile_scene(_with(scene, oid, joint_states={"drawer": 2.0}), assets)
+
+
+def test_built_in_furniture_is_placed_fixed(cabinet_scene) -> None:
+    """``fixed: true`` in the catalogue (base_cabinet): the placed object is static, so the
+    compiled cabinet has no free joint; a rigid floor category stays free."""
+    from factory.assets import CATEGORIES
+
+    scene, assets, oid = cabinet_scene
+    obj = next(o for o in scene.objects if o.id == oid)
+    assert CATEGORIES["base_cabinet"].fixed and obj.is_static
+    model = compile_scene(scene, assets).model
+    names = [model.joint(j).name for j in range(model.njnt)]
+    assert f"{oid}/free" not in names and f"{oid}/door" in names
+    assert not CATEGORIES["chair"].fixed
