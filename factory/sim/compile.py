@@ -61,6 +61,10 @@ from factory.sim.walls import PlanRect, opening_rect, solid_rects, subtract, wal
 
 log = logging.getLogger(__name__)
 
+LINK_JOINT_GROUP = 3
+"""MuJoCo joint group of articulated objects' link joints (the robot's are in group 0): the
+stability check judges the joints of this group (``factory.sim.stability.LinkJoints``)."""
+
 FLOOR_SLAB = 0.01
 """Thickness of the visual floor slab of a room (m); its top is at z = 0.0005."""
 
@@ -663,6 +667,7 @@ class _Builder:
                 stiffness=joint.stiffness,
                 springref=joint.springref * travel,
                 ref=q,
+                group=LINK_JOINT_GROUP,
             )
             bodies[link.name] = child
             for k in link.collision:

@@ -133,6 +133,11 @@ def scene_metrics(
     tri_pairs = trimesh_collisions(ObjectMeshes.of(model, data, ids), tol) if trimesh_test else []
     tri_objects = sorted({o for p in tri_pairs for o in p})
     free = {oid: j for j, oid in enumerate(result.object_ids)}
+    links: dict[str, list[int]] = defaultdict(list)  # object id -> its links' columns
+    for j, name in enumerate(result.object_ids):
+        owner, sep, _ = name.partition("/")  # a link's body is "<object id>/<link>"
+        if sep:
+            links[owner].append(j)
     per_object: dict[str, Any] = {}
     for j, obj in enumerate(scene.objects):
         entry: dict[str, Any] = {
@@ -150,6 +155,17 @@ def scene_metrics(
             )
         else:
             entry["stable"] = True  # static objects do not move
+        if links.get(obj.id):  # its doors and drawers stay where they are
+            held = {
+                result.object_ids[k]: {
+                    "translation_m": float(result.translation[0, k]),
+                    "rotation_deg": float(result.rotation_deg[0, k]),
+                    "stable": bool(result.stable_object[0, k]) and not bool(result.invalid[0]),
+                }
+                for k in links[obj.id]
+            }
+            entry["links"] = held
+            entry["stable"] = entry["stable"] and all(v["stable"] for v in held.values())
         per_object[obj.id] = entry
     n = len(ids)
     rooms = {r.id: r.room_type for r in scene.rooms}
@@ -164,7 +180,7 @@ def scene_metrics(
     n_stable = sum(int(e["stable"]) for e in per_object.values())
     return {
         "objects": n,
-        "dynamic_objects": len(result.object_ids),
+        "dynamic_objects": len([o for o in result.object_ids if "/" not in o]),
         "collision": {
             "ratio": len(colliding) / n if n else 0.0,
             "colliding": sorted(colliding),

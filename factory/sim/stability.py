@@ -4,6 +4,10 @@ Protocol (SAGE's): simulate each candidate from rest for ``duration`` (2.0 s) un
 with the scene's friction and no artificial damping or velocity caps; an object is unstable if
 it moved more than ``max_translation`` (0.2 m) or turned more than ``max_rotation_deg`` (8°).
 A candidate is stable when every free object in it is stable and the simulation is valid.
+The links of articulated objects (hinge and slide joints the compiler puts in
+:data:`~factory.sim.compile.LINK_JOINT_GROUP`) are judged too, as objects named by their body
+(``<object id>/<link>``): a closed door or drawer must stay closed and an ajar one where it is,
+within ``max_link_rotation_deg`` (5°) or ``max_link_translation`` (2 cm).
 With ``resettle`` (the paper's "settle and re-simulate" rule), an unstable candidate is
 simulated again from its settled pose and accepted if that second run is stable.
 
@@ -43,6 +47,8 @@ class StabilityProtocol:
         penetration_tol: a candidate whose bodies start interpenetrating deeper is invalid (m).
         resettle: accept an unstable candidate whose settled pose is stable on a second run.
         timestep: simulation step for the check (s); ``None`` keeps the model's (2 ms).
+        max_link_translation: a drawer (slide joint) that moved farther is unstable (m).
+        max_link_rotation_deg: a door or lid (hinge joint) that turned more is unstable (deg).
     """
 
     duration: float = 2.0
@@ -51,6 +57,8 @@ class StabilityProtocol:
     penetration_tol: float = 0.01
     resettle: bool = True
     timestep: float | None = None
+    max_link_translation: float = 0.02
+    max_link_rotation_deg: float = 5.0
 
     def nstep(self, model: mujoco.MjModel) -> int:
         return max(1, round(self.duration / model.opt.timestep))
@@ -102,6 +110,40 @@ class FreeBodies:
         """``(n, k, 4)`` orientations (w, x, y, z) of the free bodies."""
         idx = self.qposadr[:, None] + 3 + np.arange(4)[None, :]
         return qpos[:, idx]
+
+
+@dataclass(frozen=True)
+class LinkJoints:
+    """The links of articulated objects: hinge and slide joints in
+    :data:`~factory.sim.compile.LINK_JOINT_GROUP`, one per link body."""
+
+    names: list[str]
+    body_ids: np.ndarray
+    qposadr: np.ndarray
+    slide: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> LinkJoints:
+        from factory.sim.compile import LINK_JOINT_GROUP
+
+        kinds = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)}
+        js = [
+            j
+            for j in range(model.njnt)
+            if int(model.jnt_type[j]) in kinds and model.jnt_group[j] == LINK_JOINT_GROUP
+        ]
+        bodies = np.array([model.jnt_bodyid[j] for j in js], dtype=int)
+        return cls(
+            [model.body(b).name for b in bodies],
+            bodies,
+            np.array([model.jnt_qposadr[j] for j in js], dtype=int),
+            np.array([model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in js], dtype=bool),
+        )
+
+    def moved(self, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(n, k)`` travel of the slides (m) and turn of the hinges (deg), 0 elsewhere."""
+        d = np.abs(q1[:, self.qposadr] - q0[:, self.qposadr])
+        return np.where(self.slide, d, 0.0), np.where(self.slide, 0.0, np.degrees(d))
 
 
 @dataclass
@@ -309,12 +351,20 @@ def _settle(
 
 
 def _evaluate(
-    free: FreeBodies, q0: np.ndarray, q1: np.ndarray, protocol: StabilityProtocol
+    free: FreeBodies,
+    links: LinkJoints,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    protocol: StabilityProtocol,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore"):
         trans = np.linalg.norm(free.positions(q1) - free.positions(q0), axis=-1)
         rot = rotation_angle_deg(free.quats(q0), free.quats(q1))
+        slid, turned = links.moved(q0, q1)
     stable = (trans <= protocol.max_translation) & (rot <= protocol.max_rotation_deg)
+    held = (slid <= protocol.max_link_translation) & (turned <= protocol.max_link_rotation_deg)
+    trans, rot = np.hstack([trans, slid]), np.hstack([rot, turned])
+    stable = np.hstack([stable, held])
     return np.nan_to_num(trans, nan=np.inf), np.nan_to_num(rot, nan=np.inf), stable
 
 
@@ -351,9 +401,10 @@ def check_stability(
         raise ConfigError(f"qpos0 must be (n, {base.nq}), got {q0.shape}")
     engine = get_backend(backend) if isinstance(backend, str) else backend
     free = FreeBodies.of(base)
+    links = LinkJoints.of(base)
     n = len(q0)
 
-    penetration, pairs = body_penetration(base, q0, free.body_ids)
+    penetration, pairs = body_penetration(base, q0, np.concatenate([free.body_ids, links.body_ids]))
     invalid = ~np.isfinite(q0).all(axis=1)
     reasons = ["non-finite initial pose" if bad else "" for bad in invalid]
     failed = np.isnan(penetration).any(axis=1) & ~invalid
@@ -382,7 +433,7 @@ def check_stability(
             if roll.invalid[k]:
                 invalid[i] = True
                 reasons[i] = roll.reasons[k] or "invalid simulation"
-    trans, rot, stable_obj = _evaluate(free, q0, q1, protocol)
+    trans, rot, stable_obj = _evaluate(free, links, q0, q1, protocol)
     stable_obj &= ~invalid[:, None]
 
     resettled = np.zeros(n, bool)
@@ -392,12 +443,12 @@ def check_stability(
         if len(again):
             roll2 = _settle(engine, base, models, again, q1[again], nstep)
             seconds += roll2.seconds
-            _, _, stable2 = _evaluate(free, q1[again], roll2.qpos, protocol)
+            _, _, stable2 = _evaluate(free, links, q1[again], roll2.qpos, protocol)
             ok = stable2.all(axis=1) & ~roll2.invalid
             resettled[again[ok]] = True
             settled[again] = roll2.qpos
     return StabilityResult(
-        object_ids=list(free.names),
+        object_ids=[*free.names, *links.names],
         translation=trans,
         rotation_deg=rot,
         stable_object=stable_obj,

@@ -116,3 +116,30 @@ def test_built_in_furniture_is_placed_fixed(cabinet_scene) -> None:
     names = [model.joint(j).name for j in range(model.njnt)]
     assert f"{oid}/free" not in names and f"{oid}/door" in names
     assert not CATEGORIES["chair"].fixed
+
+
+def test_the_stability_check_judges_links(cabinet_scene) -> None:
+    """The strict protocol judges each link as an object named by its body: a closed cabinet
+    and an ajar one hold (the metrics list its links); a door that a spring swings shut turns
+    more than 5° and is unstable."""
+    from factory.sim.metrics import measure_scene
+    from factory.sim.stability import StabilityProtocol, check_stability
+
+    scene, assets, oid = cabinet_scene
+    strict = StabilityProtocol(resettle=False)
+    ajar = _with(scene, oid, joint_states={"door": 0.6, "drawer": 0.1})
+    model = compile_scene(ajar, assets).model
+    result = check_stability(model, protocol=strict)
+    links = [f"{oid}/drawer", f"{oid}/door"]
+    assert set(links) <= set(result.object_ids) and bool(result.stable[0])
+    door = model.joint(f"{oid}/door")
+    model.jnt_stiffness[door.id] = 40.0  # springref 0: pulls the door shut
+    model.dof_frictionloss[door.dofadr[0]] = 0.0
+    shut = check_stability(model, protocol=strict)
+    j = shut.object_ids.index(f"{oid}/door")
+    assert not shut.stable_object[0, j] and shut.rotation_deg[0, j] > 5.0
+    assert shut.stable_object[0, shut.object_ids.index(f"{oid}/drawer")]
+    metrics = measure_scene(ajar, assets, trimesh_test=False)
+    entry = metrics["per_object"][oid]
+    assert set(entry["links"]) == set(links) and entry["stable"]
+    assert metrics["dynamic_objects"] == len([o for o in ajar.objects if not o.is_static])
