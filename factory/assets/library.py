@@ -559,7 +559,7 @@ def _articulation(
                 armature=phys.armature,
                 stiffness=phys.stiffness,
                 springref=ref,
-                rest=_rest(j),
+                rest=_rest(j, phys.stiffness, ref, phys.frictionloss),
             )
         )
     assert gen.swept is not None
@@ -577,14 +577,27 @@ def _handle_link(gen: Generated, h: HandleMeta) -> str:
     return ""
 
 
-def _rest(j: JointSpec) -> list[list[float]]:
-    """Where a joint holds by itself: over its whole range when gravity does no work on it (a
-    hinge about a vertical axis, a horizontal slide); else not known yet (empty)."""
+def _rest(
+    j: JointSpec, stiffness: float = 0.0, springref: float = 0.0, friction: float = 0.0
+) -> list[list[float]]:
+    """Where a joint holds by itself, where gravity does no work on it (a hinge about a
+    vertical axis, a horizontal slide): its whole range without a spring; with one (stiffness
+    N m/rad or N/m towards ``springref``), where the spring's pull is within the joint's dry
+    ``friction`` (``|q - springref| <= friction / stiffness``), within the range. Else not known
+    yet (empty)."""
     vertical = abs(abs(j.axis[2]) - 1.0) < 1e-9
     level = abs(j.axis[2]) < 1e-9
-    if (j.kind == "hinge" and vertical) or (j.kind == "slide" and level):
-        return [[float(j.range[0]), float(j.range[1])]]
-    return []
+    if not ((j.kind == "hinge" and vertical) or (j.kind == "slide" and level)):
+        return []
+    lo, hi = float(j.range[0]), float(j.range[1])
+    if stiffness > 0:
+        reach = friction / stiffness
+        lo, hi = max(lo, springref - reach), min(hi, springref + reach)
+        if lo > hi:  # the spring pulls the link to a limit: it rests there
+            return (
+                [[float(j.range[0])] * 2] if springref < j.range[0] else [[float(j.range[1])] * 2]
+            )
+    return [[lo, hi]]
 
 
 def _format(content_type: str, data: bytes) -> str:

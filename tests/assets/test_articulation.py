@@ -185,3 +185,18 @@ def test_articulated_category_asset_validates_and_switch_off_changes_nothing(tmp
     b = off.get(AssetSpec("nightstand", seed=1))
     assert a.asset_id == b.asset_id and "rig" not in a.request and a.articulation is None
     assert a.supports == b.supports and a.visual_parts == b.visual_parts
+
+
+def test_rest_intervals_of_gravity_free_joints_with_and_without_springs() -> None:
+    """A door on a vertical hinge rests anywhere in its range; with a closing spring, only
+    where the spring's pull is within the joint's friction; a spring that pulls past a limit
+    holds the link there; a lid (horizontal hinge) is not known yet."""
+    from factory.assets.articulation import JointSpec
+    from factory.assets.library import _rest
+
+    door = JointSpec("door", "hinge", "door", "door", (0, 0, 0), (0, 0, 1), (0.0, 1.9))
+    assert _rest(door) == [[0.0, 1.9]]
+    assert _rest(door, stiffness=2.0, springref=0.0, friction=0.4) == [[0.0, 0.2]]
+    assert _rest(door, stiffness=1.0, springref=-0.5, friction=0.2) == [[0.0, 0.0]]
+    lid = JointSpec("lid", "hinge", "lid", "lid", (0, 0, 0), (1, 0, 0), (0.0, 1.5))
+    assert _rest(lid) == []
