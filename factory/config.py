@@ -528,6 +528,11 @@ class TrainConfig:
             its keypoints read: the wrist camera's (forward kinematics and depth) and, where
             the dataset has ``observation.camera_poses``, the left and right cameras' (their
             recorded calibration; the env observes it too).
+        perception_objects: with ``perception_points``, the objects' positions are read from
+            the points under two keypoints per point camera, trained to find the pick object
+            and the target at their projected pixels (a heatmap loss), weighted across cameras,
+            plus a small learned correction; the tool's offsets follow from the wrist camera's
+            pose. ``false``: an MLP regresses every value from the features.
     """
 
     name: str = "${train.policy}_${train.inputs}"
@@ -565,6 +570,7 @@ class TrainConfig:
     perception_noise_m: float = 0.01
     cameras: list[str] = field(default_factory=list)
     perception_points: bool = True
+    perception_objects: bool = True
 
 
 @dataclass

@@ -109,6 +109,9 @@ class DeviceBatches:
         seed: seed of the sample order and of the augmentation.
         augment: augment the images (colour: RGB only; the shift: a camera's RGB and depth
             alike).
+        shift: with ``augment``, shift the images too (off where a camera's pixels become
+            points through its calibration: a shifted pixel's ray no longer meets what it
+            shows).
     """
 
     def __init__(
@@ -119,6 +122,7 @@ class DeviceBatches:
         indices: np.ndarray | None = None,
         seed: int = 0,
         augment: bool = False,
+        shift: bool = True,
     ) -> None:
         import torch
 
@@ -126,6 +130,7 @@ class DeviceBatches:
         self.device = torch.device(device)
         self.batch_size = batch_size
         self.augment = augment
+        self.shift = augment and shift
 
         def put(a: np.ndarray) -> Any:
             return torch.from_numpy(np.ascontiguousarray(a)).to(self.device)
@@ -235,7 +240,7 @@ class DeviceBatches:
                 out[key] = pix.movedim(-1, -3).to(torch.float32) / 255.0
                 if self.augment:
                     out[key] = self._jitter(out[key])
-            if self.augment:
+            if self.shift:
                 cam = key.rsplit(".", 1)[-1]
                 if cam not in shifts:
                     shifts[cam] = (

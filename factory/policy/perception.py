@@ -52,10 +52,11 @@ import numpy as np
 
 from factory.errors import PolicyError
 
-SCHEMA_VERSION = 2
-"""Version of :data:`SETTINGS` written now (2: ``point_cameras`` and ``pose_cameras`` for
-several cameras' points, where version 1 had ``xyz_camera``, the wrist camera or none)."""
-READABLE_VERSIONS = (1, 2)
+SCHEMA_VERSION = 3
+"""Version of :data:`SETTINGS` written now (3: ``object_keypoints`` and ``tool_in_wrist``;
+2: ``point_cameras`` and ``pose_cameras`` for several cameras' points, where version 1 had
+``xyz_camera``, the wrist camera or none)."""
+READABLE_VERSIONS = (1, 2, 3)
 """Versions of :data:`SETTINGS` this factory loads (a version-1 network reads the points of
 its ``xyz_camera`` alone)."""
 WEIGHTS = "perception.safetensors"
@@ -81,6 +82,22 @@ POSITIONS = ((0, 3), (9, 12))
 """Columns of the pick object's and the target's positions in the 24 environment values."""
 OFFSETS = ((18, 21), (21, 24))
 """Columns of the tool's offsets to them (they move with the positions)."""
+HEAT_WEIGHT = 0.1
+"""Weight of the object keypoints' heatmap loss (cross-entropy against the objects' projected
+pixels) beside the values' mean squared error."""
+HEAT_SIGMA = 1.0
+"""Standard deviation (cells of the :data:`READOUT` grid) of the Gaussian around an object's
+projected pixel that its keypoint learns."""
+VISIBLE_M = 0.12
+"""An object's centre counts as seen by a camera when the depth at its projected pixel is at
+most this much nearer than the centre (m): its own surface, not an occluder."""
+FINE = 128
+"""Channels of the object keypoints' feature pyramid."""
+MIN_SPAN_M = 0.2
+"""With object keypoints, the smallest range (m) that scales a position or offset column."""
+RESIDUAL_M = 0.05
+"""Largest learned correction (m, per axis) of an object's position from its keypoints' points
+(the surface a camera sees lies in front of the body's origin)."""
 
 
 def _torch() -> Any:
@@ -97,6 +114,7 @@ def settings_of(
     depth_max_m: float = 2.0,
     point_cameras: Sequence[str] = (),
     pose_cameras: Sequence[str] = (),
+    object_keypoints: bool = True,
 ) -> dict[str, Any]:
     """The settings that rebuild a network.
 
@@ -110,8 +128,12 @@ def settings_of(
             depth; :func:`point_cameras_of`), in ``cameras`` order.
         pose_cameras: the cameras of the dataset's ``observation.camera_poses``, in its order
             (where the non-wrist point cameras' calibration is read from).
+        object_keypoints: with point cameras, the objects' positions are read from the points
+            under two keypoints per camera that learn to find the pick object and the target
+            (``train.perception_objects``; see :func:`build`).
     """
     points = [c for c in cameras if c in set(point_cameras)] if depth else []
+    tool = tool_in_wrist() if XYZ_CAMERA in points else None
     return {
         "schema_version": SCHEMA_VERSION,
         "cameras": list(cameras),
@@ -124,7 +146,48 @@ def settings_of(
         "depth_max_m": float(depth_max_m),
         "point_cameras": points,
         "pose_cameras": list(pose_cameras),
+        "object_keypoints": bool(object_keypoints and points),
+        "tool_in_wrist": None if tool is None else [float(x) for x in tool],
     }
+
+
+def tool_in_wrist() -> np.ndarray:
+    """The tool point (the environment values' tool, ``ee_pose``) in the :data:`XYZ_CAMERA`'s
+    frame (3,) m (x right, y up, -z viewing): fixed, both ride on the hand (forward kinematics
+    at the zero pose)."""
+    from factory.policy.inputs import kinematics
+
+    q = np.zeros((1, 7))
+    pos, _ = kinematics().tool_poses(q)
+    cam = kinematics().camera_poses(q, XYZ_CAMERA)[0].astype(np.float64)
+    return cam[3:12].reshape(3, 3).T @ (pos[0] - cam[:3])
+
+
+def project(points: Any, pose: Any, size: tuple[int, int]) -> tuple[Any, Any]:
+    """Where points in the robot's base frame fall in a camera's image (the inverse of
+    :func:`pixel_points`).
+
+    Args:
+        points: (B, K, 3) points, base frame (m).
+        pose: (B, >= 13) the camera's position, rotation rows and fovy (deg)
+            (:func:`camera_poses`).
+        size: (H, W) of the image (px).
+
+    Returns:
+        (B, K, 2) column and row (px, pixel centres at +0.5) and (B, K) depth along the
+        optical axis (m; <= 0 behind the camera).
+    """
+    torch = _torch()
+    h, w = size
+    rot = pose[:, 3:12].float().reshape(-1, 3, 3)
+    rel = points.float() - pose[:, None, :3].float()
+    cam = torch.einsum("bji,bkj->bki", rot, rel)  # R^T (p - c)
+    depth = -cam[..., 2]
+    f = (h / 2) / torch.tan(torch.deg2rad(pose[:, 12].float()) / 2)  # (B,)
+    safe = torch.clamp(depth, min=1e-3)
+    col = f[:, None] * cam[..., 0] / safe + w / 2
+    row = -f[:, None] * cam[..., 1] / safe + h / 2
+    return torch.stack([col, row], -1), depth
 
 
 def settings_points(settings: dict[str, Any]) -> list[str]:
@@ -286,15 +349,46 @@ def build(settings: dict[str, Any]) -> Any:
             hidden = int(settings["hidden"])
             dim = len(settings["low"])
             width = n * (2 * k + 256) + 3 * k * len(self.point_index)
+            self.objects = bool(settings.get("object_keypoints", False)) and bool(self.point_index)
+            """Whether the objects' positions come from their keypoints' points."""
+            tool = settings.get("tool_in_wrist")
+            self.wrist_slot = (
+                self.point_cameras.index(XYZ_CAMERA)
+                if self.objects and tool is not None and XYZ_CAMERA in self.point_cameras
+                else -1
+            )
+            """Index among the point cameras of the wrist camera, whose pose gives the tool's
+            position (the offsets' columns); -1: the MLP predicts the offsets."""
+            n_obj = len(POSITIONS)
+            extra_out = 0
+            if self.objects:
+                n_pts = len(self.point_index)
+                # a small feature pyramid down to layer1 (stride 4: 32 x 32 at 128 px)
+                self.top = nn.Conv2d(256, FINE, 1)
+                self.lateral2 = nn.Conv2d(128, FINE, 1)
+                self.lateral1 = nn.Conv2d(64, FINE, 1)
+                self.object_heads = nn.Conv2d(FINE, n_obj, 3, padding=1)
+                self.trust = nn.Linear(FINE + n_obj, n_obj)
+                width += n_pts * n_obj * 4
+                extra_out = 3 * n_obj  # the residuals
+                self.register_buffer(
+                    "tool_in_wrist",
+                    torch.as_tensor(tool if tool is not None else [0.0] * 3, dtype=torch.float32),
+                )
             self.mlp = nn.Sequential(
                 nn.Linear(width, hidden),
                 nn.ReLU(),
                 nn.Linear(hidden, hidden),
                 nn.ReLU(),
-                nn.Linear(hidden, dim),
+                nn.Linear(hidden, dim + extra_out),
             )
+            self.dim = dim
             low = torch.as_tensor(settings["low"], dtype=torch.float32)
             high = torch.as_tensor(settings["high"], dtype=torch.float32)
+            if self.objects:  # geometric columns: an error in metres, even where the
+                # training frames hardly vary (an object always on one table)
+                for a, z in (*POSITIONS, *OFFSETS):
+                    high[a:z] = torch.maximum(high[a:z], low[a:z] + MIN_SPAN_M)
             self.register_buffer("low", low)
             self.register_buffer("span", torch.clamp(high - low, min=1e-6))
 
@@ -304,11 +398,12 @@ def build(settings: dict[str, Any]) -> Any:
             :func:`camera_poses`)."""
             return bool(self.point_index)
 
-        def forward(self, images: Any, poses: Any = None) -> Any:
+        def forward(self, images: Any, poses: Any = None, heat: bool = False) -> Any:
             """Predictions scaled to [-1, 1] (B, 24) from ``images`` (B, n_cams, C, H, W),
             values in [0, 1], and (:attr:`xyz`) the point cameras' poses and fields of view
             (B, P, 13) (:func:`camera_poses`; the module's call: what ``torch.compile``
-            compiles)."""
+            compiles). With ``heat`` (and :attr:`objects`), also the object keypoints'
+            logits (B, P, 2, :data:`READOUT`, :data:`READOUT`), for :meth:`loss`."""
             b, n = images.shape[:2]
             x = (images - 0.5) / 0.25
             points = []
@@ -328,20 +423,68 @@ def build(settings: dict[str, Any]) -> Any:
                     points.append(pts)
                 x = torch.cat([x, extra], 2)
             x = x.flatten(0, 1).contiguous(memory_format=torch.channels_last)
-            fmap = self.trunk(x)  # (B*n, 256, h, w)
+            taps = {}
+            for i, layer in enumerate(self.trunk):
+                x = layer(x)
+                if i in (4, 5):  # layer1, layer2
+                    taps[i] = x
+            fmap = x  # (B*n, 256, h, w)
             logits, coords = self.keypoints(fmap)
             parts = [coords, fmap.float().mean(dim=(-2, -1))]
             feats = torch.cat(parts, -1).reshape(b, -1)
+            reads = [feats]
+            found = []  # per point camera: (B, 2, 3) the objects' keypoints' points
+            obj_logits = []
+            trust = []
             if points:  # each keypoint's point, read at READOUT px
                 h, w = logits.shape[-2:]
                 per_cam = logits.reshape(b, n, -1, h, w)
-                reads = [feats]
+                if self.objects:
+                    l1, l2 = taps[4], taps[5]
+                    f = self.top(fmap)
+                    f = F.relu(self.lateral2(l2) + F.interpolate(f, size=l2.shape[-2:]))
+                    f = F.relu(self.lateral1(l1) + F.interpolate(f, size=l1.shape[-2:]))
+                    heads = self.object_heads(f).float()
+                    heads = heads.reshape(b, n, -1, *heads.shape[-2:])
+                    pooled = f.float().mean(dim=(-2, -1)).reshape(b, n, -1)
                 for pts, c in zip(points, self.point_index, strict=True):
+                    grid = F.adaptive_avg_pool2d(pts, READOUT)
                     up = F.interpolate(per_cam[:, c], size=(READOUT, READOUT), mode="bilinear")
-                    got = expected(up, F.adaptive_avg_pool2d(pts, READOUT))  # (B, k, 3)
+                    got = expected(up, grid)  # (B, k, 3)
                     reads.append(got.reshape(b, -1))
-                feats = torch.cat(reads, -1)
-            return self.mlp(feats)
+                    if self.objects:
+                        ol = F.interpolate(heads[:, c], size=(READOUT, READOUT), mode="bilinear")
+                        at = expected(ol, grid)  # (B, 2, 3)
+                        peak = ol.flatten(2).amax(-1)  # (B, 2)
+                        found.append(at)
+                        obj_logits.append(ol)
+                        trust.append(self.trust(torch.cat([pooled[:, c], peak], -1)))
+                        reads.append(torch.cat([at, peak[..., None]], -1).reshape(b, -1))
+            out = self.mlp(torch.cat(reads, -1))
+            if not self.objects:
+                return (out, None) if heat else out
+            values = out[:, : self.dim]
+            residual = torch.tanh(out[:, self.dim :].reshape(b, -1, 3)) * RESIDUAL_M
+            weight = torch.softmax(torch.stack(trust, 1), dim=1)  # (B, P, 2) over cameras
+            pos = (torch.stack(found, 1) * weight[..., None]).sum(1) + residual  # (B, 2, 3)
+            cols = list(values.unbind(-1))
+            for o, (a, _) in enumerate(POSITIONS):
+                for ax in range(3):
+                    cols[a + ax] = self._scaled(pos[:, o, ax], a + ax)
+            if self.wrist_slot >= 0:
+                wp = poses[:, self.wrist_slot].float()
+                tool = wp[:, :3] + wp[:, 3:12].reshape(b, 3, 3) @ self.tool_in_wrist
+                for o, (a, _) in enumerate(OFFSETS):
+                    for ax in range(3):
+                        cols[a + ax] = self._scaled(pos[:, o, ax] - tool[:, ax], a + ax)
+            values = torch.stack(cols, -1)
+            if heat:
+                return values, torch.stack(obj_logits, 1)
+            return values
+
+        def _scaled(self, v: Any, col: int) -> Any:
+            """Dataset units -> the [-1, 1] scale of column ``col``."""
+            return 2 * (v - self.low[col]) / self.span[col] - 1
 
         def predict(self, images: Any, poses: Any = None) -> Any:
             """The 24 environment values (B, 24), in the dataset's units (m, rotations)."""
@@ -352,13 +495,47 @@ def build(settings: dict[str, Any]) -> Any:
             units), and the root-mean-square error of the two objects' positions (m), detached.
             """
             want = 2 * (target.float() - self.low) / self.span - 1
-            got = self(images, poses).float()
+            got, heat = self(images, poses, heat=True)
+            got = got.float()
             mse = F.mse_loss(got, want)
+            if heat is not None:
+                mse = mse + HEAT_WEIGHT * self._heat_loss(heat, images, target, poses)
             with torch.no_grad():
                 err = (got - want) * 0.5 * self.span
                 pos = torch.cat([err[:, a:b] for a, b in POSITIONS], -1)
                 rms = pos.square().sum(-1).div(len(POSITIONS)).mean().sqrt()
             return mse, rms
+
+        def _heat_loss(self, heat: Any, images: Any, target: Any, poses: Any) -> Any:
+            """Cross-entropy of the object keypoints' maps ``heat`` (B, P, 2, R, R) against a
+            Gaussian at each object's projected pixel, over the cameras that see it (in the
+            image, in front, and the depth there within :data:`VISIBLE_M` of its centre)."""
+            b, r = heat.shape[0], heat.shape[-1]
+            h, w = images.shape[-2:]
+            centres = torch.stack([target[:, a:z] for a, z in POSITIONS], 1).float()  # (B,2,3)
+            cells = torch.arange(r, device=heat.device, dtype=torch.float32) + 0.5
+            total = heat.new_zeros(())
+            count = heat.new_zeros(())
+            for j, c in enumerate(self.point_index):
+                px, depth = project(centres, poses[:, j], (h, w))  # (B, 2, 2), (B, 2)
+                col, row = px[..., 0], px[..., 1]
+                inside = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (depth > 0.05)
+                ci = col.clamp(0, w - 1).long()
+                ri = row.clamp(0, h - 1).long()
+                seen_m = images[:, c, 3].float() * self.depth_max  # (B, H, W)
+                at = seen_m[torch.arange(b, device=heat.device)[:, None], ri, ci]  # (B, 2)
+                ok = (inside & (at > depth - VISIBLE_M)).float()
+                gx = cells[None, None, :] - (col.clamp(0, w) * r / w)[..., None]  # (B, 2, R)
+                gy = cells[None, None, :] - (row.clamp(0, h) * r / h)[..., None]
+                want = torch.exp(
+                    -(gy[..., :, None] ** 2 + gx[..., None, :] ** 2) / (2 * HEAT_SIGMA**2)
+                )
+                want = want / want.sum((-2, -1), keepdim=True)
+                logp = F.log_softmax(heat[:, j].flatten(2), -1)  # (B, 2, R*R)
+                ce = -(want.flatten(2) * logp).sum(-1)  # (B, 2)
+                total = total + torch.where(ok > 0, ce, torch.zeros_like(ce)).sum()
+                count = count + ok.sum()
+            return total / count.clamp(min=1.0)
 
     return Perception()
 

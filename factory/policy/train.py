@@ -858,6 +858,7 @@ class Trainer:
             self.spec.depth_max_m,
             frames.point_cameras,
             self.spec.pose_cameras,
+            bool(getattr(self.tc, "perception_objects", True)),
         )
         if resume is not None and (resume / PRETRAINED / perception.WEIGHTS).is_file():
             net = perception.load(resume / PRETRAINED, self.device)
@@ -945,6 +946,7 @@ class Trainer:
                 indices,
                 self.tc.seed + self.step + 1_000_003 * self.rank,
                 augment,
+                shift=not (self.perception is not None and self.perception.xyz),
             )
         workers = self.tc.num_workers
         loader: Any = torch.utils.data.DataLoader(

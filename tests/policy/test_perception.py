@@ -166,3 +166,110 @@ def test_network_reads_the_points_of_several_cameras(tmp_path: Path) -> None:
     torch.testing.assert_close(
         P.pixel_points(depth, pose, 50.0), P.pixel_points(depth, pose, torch.full((2,), 50.0))
     )
+
+
+def test_projection_inverts_the_pixel_points() -> None:
+    """:func:`~factory.policy.perception.project` sends every pixel's point back to that
+    pixel's centre at its depth, for a tilted camera."""
+    import torch
+
+    from factory.policy import perception as P
+
+    rng = np.random.default_rng(1)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    pose = torch.from_numpy(np.r_[0.4, -0.2, 0.9, q.ravel(), 55.0].astype(np.float32))
+    pose = pose.expand(2, 13)
+    depth = torch.from_numpy(rng.uniform(0.3, 1.8, size=(2, 12, 16)).astype(np.float32))
+    pts = P.pixel_points(depth, pose, pose[:, 12])  # (2, 3, 12, 16)
+    px, got = P.project(pts.flatten(2).transpose(1, 2), pose, (12, 16))
+    rows, cols = np.meshgrid(np.arange(12) + 0.5, np.arange(16) + 0.5, indexing="ij")
+    want = np.stack([cols.ravel(), rows.ravel()], -1)
+    np.testing.assert_allclose(px[1].numpy(), want, atol=1e-3)
+    np.testing.assert_allclose(got.numpy(), depth.flatten(1).numpy(), rtol=1e-4)
+
+
+def test_wrist_camera_pose_gives_the_recorded_tool_offsets(policy_run: Path) -> None:
+    """The tool point fixed in the wrist camera's frame (``tool_in_wrist``) and the camera's
+    pose by forward kinematics give the tool offsets of the recorded environment values: what
+    an object-keypoint network computes them from."""
+    from factory.policy import perception as P
+    from factory.policy.inputs import env_features
+
+    _, cols = _dataset_frames(policy_run / "dataset" / "merged", P.XYZ_CAMERA)
+    state = cols["observation.state"][:, :8]
+    env = env_features(state, cols["observation.ee_pose"], cols["observation.environment_state"])
+    cam = P.wrist_poses(state).astype(np.float64)
+    tool = cam[:, :3] + np.einsum("nij,j->ni", cam[:, 3:12].reshape(-1, 3, 3), P.tool_in_wrist())
+    for (a, z), (oa, oz) in zip(P.POSITIONS, P.OFFSETS, strict=True):
+        np.testing.assert_allclose(env[:, a:z] - tool, env[:, oa:oz], atol=2e-3)
+
+
+def test_object_keypoints_find_the_objects_and_give_their_positions(tmp_path: Path) -> None:
+    """With ``object_keypoints`` the network's position columns are the points under its
+    objects' keypoints (plus a correction of at most ``RESIDUAL_M``) and the offsets follow
+    from the wrist camera's pose; its heatmap loss is finite and trains the keypoint heads;
+    trained briefly on one synthetic view (a box on a plane seen from above) its keypoint
+    lands on the box; it saves and loads; a version-2 network (no object keypoints) loads."""
+    import torch
+
+    from factory.policy import perception as P
+
+    torch.manual_seed(0)
+    cams = ["left", "wrist"]
+    rng = np.random.default_rng(0)
+    n, size = 6, 64
+    # a camera 1 m above the origin looking down (-z of the camera = -z of the base)
+    look = np.r_[0.0, 0.0, 1.0, np.eye(3).ravel(), 60.0].astype(np.float32)
+    depth = np.ones((n, size, size), np.float32)
+    target = rng.normal(scale=0.05, size=(n, 24)).astype(np.float32)
+    f = (size / 2) / np.tan(np.radians(30.0))
+    where = []
+    for i in range(n):  # a box 20 cm tall whose top holds the pick object's centre
+        r, c = rng.integers(10, size - 10, size=2)
+        where.append((r, c))
+        depth[i, r - 3 : r + 3, c - 3 : c + 3] = 0.8
+        target[i, 0:3] = [(c - size / 2) / f * 0.8, -(r - size / 2) / f * 0.8, 0.2]
+    settings = P.settings_of(cams, True, (size, size), target, 2.0, cams, ["left"])
+    assert settings["object_keypoints"] and settings["tool_in_wrist"] is not None
+    net = P.build(settings)
+    assert net.objects and net.wrist_slot == 1
+    images = torch.rand(n, 2, 4, size, size)
+    images[:, 0, 3] = torch.from_numpy(depth) / 2.0
+    poses = torch.from_numpy(
+        P.camera_poses(net.point_cameras, np.zeros((n, 8)), look[None].repeat(n, 0), ["left"])
+    )
+    values, heat = net(images, poses, heat=True)
+    assert values.shape == (n, 24) and heat.shape == (n, 2, 2, P.READOUT, P.READOUT)
+    opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+    losses = []
+    for _ in range(60):
+        loss, _ = net.loss(images, torch.from_numpy(target), poses)
+        losses.append(float(loss.detach()))
+        opt.zero_grad()
+        loss.backward()
+        assert net.object_heads.weight.grad is not None
+        opt.step()
+    assert np.mean(losses[-10:]) < 0.7 * np.mean(losses[:5]), losses
+    with torch.no_grad():
+        got = net.predict(images, poses)
+        _, heat = net(images, poses, heat=True)
+    peak = heat[:, 0, 0].flatten(1).argmax(1).numpy()  # the left camera's pick keypoint
+    cell = size / P.READOUT
+    found = np.stack([peak // P.READOUT, peak % P.READOUT], 1) * cell + cell / 2
+    miss = np.abs(found - np.array(where)).max(1)  # px, the box spans 6
+    assert (miss <= 4).sum() >= 5, (found, where)
+    moved = got[:, 0:3].numpy()
+    assert np.median(np.linalg.norm(moved - target[:, 0:3], axis=1)) < 0.15
+    P.save(net, tmp_path)
+    again = P.load(tmp_path, "cpu")
+    with torch.no_grad():
+        torch.testing.assert_close(again.predict(images, poses), got)
+    old = P.settings_of(cams, True, (size, size), target, 2.0, cams, ["left"], False)
+    old = {k: v for k, v in old.items() if k not in ("object_keypoints", "tool_in_wrist")}
+    old["schema_version"] = 2
+    (tmp_path / "v2").mkdir()
+    P.save(P.build(old), tmp_path / "v2")
+    v2 = P.load(tmp_path / "v2", "cpu")
+    assert not v2.objects
+    with torch.no_grad():
+        assert v2(images, poses).shape == (n, 24)
