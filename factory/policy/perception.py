@@ -484,7 +484,9 @@ def build(settings: dict[str, Any]) -> Any:
 
         def _scaled(self, v: Any, col: int) -> Any:
             """Dataset units -> the [-1, 1] scale of column ``col``."""
-            return 2 * (v - self.low[col]) / self.span[col] - 1
+            low: Any = self.low
+            span: Any = self.span
+            return 2 * (v - low[col]) / span[col] - 1
 
         def predict(self, images: Any, poses: Any = None) -> Any:
             """The 24 environment values (B, 24), in the dataset's units (m, rotations)."""
