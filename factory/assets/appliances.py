@@ -6,15 +6,22 @@ object frame. The body is a rounded box standing in for a hollow case (a low fil
 plain box was); doors and handles stand proud of its front within the requested depth and
 have their own boxes; flush details (a window, a cooktop's burners, a drawer's line) are
 visual. The top stays a support at the full height.
+
+The articulated appliances (``hinged_fridge``, ``hinged_microwave``; built with moving links
+under ``assets.articulated``) are :func:`.cabinets.build_cabinet` layouts: a panel case whose
+door is a link on a vertical hinge, its interior floor and shelves supports reached through
+it.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import trimesh
 
+from factory.assets.cabinets import Layout, build_cabinet
 from factory.assets.geometry import Part, Shape, Support, cylinder
 from factory.assets.handles import front_bar as _bar
 from factory.assets.primitives import moved, ring, rounded_box
@@ -412,3 +419,104 @@ def washing_machine(
         )
     )
     return s
+
+
+# ---- articulated appliances (built on :func:`.cabinets.build_cabinet`; moving doors with
+# their handles, interiors as supports). Their rigid namesakes above stay as they are.
+
+
+def _front_of(s: Shape, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds ``(lo, hi)`` of the front part called ``name``."""
+    lo, hi = next(p for p in s.parts if p.name == name).visual.bounds
+    return lo, hi
+
+
+def hinged_fridge(handles: str = "bar", hinge: str = "right") -> Any:
+    """The ``hinged_fridge`` template kind: an insulated case (40 mm walls) with one tall
+    door hinged on its ``hinge`` edge (a long handle near the other edge) and three shelves
+    inside, each a support reached through the door.
+
+    Raises:
+        GrammarError: a bad parameter.
+    """
+    layout = Layout(
+        handles=handles,
+        drawers=0,
+        doors=1,
+        hinge=hinge,
+        shelves=3,
+        wall=0.04,
+        front=0.045,
+        handle_length=0.4,
+        floor_gap=0.03,
+    )
+
+    def build(
+        d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
+    ) -> Shape:
+        return build_cabinet(d, mats, cols, layout)
+
+    return build
+
+
+def hinged_microwave(handles: str = "bar") -> Any:
+    """The ``hinged_microwave`` template kind: a case with a door hinged on its left edge (a
+    dark window, a handle near its right edge) beside a fixed control panel of buttons; the
+    cavity's floor is a support reached through the door.
+
+    Raises:
+        GrammarError: a bad parameter.
+    """
+    layout = Layout(
+        handles=handles,
+        drawers=0,
+        doors=1,
+        hinge="left",
+        panel=0.26,
+        wall=0.012,
+        front=0.022,
+        handle_length=0.2,
+    )
+
+    def build(
+        d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
+    ) -> Shape:
+        s = build_cabinet(d, mats, cols, layout)
+        lo, hi = _front_of(s, "door")
+        dw, dh = hi[0] - lo[0], hi[2] - lo[2]
+        window = _flat(
+            rounded_box(
+                (0.62 * dw, 0.003, 0.62 * dh),
+                (lo[0] + 0.42 * dw, lo[1] - 0.0015, (lo[2] + hi[2]) / 2),
+                "glass",
+                _GLASS,
+                0.001,
+                "door_window",
+                segments=1,
+            )
+        )
+        window.link = "door"
+        s.add(window)
+        plo, phi = _front_of(s, "panel")
+        pw, ph = phi[0] - plo[0], phi[2] - plo[2]
+        for k in range(6):
+            s.add(
+                _flat(
+                    rounded_box(
+                        (0.3 * pw, 0.003, 0.06 * ph),
+                        (
+                            plo[0] + pw * (0.3 + 0.4 * (k % 2)),
+                            plo[1] - 0.0015,
+                            plo[2] + ph * (0.7 - 0.12 * (k // 2)),
+                        ),
+                        "plastic",
+                        _DARK,
+                        0.001,
+                        f"button_{k}",
+                        segments=1,
+                    )
+                )
+            )
+        return s
+
+    return build

@@ -26,7 +26,7 @@ from typing import Any
 
 import yaml
 
-from factory.assets import cabinets, grammar
+from factory.assets import appliances, cabinets, grammar
 from factory.assets import templates as T
 from factory.assets.articulation import JointPhysics, parse_physics
 from factory.assets.errors import CatalogError as CatalogError
@@ -146,7 +146,23 @@ TEMPLATE_KINDS: dict[str, TemplateKind] = {
     "piano": TemplateKind(T.piano),
     "toilet": TemplateKind(T.toilet),
     "cabinet": TemplateKind(
-        cabinets.cabinet, {"handles": "any", "drawer_share": "number"}, articulated=True
+        cabinets.cabinet,
+        {
+            "handles": "any",
+            "drawer_share": "number",
+            "drawers": "any",
+            "doors": "any",
+            "hinge": "any",
+            "shelves": "any",
+            "rail": "bool",
+        },
+        articulated=True,
+    ),
+    "hinged_fridge": TemplateKind(
+        appliances.hinged_fridge, {"handles": "any", "hinge": "any"}, articulated=True
+    ),
+    "hinged_microwave": TemplateKind(
+        appliances.hinged_microwave, {"handles": "any"}, articulated=True
     ),
     "parts": TemplateKind(grammar.parts, {"parts": "any", "containers": "any"}, ("parts",)),
 }
