@@ -56,7 +56,7 @@ def main() -> None:
                     azimuth=65.0,
                     elevation=-20.0,
                     opened=opened,
-                    margin=1.45,
+                    margin=1.6,
                 )
                 sheet.paste(Image.fromarray(np.asarray(image)), (x + k * size, y))
             draw.text((x + 4, y + size + 2), f"{name}: closed | open", fill=(0, 0, 0))
