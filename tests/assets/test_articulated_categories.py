@@ -27,7 +27,7 @@ NEW = (
     "two_door_sideboard",
     "glazed_bookcase",
     "front_loader_washer",
-    "tall_storage_cabinet",
+    "double_door_cupboard",
     "desk_pedestal",
 )
 FINGER = 0.02
