@@ -7,10 +7,10 @@ plain box was); doors and handles stand proud of its front within the requested 
 have their own boxes; flush details (a window, a cooktop's burners, a drawer's line) are
 visual. The top stays a support at the full height.
 
-The articulated appliances (``hinged_fridge``, ``hinged_microwave``; built with moving links
-under ``assets.articulated``) are :func:`.cabinets.build_cabinet` layouts: a panel case whose
-door is a link on a vertical hinge, its interior floor and shelves supports reached through
-it.
+The articulated appliances (``hinged_fridge``, ``hinged_microwave``, ``hinged_washer``; built
+with moving links under ``assets.articulated``) are :func:`.cabinets.build_cabinet` layouts:
+a panel case whose door is a link on a vertical hinge, its interior floor and shelves
+supports reached through it.
 """
 
 from __future__ import annotations
@@ -517,6 +517,68 @@ def hinged_microwave(handles: str = "bar") -> Any:
                     )
                 )
             )
+        return s
+
+    return build
+
+
+def hinged_washer(handles: str = "bar", hinge: str = "left") -> Any:
+    """The ``hinged_washer`` template kind: a front loader. A fixed control strip (a dial)
+    over a door hinged on its ``hinge`` edge (a chrome porthole ring round a dark glass, a
+    handle near the other edge); the drum's floor is a support reached through the door.
+
+    Raises:
+        GrammarError: a bad parameter.
+    """
+    layout = Layout(
+        handles=handles,
+        drawers=0,
+        doors=1,
+        hinge=hinge,
+        top=0.18,
+        wall=0.02,
+        front=0.03,
+        handle_length=0.14,
+        floor_gap=0.04,
+    )
+
+    def build(
+        d: np.ndarray, mats: tuple[str, str], cols: tuple[RGBA, RGBA], rng: np.random.Generator
+    ) -> Shape:
+        s = build_cabinet(d, mats, cols, layout)
+        lo, hi = _front_of(s, "door")
+        dw, dh = hi[0] - lo[0], hi[2] - lo[2]
+        rr = 0.36 * min(dw, dh)
+        xc = (lo[0] + hi[0]) / 2 + (0.04 if layout.hinge == "right" else -0.04) * dw
+        at = (xc, lo[1], (lo[2] + hi[2]) / 2)
+        rim = ring(
+            [(0.78 * rr, 0.0), (rr, 0.0), (rr, 0.004), (0.78 * rr, 0.004)],
+            "steel",
+            _CHROME,
+            segments=24,
+            name="door_ring",
+        )
+        glass = cylinder(0.78 * rr, 0.003, 0.0, "glass", _GLASS, sections=24, name="door_glass")
+        for part in (rim, glass):
+            part = _flat(_facing_front(part, at))
+            part.link = "door"
+            s.add(part)
+        plo, phi = _front_of(s, "top_panel")
+        dial = cylinder(0.03, 0.004, 0.0, "plastic", _DARK, sections=16, name="dial")
+        s.add(_flat(_facing_front(dial, (phi[0] - 0.12, plo[1], (plo[2] + phi[2]) / 2))))
+        s.add(
+            _flat(
+                rounded_box(
+                    (0.3 * (phi[0] - plo[0]), 0.003, 0.5 * (phi[2] - plo[2])),
+                    (plo[0] + 0.2 * (phi[0] - plo[0]), plo[1] - 0.0015, (plo[2] + phi[2]) / 2),
+                    "plastic",
+                    _DARK,
+                    0.001,
+                    "detergent_flap",
+                    segments=1,
+                )
+            )
+        )
         return s
 
     return build

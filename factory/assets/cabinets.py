@@ -3,9 +3,11 @@
 The carcass (root body) is an open-front :func:`~.geometry.frame_box`. A :class:`Layout`
 says what fills its front: ``drawers`` stacked on top (each a tray link on a slide along -y,
 on its own board), then a door compartment with one door (hinged on its ``hinge`` edge) or
-two (hinged on the outer edges), ``shelves`` inside it, an optional hanging ``rail`` and an
-optional fixed control ``panel`` on the right (the appliances'). A door hinged on its left
-edge turns about -z, one on its right edge about +z, so +q swings either out to the front.
+two (hinged on the outer edges), ``shelves`` inside it, an optional hanging ``rail``, an
+optional fixed control ``panel`` on the right (the appliances'), an optional fixed ``top``
+strip over the doors (a washing machine's controls) and optional ``glazed`` doors. A door
+hinged on its left edge turns about -z, one on its right edge about +z, so +q swings either
+out to the front.
 Handles (:mod:`.handles`) stand in front of the fronts within the requested depth. The
 compartments' floors and shelves are supports and their volumes containers, each with the
 link that carries it and the joint to open first. All in the object frame, closed (m, front
@@ -45,6 +47,9 @@ REACH = 1.1
 
 HINGES = ("left", "right")
 
+GLASS: RGBA = (0.55, 0.68, 0.72, 1.0)
+"""A glazed door's pane (visual)."""
+
 
 @dataclass(frozen=True)
 class Layout:
@@ -60,6 +65,8 @@ class Layout:
         shelves: shelf boards in the door compartment (0..4; supports ``shelf_0`` ...).
         rail: a hanging rail under the shelves, which then sit in the top fifth.
         panel: the share of the width (0..0.4) of a fixed panel right of the doors.
+        top: the share of the height (0..0.4) of a fixed strip over the doors (no drawers).
+        glazed: a glass pane (visual) in each door's front.
         wall: the carcass's panel thickness (m; 0: 2 % of the larger of width and height,
             12..25 mm).
         front: the thickness of the fronts (m).
@@ -75,6 +82,8 @@ class Layout:
     shelves: int = 0
     rail: bool = False
     panel: float = 0.0
+    top: float = 0.0
+    glazed: bool = False
     wall: float = 0.0
     front: float = 0.018
     handle_length: float = 0.16
@@ -103,8 +112,16 @@ class Layout:
             raise GrammarError(f"rail: expected true or false, got {self.rail!r}")
         if not isinstance(self.panel, float | int) or not 0.0 <= self.panel <= 0.4:
             raise GrammarError(f"panel: expected a number within 0..0.4, got {self.panel!r}")
-        if (self.shelves or self.rail or self.panel) and not self.doors:
-            raise GrammarError("shelves: shelves, a rail and a panel need a door compartment")
+        if not isinstance(self.top, float | int) or not 0.0 <= self.top <= 0.4:
+            raise GrammarError(f"top: expected a number within 0..0.4, got {self.top!r}")
+        if self.top and self.drawers:
+            raise GrammarError("top: a fixed strip over the doors takes the drawers' place")
+        if not isinstance(self.glazed, bool):
+            raise GrammarError(f"glazed: expected true or false, got {self.glazed!r}")
+        if (self.shelves or self.rail or self.panel or self.top or self.glazed) and not self.doors:
+            raise GrammarError(
+                "shelves: shelves, a rail, a panel, a top strip and glazing need a door compartment"
+            )
         if self.handles == "edge" and (self.drawers > 1 or self.doors > 1 or self.panel):
             # an edge grip needs a free edge: a lower drawer's top and a door's edge facing
             # another front have only the gap between fronts
@@ -121,6 +138,7 @@ def cabinet(
     hinge: Any = "left",
     shelves: Any = 0,
     rail: bool = False,
+    glazed: bool = False,
 ) -> Any:
     """The ``cabinet`` template kind: drawers over doors (by default one drawer over one
     door hinged on its left edge).
@@ -133,6 +151,7 @@ def cabinet(
         hinge: the hinged edge of a single door (``left`` or ``right``).
         shelves: shelf boards behind the doors (0..4).
         rail: a hanging rail behind the doors (the shelves then sit above it).
+        glazed: a glass pane in each door (a display cabinet's or a glazed bookcase's).
 
     Raises:
         GrammarError: a bad parameter (the catalogue reports it as its field's error).
@@ -145,6 +164,7 @@ def cabinet(
         hinge=hinge,
         shelves=shelves,
         rail=rail,
+        glazed=glazed,
     )
 
     def build(
@@ -177,9 +197,12 @@ def build_cabinet(
     handle_metas: list[HandleMeta] = []
     # the drawer rows fill [z_lo, h - t]; doors fill [t, z_div - t] under a divider board
     if lay.doors:
-        z_div = h - lay.drawer_share * (h - t) if lay.drawers else h  # top of the divider
-        z_lo = z_div
         if lay.drawers:
+            z_div = h - lay.drawer_share * (h - t)  # top of the divider
+        else:
+            z_div = h - lay.top * (h - t) if lay.top else h
+        z_lo = z_div
+        if lay.drawers or lay.top:
             s.add(
                 box(
                     (w - 2 * t, ln_c - t, t),
@@ -244,7 +267,7 @@ def build_cabinet(
     # the doors: panels hinged on their outer edges
     if lay.doors:
         xa, xb = -w / 2, w / 2 - lay.panel * w  # the doors' span
-        e = z_div - t if lay.drawers else h  # the top edge of the doors' zone
+        e = z_div - t if lay.drawers or lay.top else h  # the top edge of the doors' zone
         door_h = e - 2 * GAP - lay.floor_gap  # >= floor_gap above the floor
         z_door = GAP + door_h / 2 + lay.floor_gap
         if lay.doors == 1:
@@ -262,6 +285,18 @@ def build_cabinet(
             )
             door.link = name
             s.add(door)
+            if lay.glazed:
+                dw = (x1 - x0) - 2 * GAP
+                pane = box(
+                    (dw - 2 * 0.06, 0.002, door_h - 2 * 0.08),
+                    ((x0 + x1) / 2, y_c - ft - 0.001, z_door),
+                    "glass",
+                    GLASS,
+                    f"{name}_glass",
+                )
+                pane.collision = []  # flush with the front: visual only
+                pane.link = name
+                s.add(pane)
             left = side == "left"
             anchor = (x0 + GAP if left else x1 - GAP, y_c - ft, 0.0)
             axis = (0.0, 0.0, -1.0 if left else 1.0)
@@ -301,6 +336,16 @@ def build_cabinet(
                     "panel",
                 )
             )
+        if lay.top:
+            s.add(
+                box(
+                    (w - 2 * GAP, ft, h - e - 2 * GAP),
+                    (0, y_c - ft / 2, (e + h) / 2),
+                    mats[1],
+                    cols[1],
+                    "top_panel",
+                )
+            )
 
     # handles, in front of the fronts
     for p in handle_parts:
@@ -326,7 +371,7 @@ def _door_compartment(
 ) -> None:
     """The fixed inside of the door compartment (shelves, rail, the panel's partition) and
     its supports and containers, one set per door (reached through it)."""
-    top = z_div - t if lay.drawers else h - t  # the compartment's ceiling
+    top = z_div - t if lay.drawers or lay.top else h - t  # the compartment's ceiling
     x_in = (-w / 2 + t, w / 2 - t)
     if lay.panel:
         xp = w / 2 - lay.panel * w  # the partition's right face

@@ -155,6 +155,7 @@ TEMPLATE_KINDS: dict[str, TemplateKind] = {
             "hinge": "any",
             "shelves": "any",
             "rail": "bool",
+            "glazed": "bool",
         },
         articulated=True,
     ),
@@ -163,6 +164,9 @@ TEMPLATE_KINDS: dict[str, TemplateKind] = {
     ),
     "hinged_microwave": TemplateKind(
         appliances.hinged_microwave, {"handles": "any"}, articulated=True
+    ),
+    "hinged_washer": TemplateKind(
+        appliances.hinged_washer, {"handles": "any", "hinge": "any"}, articulated=True
     ),
     "parts": TemplateKind(grammar.parts, {"parts": "any", "containers": "any"}, ("parts",)),
 }

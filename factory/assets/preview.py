@@ -42,10 +42,18 @@ def render_asset(
     height: int = 512,
     azimuth: float = 120.0,
     elevation: float = -25.0,
+    opened: float = 0.0,
+    margin: float = 1.15,
 ) -> np.ndarray:
-    """An RGB image ``(height, width, 3)`` of the asset."""
+    """An RGB image ``(height, width, 3)`` of the asset, an articulated one with every joint
+    at ``opened`` (0: closed, 1: its upper limit) of its range; ``margin`` scales the camera's
+    distance (1: the bounding sphere of the closed extents fills the view)."""
     model = compile_scene(asset_scene(meta), assets_dir).model
     data = mujoco.MjData(model)
+    if opened and meta.articulation is not None:
+        for j in meta.articulation.joints:
+            joint = model.joint(f"asset/{j.name}")
+            data.qpos[joint.qposadr[0]] = opened * joint.range[1]
     mujoco.mj_forward(model, data)
     w, ln, h = meta.extents
     radius = 0.5 * math.sqrt(w * w + ln * ln + h * h)
@@ -53,7 +61,7 @@ def render_asset(
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = [0, 0, h / 2]
-    cam.distance = radius / math.tan(math.radians(fovy / 2)) * 1.15
+    cam.distance = radius / math.tan(math.radians(fovy / 2)) * margin
     cam.azimuth, cam.elevation = azimuth, elevation
     model.vis.global_.fovy = fovy
     model.light_castshadow[:] = 0  # small objects: shadow-map acne outweighs the cue

@@ -23,6 +23,12 @@ NEW = (
     "built_in_wardrobe",
     "upright_fridge",
     "microwave_oven",
+    "file_drawer_cabinet",
+    "two_door_sideboard",
+    "glazed_bookcase",
+    "front_loader_washer",
+    "double_door_cupboard",
+    "desk_pedestal",
 )
 FINGER = 0.02
 """Room (m) a Panda finger pad needs behind a grip (its pads are ~18 mm thick)."""
@@ -133,15 +139,19 @@ def test_layout_parameters_are_validated_with_the_field_named() -> None:
         ({"handles": "edge", "drawers": 3, "doors": 0}, "template.handles"),
         ({"handles": "edge", "doors": 2}, "template.handles"),
         ({"rail": "yes"}, "template.rail"),
+        ({"glazed": "yes"}, "template.glazed"),
+        ({"glazed": True, "doors": 0, "drawers": 2}, "template.shelves"),
     ]
     for params, match in cases:
         with pytest.raises(CatalogError, match=match):
             build_template("cab", {"kind": "cabinet", **params})
     with pytest.raises(CatalogError, match=r"template\.hinge"):
         build_template("fridge", {"kind": "hinged_fridge", "hinge": "middle"})
+    with pytest.raises(CatalogError, match=r"template\.handles"):
+        build_template("washer", {"kind": "hinged_washer", "handles": "lever"})
 
 
-@pytest.mark.parametrize("category", NEW)
+@pytest.mark.parametrize("category", ARTICULATED)
 def test_switched_off_the_category_is_one_rigid_body(tmp_path, built, category: str) -> None:
     """Without ``assets.articulated``: no links, the same collision pieces, closed, and the
     interiors stay supports of the root (nothing to open first)."""
