@@ -54,6 +54,7 @@ FIELDS = (
     "description",
     "articulation",
     "fixed",
+    "articulated_as",
 )
 REQUIRED = ("template", "dims", "materials", "mass")
 
@@ -63,7 +64,9 @@ class Category:
     """One procedural category (``articulated``: its template has moving links;
     ``articulation``: joint physics per role, over ``articulation.JOINT_DEFAULTS``;
     ``fixed``: fixed to the floor or wall in simulation, as built-in furniture is, so that
-    pulling its doors and drawers does not move it)."""
+    pulling its doors and drawers does not move it; ``articulated_as``: the articulated
+    category that stands for this rigid one where assets are built articulated, e.g. a
+    refrigerator's ``upright_fridge``)."""
 
     template: T.Template
     dims: tuple[float, float, float]
@@ -80,6 +83,7 @@ class Category:
     articulated: bool = False
     articulation: dict[str, JointPhysics] = field(default_factory=dict)
     fixed: bool = False
+    articulated_as: str = ""
 
 
 @dataclass(frozen=True)
@@ -306,6 +310,9 @@ def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> C
     fixed = entry.get("fixed", False)
     if not isinstance(fixed, bool):
         raise _fail(name, "fixed", f"expected true or false, got {fixed!r}")
+    articulated_as = entry.get("articulated_as", "")
+    if not isinstance(articulated_as, str):
+        raise _fail(name, "articulated_as", f"expected a category name, got {articulated_as!r}")
     return Category(
         template=build_template(name, entry["template"]),
         dims=(dims[0], dims[1], dims[2]),
@@ -324,6 +331,7 @@ def build_category(name: str, entry: Any, room_types: tuple[str, ...] = ()) -> C
         if "articulation" in entry or TEMPLATE_KINDS[entry["template"]["kind"]].articulated
         else {},
         fixed=fixed,
+        articulated_as=articulated_as,
     )
 
 
@@ -364,6 +372,15 @@ def load_catalog(folder: Path = DATA_DIR, rooms_file: Path = ROOMS_FILE) -> dict
             if name in out:
                 raise _fail(str(name), "name", f"defined twice (again in {path.name})")
             out[name] = build_category(name, entry, room_types)
+    moving = sorted(n for n, c in out.items() if c.articulated)
+    for name, cat in out.items():
+        if cat.articulated_as and cat.articulated_as not in moving:
+            raise _fail(
+                name,
+                "articulated_as",
+                f"{cat.articulated_as!r} is not an articulated category (articulated: "
+                f"{', '.join(moving)})",
+            )
     return out
 
 

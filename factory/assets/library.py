@@ -140,6 +140,9 @@ class AssetLibrary:
         """The asset for a free-text request (``dims`` in m overrides the text's size;
         ``finish`` adds condition kinds, e.g. the scene request's ``("dust",)``)."""
         res = resolve(text, seed=seed)
+        rigid = CATEGORIES.get(res.spec.category)
+        if self.articulated and rigid is not None and rigid.articulated_as:
+            res = self._articulated(res, rigid.articulated_as, seed)
         if finish:
             res.spec.finish = tuple(dict.fromkeys((*res.spec.finish, *finish)))
         if dims is not None:
@@ -149,6 +152,22 @@ class AssetLibrary:
         if res.approximated:
             log.info("asset request %r: %s", text, "; ".join(res.notes))
         return self.get(res.spec), res
+
+    @staticmethod
+    def _articulated(res: Resolution, name: str, seed: int) -> Resolution:
+        """The resolution of the articulated category ``name`` that stands for the rigid one
+        ``res`` found (``Category.articulated_as``): a refrigerator asked for where assets
+        are built articulated is an ``upright_fridge`` with a door that opens."""
+        moving = resolve(name.replace("_", " "), seed=seed, allow_fallback=False)
+        if moving.spec.category != name:
+            raise AssetError(
+                f"catalogue: {res.spec.category}'s articulated_as {name!r} reads as "
+                f"{moving.spec.category!r}: give {name} a synonym that names it"
+            )
+        log.info(
+            "asset request %r: %s, built articulated as %s", res.spec.text, res.spec.category, name
+        )
+        return moving
 
     def get(self, spec: AssetSpec) -> AssetMeta:
         """The asset for a resolved spec (cached)."""

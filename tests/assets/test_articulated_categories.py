@@ -163,3 +163,37 @@ def test_switched_off_the_category_is_one_rigid_body(tmp_path, built, category: 
     assert all("access" not in s and "link" not in s for s in off.supports)
     lo, hi = CATEGORIES[category].mass
     assert lo <= off.mass <= hi
+
+
+def test_rigid_categories_are_built_articulated_as_their_moving_counterparts(
+    tmp_path: Any,
+) -> None:
+    """``articulated_as``: with ``assets.articulated`` a request for a rigid category that has
+    an articulated counterpart (a refrigerator) gets that category with its joints; without it,
+    the rigid asset as before. Every counterpart is articulated and reads from its own name; a
+    counterpart that is not articulated is refused naming the field and the choices."""
+    from factory.assets.catalog import build_category, load_catalog
+
+    pairs = {n: c.articulated_as for n, c in CATEGORIES.items() if c.articulated_as}
+    assert {"refrigerator", "microwave", "kitchen_cabinet"} <= set(pairs)
+    assert all(CATEGORIES[m].articulated for m in pairs.values())
+    moving = AssetLibrary(tmp_path / "a", texture_size=64, articulated=True)
+    rigid = AssetLibrary(tmp_path / "b", texture_size=64)
+    for text, want in (("a refrigerator", "upright_fridge"), ("a microwave", "microwave_oven")):
+        meta, res = moving.from_text(text)
+        assert res.spec.category == want and meta.articulation is not None
+        assert meta.articulation.joints
+        meta, res = rigid.from_text(text)
+        assert res.spec.category != want and meta.articulation is None
+    entry = {"template": {"kind": "block"}, "dims": [1, 1, 1], "materials": ["oak", "oak"]}
+    entry |= {"mass": [1, 2], "articulated_as": 3}
+    with pytest.raises(CatalogError, match="articulated_as"):
+        build_category("crate_x", entry)
+    folder = tmp_path / "cat"
+    folder.mkdir()
+    (folder / "categories_00.yaml").write_text(
+        "crate_x: {template: {kind: block}, dims: [1, 1, 1], materials: [oak, oak], "
+        "mass: [1, 2], articulated_as: crate_x}\n"
+    )
+    with pytest.raises(CatalogError, match=r"articulated_as.*not an articulated category"):
+        load_catalog(folder)
