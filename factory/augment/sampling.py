@@ -125,7 +125,7 @@ def movers_of(state: SceneState, ids: list[str]) -> list[Mover]:
         support = state.scene.object(sup_id)
         w, ln, h = obj.dimensions.width, obj.dimensions.length, obj.dimensions.height
         surfaces = []
-        for name, z, corner, clearance in support_rects(state, support):
+        for name, z, corner, clearance in support_rects(state, support, interiors=False):
             if h > clearance - 0.01:
                 continue  # does not fit under the next board
             ux, uy = corner[1] - corner[0], corner[3] - corner[0]

@@ -388,9 +388,11 @@ def place_wall(
 
 
 def support_rects(
-    state: SceneState, obj: SceneObject
+    state: SceneState, obj: SceneObject, interiors: bool = True
 ) -> list[tuple[str, float, np.ndarray, float]]:
-    """``(name, z_world, corners (4, 2) world, clearance)`` of the object's support surfaces."""
+    """``(name, z_world, corners (4, 2) world, clearance)`` of the object's support surfaces;
+    without ``interiors``, not those behind a door or in a drawer (an articulated asset's
+    supports with ``access``: the joint to open first)."""
     meta = state.metas.get(obj.id)
     if meta is None:
         return []
@@ -399,6 +401,8 @@ def support_rects(
     rot = np.array([[c, -s], [s, c]])
     out = []
     for sup in meta.supports:
+        if not interiors and sup.get("access"):
+            continue
         x0, y0, x1, y1 = sup["rect"]
         local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
         world = local @ rot.T + [obj.position.x, obj.position.y]
@@ -414,9 +418,16 @@ def support_rects(
 
 
 def on_top_candidates(
-    state: SceneState, support: SceneObject, w: float, ln: float, h: float, n: int = 24
+    state: SceneState,
+    support: SceneObject,
+    w: float,
+    ln: float,
+    h: float,
+    n: int = 24,
+    interiors: bool = True,
 ) -> list[tuple[float, float, float, float, str]]:
-    """``(x, y, z, yaw, surface)`` candidates fully on a surface, free of other objects there.
+    """``(x, y, z, yaw, surface)`` candidates fully on a surface, free of other objects there
+    (``interiors``: surfaces behind doors and in drawers too, :func:`support_rects`).
 
     The turn is drawn first (aligned with the support, a quarter turn, or a little askew); the
     position is then drawn where that footprint fits on the surface.
@@ -425,7 +436,7 @@ def on_top_candidates(
     out = []
     rng = state.rng
     yaw0 = math.radians(support.rotation.z)
-    for name, z, corners, clearance in support_rects(state, support):
+    for name, z, corners, clearance in support_rects(state, support, interiors):
         if h > clearance - 0.01:
             continue  # does not fit under the next board
         ux, uy = corners[1] - corners[0], corners[3] - corners[0]
@@ -483,7 +494,10 @@ def place_on(
     support = state.scene.object(support_id)
     meta, res = state.asset(text, dims)
     w, ln, h = meta.extents
-    cands = on_top_candidates(state, support, w, ln, h)
+    # stored inside (behind a door, in a drawer): small things, never a task's objects
+    cands = on_top_candidates(
+        state, support, w, ln, h, interiors=task_role is None and _storable(meta.category)
+    )
     if task_role is not None:
         # task objects go near the edge of the surface facing the room, reachable for a robot
         sup_fp = state.footprint(support)
@@ -529,6 +543,15 @@ def place_on(
         candidates=len(cands),
         detail={"critic": {"summary": last.get("summary"), "suggestion": last.get("suggestion")}},
     )
+
+
+def _storable(category: str) -> bool:
+    """Whether objects of a category may be stored inside furniture (the catalogue's
+    ``manipulable`` group: a mug in the cabinet, not the microwave)."""
+    from factory.assets import CATEGORIES
+
+    cat = CATEGORIES.get(category)
+    return bool(cat is not None and cat.group == "manipulable")
 
 
 def _fixed(category: str) -> bool:
