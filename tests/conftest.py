@@ -11,6 +11,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+# under pytest-xdist each worker gets one core's worth of BLAS, OpenMP and torch threads (set
+# before numpy or torch start their pools; subprocesses inherit it)
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")
+
 import numpy as np
 import pytest
 from robot_models import require_robot_models
@@ -297,8 +303,33 @@ def cli():
     return run_cli
 
 
+# Fixtures that cost minutes, built once per test process: under pytest-xdist (`-n auto --dist
+# loadgroup`, the README's test command) every module that uses one runs in the same worker.
+SHARED_RUNS = ("small_run", "policy_run")
+
+
+def _group_by_module(items: list[pytest.Item]) -> None:
+    """Gives each module one ``xdist_group`` so that ``--dist loadgroup`` keeps a module (and
+    its module- and session-scoped fixtures) in one worker: a module's own ``xdist_group`` mark
+    wins (the Warp modules share "warp", so Warp's CPU kernels compile once), then the shared
+    run it uses (``SHARED_RUNS``), then the module itself."""
+    by_module: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        by_module.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    for module, module_items in by_module.items():
+        marked = [m.args[0] for i in module_items for m in i.iter_markers("xdist_group") if m.args]
+        used = {f for i in module_items for f in getattr(i, "fixturenames", ())}
+        shared = [name for name in SHARED_RUNS if name in used]
+        group = marked[0] if marked else shared[0] if shared else module
+        for item in module_items:
+            if not any(True for _ in item.iter_markers("xdist_group")):
+                item.add_marker(pytest.mark.xdist_group(group))
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Tests marked ``gpu`` run only where a CUDA device is present."""
+    """Groups tests for pytest-xdist; tests marked ``gpu`` run only where a CUDA device is
+    present."""
+    _group_by_module(items)
     if os.path.exists("/dev/nvidiactl"):
         return
     skip = pytest.mark.skip(reason="needs a CUDA device (run on the GPU machine)")

@@ -30,6 +30,9 @@ from factory.demos.record.appearance import (
 )
 from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner, setup_scene
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 CAMERAS = ("left", "right", "wrist")
 
 STRONG = AppearanceConfig(color_jitter=0.5, texture_swap=1.0, light_intensity=0.6, light_color=0.3)

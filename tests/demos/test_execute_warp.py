@@ -31,6 +31,9 @@ from factory.demos.stage import check_config, resolve_executor
 from factory.errors import ConfigError
 from factory.tasks.pick_place.plan import EpisodePlan, EpisodePlanner, setup_scene
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory: pytest.TempPathFactory, make_kitchen):

@@ -37,6 +37,9 @@ from factory.tasks.mobile_pick_place import (
     render_frames,
 )
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 HERE = Path(__file__).resolve().parent
 DEVICES = ["cpu", pytest.param("cuda:0", marks=pytest.mark.gpu)]
 

@@ -30,6 +30,9 @@ from factory.policy.eval import Job, run_batch, scripted_actor
 from factory.policy.obs_spec import ObsSpec
 from factory.store import RunStore, Shard
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 SPEC = ObsSpec(cameras=("left", "wrist"), width=32, height=32)
 
 

@@ -12,6 +12,9 @@ import pytest
 from factory.errors import ConfigError
 from factory.sim.kernel_cache import cached_modules, configure_kernel_cache
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 REPO = Path(__file__).resolve().parents[2]
 
 

@@ -10,6 +10,9 @@ wp = pytest.importorskip("warp")
 from factory.sim.backend import init_warp
 from factory.sim.kernel_preload import dry_launches, preload
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 init_warp()
 
 

@@ -30,6 +30,9 @@ from factory.sim.stability import (
     rotation_angle_deg,
 )
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 
 def _scene(*objects: SceneObject) -> Scene:
     room = Room(id="lab", room_type="lab", position=Vec3(0, 0, 0), dimensions=Size3(3, 3, 2.5))

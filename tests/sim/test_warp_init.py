@@ -5,6 +5,9 @@ No ``from __future__ import annotations`` here: Warp reads the kernel's annotati
 
 import pytest
 
+# one worker compiles Warp's CPU kernels for every Warp module (tests/conftest.py)
+pytestmark = pytest.mark.xdist_group("warp")
+
 wp = pytest.importorskip("warp")
 
 
