@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# The GPU factory's checks on one GPU machine, after scripts/gpu_install.sh, in order of worth
+# (a session's device time may end before the last):
+#
+#   1. scripts/bench_demos.py at its GPU defaults (3 generated kitchens x 1,536 episodes) with an
+#      empty kernel cache: the bare-machine rate, time to the first stored episode;
+#   2. pytest -m gpu (the cache of step 1 is kept: kernels it compiled are not compiled again);
+#   3. scripts/experiments/gpu_soak.py on the kitchens of step 1 (kill -9 after the first GPU
+#      call, read back, re-run).
+#
+# Use (repository root; run it in the background and watch LOG):
+#   source .gpu/env.sh; bash scripts/experiments/gpu_factory_checks.sh DIR [STEPS]
+# DIR gets bench.json, soak.json, pytest.log and a log per step; STEPS is a subset of
+# "bench gpu soak" (default all three). Environment: CACHE (kernel cache, default
+# /tmp/warpcache, emptied before step 1), SOAK_SCENES (default 3), SOAK_EPISODES (default 1536).
+set -u
+DIR=${1:?a folder for the results}
+STEPS=${2:-bench gpu soak}
+CACHE=${CACHE:-/tmp/warpcache}
+mkdir -p "$DIR"
+card=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
+echo "gpu_factory_checks: $card; steps: $STEPS; kernel cache $CACHE" | tee "$DIR/steps.log"
+stamp() { echo "$(date -u +%H:%M:%S) $*" | tee -a "$DIR/steps.log"; }
+for step in $STEPS; do
+  case $step in
+    bench)
+      rm -rf "$CACHE"
+      stamp "bench: start (empty kernel cache)"
+      python3 scripts/bench_demos.py --executor warp --kernel-cache "$CACHE" \
+        --out "$DIR/bench.json" >"$DIR/bench.log" 2>&1
+      stamp "bench: rc=$?" ;;
+    gpu)
+      stamp "pytest -m gpu: start"
+      WARP_CACHE_PATH=$CACHE python3 -m pytest -m gpu -q -p no:cacheprovider -ra \
+        --durations=15 >"$DIR/pytest.log" 2>&1
+      stamp "pytest -m gpu: rc=$? $(tail -1 "$DIR/pytest.log")" ;;
+    soak)
+      mkdir -p runs/soak
+      for part in scenes assets; do
+        [ -d runs/bench_demos/$part ] && [ ! -d runs/soak/$part ] && cp -r runs/bench_demos/$part runs/soak/
+      done
+      stamp "soak: start"
+      python3 scripts/experiments/gpu_soak.py --scenes "${SOAK_SCENES:-3}" \
+        --episodes "${SOAK_EPISODES:-1536}" --kill-after-calls 1 --kernel-cache "$CACHE" \
+        --out "$DIR/soak.json" >"$DIR/soak.log" 2>&1
+      stamp "soak: rc=$?" ;;
+    *) stamp "unknown step '$step' (bench, gpu, soak)" ;;
+  esac
+done
+stamp "done"
