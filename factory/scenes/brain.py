@@ -58,6 +58,7 @@ def heuristic_agent(
     brain.small_objects()
     brain.fill()
     brain.keep_route()
+    brain.stored_objects()  # inside furniture: the route is not theirs to change
     return {"task": None if spec is None else spec.__dict__}
 
 

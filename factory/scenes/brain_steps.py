@@ -74,6 +74,8 @@ class BrainState:
         budget: the most objects the scene gets.
         keyed: ``"<room id>:<key>" -> object ids`` placed under a rule key (supports).
         small: ``(item, count, "<room id>:<support key>")`` still to place on surfaces.
+        stored: ``(item, "<room id>:<key>")`` still to store inside (``in:<key>``; counted
+            when placed, last, so that the stream's earlier draws stay as they were).
         n_objects: objects in the scene after the last placement.
         room_type: the last furnished room's type (its fillers close the scene).
     """
@@ -83,6 +85,7 @@ class BrainState:
     budget: int
     keyed: dict[str, list[str]] = field(default_factory=dict)
     small: list[tuple[Item, int, str]] = field(default_factory=list)
+    stored: list[tuple[Item, str]] = field(default_factory=list)
     n_objects: int = 0
     room_type: str | None = None
 
@@ -92,7 +95,7 @@ class Brain:
 
     :func:`~.brain.heuristic_agent` runs them in order on one scene; :mod:`.per_room` runs
     them room by room (:meth:`furnish` and :meth:`drop_unstable`, then :meth:`task_objects` on the
-    whole home, then :meth:`small_objects` and :meth:`fill`).
+    whole home, then :meth:`small_objects`, :meth:`fill` and :meth:`stored_objects`).
 
     Args:
         call: ``call(tool_name, **arguments) -> result dict``.
@@ -120,6 +123,9 @@ class Brain:
             rt = ROOM_TYPES[room["room_type"]]
             st.room_type = room["room_type"]
             for item in rt.items:
+                if item.rule.startswith("in:"):
+                    st.stored.append((item, f"{room['id']}:{item.rule.split(':', 1)[1]}"))
+                    continue
                 n = _count(item, st.rng)
                 key = f"{room['id']}:{item.key}" if item.key else ""
                 if item.rule.startswith("on:"):
@@ -370,15 +376,35 @@ class Brain:
         st = self.state
         for item, n, ref in st.small:
             supports = st.keyed.get(ref, [])
+            key = f"{ref.split(':', 1)[0]}:{item.key}" if item.key else ""
             for k in range(n):
                 if not supports or st.n_objects >= st.budget:
                     break
-                self.place(
+                res = self.place(
                     text=self.styled(item.text),
                     placement="on_top",
                     target=supports[k % len(supports)],
                 )
+                if res.get("ok") and key:  # e.g. a microwave on the counter, stocked later
+                    st.keyed.setdefault(key, []).extend(res["placed"])
         st.small = []
+
+    def stored_objects(self) -> None:
+        """Step 6: things stored inside articulated furniture (``in:<key>``: behind a door, in
+        a drawer), each judged by the physics critic; where ``<key>`` has no interiors (a rigid
+        asset), nothing is placed."""
+        st = self.state
+        for item, ref in st.stored:
+            supports = st.keyed.get(ref, [])
+            for k in range(_count(item, st.rng) if supports else 0):
+                if st.n_objects >= st.budget:
+                    break
+                self.place(
+                    text=self.styled(item.text),
+                    placement="inside",
+                    target=supports[k % len(supports)],
+                )
+        st.stored = []
 
     def fill(self) -> None:
         """Step 5: the visual critic's suggestions (companions, sparse areas), then fillers

@@ -42,7 +42,7 @@ def build_server(session: Any) -> Any:
     @server.tool()
     def place_objects(
         text: str,
-        placement: Literal["floor", "wall", "on_top"] | None = None,
+        placement: Literal["floor", "wall", "on_top", "inside"] | None = None,
         rule: Literal[
             "wall", "corner", "free", "center", "near", "around", "facing", "away"
         ] = "wall",
@@ -53,7 +53,8 @@ def build_server(session: Any) -> Any:
         room_id: str | None = None,
     ) -> str:
         """Place objects described by text: on the floor by a rule, mounted on a wall at a
-        height (m), or on top of / inside the target object; room_id picks the room. Without
+        height (m), on top of / inside the target object, or stored inside an articulated target
+        (placement=inside: behind its door, in its drawer); room_id picks the room. Without
         placement, the text may say where: "a lamp on the nightstand", "a tv stand facing the
         sofa", "a plant in the corner", "a painting on the wall"."""
         return json.dumps(

@@ -108,6 +108,7 @@ def run_phase(phase: str, work: RoomWork, settings: RoomSettings) -> RoomWork:
     else:
         brain.small_objects()
         brain.fill()
+        brain.stored_objects()
     return RoomWork(
         work.index,
         state.scene,

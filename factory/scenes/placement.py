@@ -388,11 +388,11 @@ def place_wall(
 
 
 def support_rects(
-    state: SceneState, obj: SceneObject, interiors: bool = True
+    state: SceneState, obj: SceneObject, interiors: bool = True, only_interiors: bool = False
 ) -> list[tuple[str, float, np.ndarray, float]]:
     """``(name, z_world, corners (4, 2) world, clearance)`` of the object's support surfaces;
     without ``interiors``, not those behind a door or in a drawer (an articulated asset's
-    supports with ``access``: the joint to open first)."""
+    supports with ``access``: the joint to open first); with ``only_interiors``, only those."""
     meta = state.metas.get(obj.id)
     if meta is None:
         return []
@@ -402,6 +402,8 @@ def support_rects(
     out = []
     for sup in meta.supports:
         if not interiors and sup.get("access"):
+            continue
+        if only_interiors and not sup.get("access"):
             continue
         x0, y0, x1, y1 = sup["rect"]
         local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
@@ -425,9 +427,11 @@ def on_top_candidates(
     h: float,
     n: int = 24,
     interiors: bool = True,
+    only_interiors: bool = False,
 ) -> list[tuple[float, float, float, float, str]]:
     """``(x, y, z, yaw, surface)`` candidates fully on a surface, free of other objects there
-    (``interiors``: surfaces behind doors and in drawers too, :func:`support_rects`).
+    (``interiors``: surfaces behind doors and in drawers too; ``only_interiors``: only those;
+    :func:`support_rects`).
 
     The turn is drawn first (aligned with the support, a quarter turn, or a little askew); the
     position is then drawn where that footprint fits on the surface.
@@ -436,7 +440,7 @@ def on_top_candidates(
     out = []
     rng = state.rng
     yaw0 = math.radians(support.rotation.z)
-    for name, z, corners, clearance in support_rects(state, support, interiors):
+    for name, z, corners, clearance in support_rects(state, support, interiors, only_interiors):
         if h > clearance - 0.01:
             continue  # does not fit under the next board
         ux, uy = corners[1] - corners[0], corners[3] - corners[0]
@@ -488,22 +492,35 @@ def place_on(
     batch: int = 4,
     max_batches: int = 3,
     dims: Any = None,
+    inside: bool = False,
 ) -> PlaceResult:
     """Places an object on a support surface of ``support_id`` (any level: tops, boards,
-    seats, or inside a vessel), checking candidates with the physics critic in batches."""
+    seats, or inside a vessel), checking candidates with the physics critic in batches;
+    ``inside``: only on its interiors (behind a door, in a drawer), never a task's object."""
     support = state.scene.object(support_id)
     meta, res = state.asset(text, dims)
     w, ln, h = meta.extents
+    if inside and task_role is not None:
+        raise ValueError(
+            f"a task's {task_role!r} object is not stored inside {support_id}: place it on_top"
+        )
     # stored inside (behind a door, in a drawer): small things, never a task's objects
     cands = on_top_candidates(
-        state, support, w, ln, h, interiors=task_role is None and _storable(meta.category)
+        state,
+        support,
+        w,
+        ln,
+        h,
+        interiors=inside or (task_role is None and _storable(meta.category)),
+        only_interiors=inside,
     )
     if task_role is not None:
         # task objects go near the edge of the surface facing the room, reachable for a robot
         sup_fp = state.footprint(support)
         cands.sort(key=lambda c: _edge_distance(sup_fp, c[0], c[1]))
     if not cands:
-        return PlaceResult(False, None, f"no free surface on {support_id} for {text!r}")
+        where = "free surface inside" if inside else "free surface on"
+        return PlaceResult(False, None, f"no {where} {support_id} for {text!r}")
     room = state.room(support.room_id)
     obj = state.add(
         meta,

@@ -8,7 +8,10 @@ Placement rules (:data:`RULES`, and the keyed ones of :data:`KEYED_RULES`):
 * ``near:<key>``: on the floor next to the object placed as ``<key>``, back to the same wall;
 * ``around:<key>``: around a table, facing it (chairs);
 * ``mount``: on a wall at ``height`` (bottom, m), static;
-* ``on:<key>``: on a support surface of ``<key>`` (tops, shelf boards, seats).
+* ``on:<key>``: on a support surface of ``<key>`` (tops, shelf boards, seats);
+* ``in:<key>``: stored inside ``<key>``, on a surface behind its door or in its drawer (an
+  articulated asset's interiors; nothing is placed where ``<key>`` has none). Placed last (after
+  the fillers and the route check), so that a room type's other draws do not change.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from dataclasses import dataclass, field
 
 RULES: tuple[str, ...] = ("wall", "corner", "free", "center", "mount")
 """Placement rules that name no other item."""
-KEYED_RULES: tuple[str, ...] = ("near", "around", "on")
+KEYED_RULES: tuple[str, ...] = ("near", "around", "on", "in")
 """Placement rules written ``<rule>:<key>``, ``<key>`` being another item's key."""
 DEFAULT_FILLERS: tuple[str, ...] = ("potted plant", "floor lamp", "trash can")
 """Small objects that fill free surfaces when a room type names none."""

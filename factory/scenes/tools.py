@@ -162,7 +162,8 @@ class ToolSession:
         ``placement`` is ``floor`` (``rule``: wall, corner, free, center, near, around,
         facing, away; ``target`` for the last four), ``wall`` (mounted at ``height`` m) or
         ``on_top`` (on a support surface of ``target``: tops, shelf boards, seats, inside
-        vessels). ``room_id`` picks the room (default: the first) for floor and wall
+        vessels) or ``inside`` (stored behind a door or in a drawer of ``target``, an
+        articulated object). ``room_id`` picks the room (default: the first) for floor and wall
         placement. With no ``placement``, the text may carry its constraint: "a lamp on the
         nightstand", "a tv stand facing the sofa", "a plant in the corner", "a painting on
         the wall".
@@ -176,12 +177,12 @@ class ToolSession:
                 raise ValueError(f"no {c.target_text!r} in the scene to place {c.text!r} by")
             text, placement = c.text, c.placement
             rule, target = (c.rule, c.target) if c.placement != "on_top" else (rule, c.target)
-        if placement not in ("floor", "wall", "on_top"):
-            raise ValueError(f"placement {placement!r} must be floor, wall or on_top")
+        if placement not in ("floor", "wall", "on_top", "inside"):
+            raise ValueError(f"placement {placement!r} must be floor, wall, on_top or inside")
         if not 1 <= count <= 20:
             raise ValueError("count must be 1..20")
-        if placement == "on_top" and not target:
-            raise ValueError("on_top placement needs target=<object id>")
+        if placement in ("on_top", "inside") and not target:
+            raise ValueError(f"{placement} placement needs target=<object id>")
         if target is not None:
             state.scene.object(target)  # KeyError -> clear error
         if room_id is not None:
@@ -196,7 +197,14 @@ class ToolSession:
             elif placement == "wall":
                 res = place_wall(state, text, height, room_id=room_id)
             else:
-                res = place_on(state, text, str(target), self._critic(), task_role=task_role)
+                res = place_on(
+                    state,
+                    text,
+                    str(target),
+                    self._critic(),
+                    task_role=task_role,
+                    inside=placement == "inside",
+                )
             (placed if res.ok else failures).append(res.as_dict())
         return {
             "ok": bool(placed),

@@ -86,6 +86,9 @@ def test_articulated_kitchen_has_moving_cabinets_fridge_and_microwave(tmp_path: 
     assert inside, "nothing stored inside the articulated furniture"
     assert all(o.task_role is None for o in inside)
     assert all(CATEGORIES[o.category].group == "manipulable" for o in inside)
+    # the kitchen program's in:fridge and in:microwave items
+    holders = {scene.object(str(o.placement.support_id)).category for o in inside}
+    assert {"upright_fridge", "microwave_oven"} <= holders, holders
     model = compile_scene(scene, tmp_path / "assets").model
     links = [j for j in range(model.njnt) if model.jnt_group[j] == LINK_JOINT_GROUP]
     assert len(links) >= 3, len(links)
