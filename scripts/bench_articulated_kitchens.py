@@ -32,25 +32,10 @@ def _cli(*args: str) -> None:
 
 
 def _stored_inside(scene, assets: Path) -> Counter[str]:
-    """Holder category -> things stored inside it (below its top support surface)."""
-    from factory.assets import CATEGORIES
-    from factory.assets.cache import cached
+    """Holder category -> things stored inside it."""
+    from factory.scenes.interiors import stored_inside
 
-    held: Counter[str] = Counter()
-    for o in scene.objects:
-        if o.placement.kind != "on_top" or o.placement.support_id is None:
-            continue
-        sup = scene.object(o.placement.support_id)
-        spec = CATEGORIES.get(sup.category)
-        if spec is None or not spec.articulated or sup.asset is None:
-            continue
-        meta = cached(assets, sup.asset.asset_id)
-        if meta is None:
-            continue
-        top = max(float(x["z"]) for x in meta.supports) * sup.asset.scale.z
-        if o.position.z - sup.position.z < top - 1e-3:
-            held[sup.category] += 1
-    return held
+    return Counter(holder.category for _, holder in stored_inside(scene, assets))
 
 
 def main() -> None:

@@ -57,7 +57,7 @@ def test_articulated_kitchen_has_moving_cabinets_fridge_and_microwave(tmp_path: 
     their hinge and slide joints (MuJoCo joint group 3), and the room is physical under the
     strict protocol, links included (closed doors stay closed)."""
     from factory.assets import CATEGORIES
-    from factory.assets.cache import cached
+    from factory.scenes.interiors import stored_inside
     from factory.sim.compile import LINK_JOINT_GROUP, compile_scene
 
     lib = AssetLibrary(tmp_path / "assets", articulated=True)
@@ -68,26 +68,13 @@ def test_articulated_kitchen_has_moving_cabinets_fridge_and_microwave(tmp_path: 
     assert {"base_cabinet", "upright_fridge", "microwave_oven"} <= cats, cats
     # small things are stored inside (behind doors, in drawers); never a task's objects or
     # an appliance
-    inside = []
-    for o in scene.objects:
-        if o.placement.kind != "on_top" or o.placement.support_id is None:
-            continue
-        sup = scene.object(o.placement.support_id)
-        if sup.category not in CATEGORIES:
-            continue
-        if not CATEGORIES[sup.category].articulated:
-            continue
-        assert sup.asset is not None
-        meta = cached(tmp_path / "assets", sup.asset.asset_id)
-        assert meta is not None
-        top = max(float(x["z"]) for x in meta.supports) * sup.asset.scale.z
-        if o.position.z - sup.position.z < top - 1e-3:  # below its top: inside
-            inside.append(o)
+    pairs = stored_inside(scene, tmp_path / "assets")  # below an articulated support's top
+    inside = [o for o, _ in pairs]
     assert inside, "nothing stored inside the articulated furniture"
     assert all(o.task_role is None for o in inside)
     assert all(CATEGORIES[o.category].group == "manipulable" for o in inside)
     # the kitchen program's in:fridge and in:microwave items
-    holders = {scene.object(str(o.placement.support_id)).category for o in inside}
+    holders = {holder.category for _, holder in pairs}
     assert {"upright_fridge", "microwave_oven"} <= holders, holders
     model = compile_scene(scene, tmp_path / "assets").model
     links = [j for j in range(model.njnt) if model.jnt_group[j] == LINK_JOINT_GROUP]
