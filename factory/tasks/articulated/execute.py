@@ -125,14 +125,16 @@ def check_outcome(
     details = {
         "joint": float(q_end),
         "fraction": float(frac),
+        "opened": setup.opened(q_end),
         "range": float(setup.hi),
+        "span": float(setup.span),
         "worst_penetration": float(watch.worst),
         "slip": float(watch.slip),
         "released": float(released),
     }
     if watch.worst > COLLISION_DEPTH:
         return Outcome(False, "collision", details)
-    done = frac >= OPEN_AT if setup.direction == "open" else frac <= CLOSED_AT
+    done = setup.opened(q_end) >= OPEN_AT if setup.direction == "open" else frac <= CLOSED_AT
     if not done:
         if watch.slip > SLIP:
             return Outcome(False, "slip", details)

@@ -48,7 +48,6 @@ from factory.robots.ik import IKSolver
 from factory.robots.panda import (
     GRIP_CLOSED,
     GRIP_OPEN,
-    HOME_QPOS,
     CameraRig,
     RobotIndex,
     RobotPlacement,
@@ -73,17 +72,28 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 OPEN_AT = 0.90
-"""``open`` succeeds when the joint ends at this share of its range or more."""
+"""``open`` succeeds when the joint ends at this share of its span
+(:attr:`ArticulatedSetup.span`: a slide's range, a hinge's up to :data:`HINGE_SPAN`) or
+more."""
 CLOSED_AT = 0.05
-"""``close`` succeeds when the joint ends at this share of its range or less."""
+"""``close`` succeeds when the joint ends at this share of its full range or less."""
+HINGE_SPAN = math.radians(90.0)
+"""The span of a hinged part (rad): its range, but at most 90 deg. Holding the handle of a
+door or flap rigidly, the Panda follows it to about 80-95 deg before its joint limits end the
+arc (measured on the generated kitchens' fridge and cabinet doors, whose range is 110 deg), so
+``open`` counts a hinged part open from 0.9 x 90 deg = 81 deg."""
 OPEN_GOAL = (0.93, 0.98)
-"""Share of the range ``open`` pulls the part to (drawn per episode)."""
+"""Share of the span ``open`` pulls the part to (drawn per episode)."""
 CLOSE_START = (0.6, 1.0)
-"""Share of the range a ``close`` episode starts at (drawn per episode)."""
-MAX_JUMP = 0.35
+"""Share of the span a ``close`` episode starts at (drawn per episode)."""
+MAX_JUMP = 0.5
 """Largest joint change (rad) between two waypoints of the constrained motion."""
 MAX_PARTS = 6
 """Parts :func:`setup_scene` tries before it gives up on a scene."""
+READY_QPOS = np.array([0.0, -1.2, 0.0, -2.9, 0.0, 1.75, 0.785])
+"""The arm's start (and the reach's start) of every episode (rad): the Panda's home posture
+tucked in (the tool 0.23 m ahead of the base and 0.36 m above it, pointing down) so that a
+part standing open in front of the robot does not touch the hand."""
 PAD_DEPTH = 0.004
 """The finger pads' centre lies this far (m) behind the tool site along the approach: the site
 goes this far past the handle's centre so that the pads close on it."""
@@ -152,8 +162,15 @@ class ArticulatedSetup:
 
     @property
     def span(self) -> float:
-        """The joint's opening range (rad or m): ``hi``."""
+        """How far the task opens the part (rad or m): a slide's whole range ``hi``; a hinge's
+        range up to :data:`HINGE_SPAN` (the arm cannot follow a handle further round)."""
+        if self.model.jnt_type[self.joint] == mujoco.mjtJoint.mjJNT_HINGE:
+            return min(self.hi, HINGE_SPAN)
         return self.hi
+
+    def opened(self, q: float) -> float:
+        """Share of :attr:`span` at joint position ``q`` (what the success rule reads)."""
+        return float(q) / self.span
 
     def fraction(self, q: float) -> float:
         """Share of the range at joint position ``q`` (0 closed, 1 fully open)."""
@@ -219,6 +236,7 @@ def initial_state(setup: ArticulatedSetup, q_joint: float) -> np.ndarray:
     from factory.tasks.pick_place.objects import initial_state as robot_home
 
     q = robot_home(setup.model, setup.robot)
+    q[setup.robot.qpos] = READY_QPOS
     q[setup.qadr] = q_joint
     return q
 
@@ -342,30 +360,38 @@ def time_along(path: np.ndarray, limits: Limits, dt: float) -> tuple[np.ndarray,
     return q, slope[seg] * sv[:, None]
 
 
-def _candidates(handle_path: np.ndarray, normal: np.ndarray, z: float) -> list[RobotPlacement]:
-    """Base spots in front of the part, facing the middle of the handle's path (the mean of its
-    positions ``handle_path`` (k, 3), world frame): 0.5-0.8 m from it, up to 50 deg off the
-    handle's closed ``normal`` (world frame), both sides; nearest to 0.65 m straight ahead
-    first."""
+BASE_BELOW = 0.1
+"""The robot's base (its pedestal's top) stands this far (m) below the closed handle: the
+Panda reaches a handle ahead with its tool level only up to about 0.1 m above its base."""
+REACH = (0.3, 0.78)
+"""Horizontal distances (m) from the base at which the handle may be along its whole path."""
+
+
+def _candidates(
+    handle_path: np.ndarray, normal: np.ndarray, z: float, limit: int = 40
+) -> list[RobotPlacement]:
+    """Base spots in front of the part, facing the middle of the handle's path (its positions
+    ``handle_path`` (k, 3), world frame): a 5 cm grid of points at least 0.2 m in front of the
+    closed handle (along its ``normal``, world frame) from which the whole path lies within
+    :data:`REACH` horizontally, the nearest to the farthest point of the path first (at most
+    ``limit``)."""
     c = handle_path.mean(axis=0)
     n2 = np.array([normal[0], normal[1]])
     n2 /= max(float(np.linalg.norm(n2)), 1e-9)
+    start = handle_path[0, :2]
     out: list[tuple[float, RobotPlacement]] = []
-    for dist in (0.6, 0.7, 0.5, 0.8):
-        for deg in (0, 20, -20, 35, -35, 50, -50):
-            a = math.radians(deg)
-            d = np.array(
-                [
-                    n2[0] * math.cos(a) - n2[1] * math.sin(a),
-                    n2[0] * math.sin(a) + n2[1] * math.cos(a),
-                ]
-            )
-            xy = c[:2] + d * dist
-            yaw = math.atan2(-d[1], -d[0])
-            cost = abs(deg) / 50.0 + abs(dist - 0.65) * 2
-            out.append((cost, RobotPlacement(float(xy[0]), float(xy[1]), z, yaw)))
+    for dx in np.arange(-1.0, 1.0001, 0.05):
+        for dy in np.arange(-1.0, 1.0001, 0.05):
+            xy = c[:2] + np.array([dx, dy])
+            if float(np.dot(xy - start, n2)) < 0.2:
+                continue
+            d = np.linalg.norm(handle_path[:, :2] - xy, axis=1)
+            if d.min() < REACH[0] or d.max() > REACH[1]:
+                continue
+            yaw = math.atan2(c[1] - xy[1], c[0] - xy[0])
+            out.append((float(d.max()), RobotPlacement(float(xy[0]), float(xy[1]), z, yaw)))
     out.sort(key=lambda t: t[0])
-    return [p for _, p in out]
+    return [p for _, p in out[:limit]]
 
 
 @dataclass
@@ -420,7 +446,7 @@ def grasp_and_follow(
     tool = kin.link(qpos, q_start) @ grasp
     pre = tool.copy()
     pre[:3, 3] -= tool[:3, 2] * pregrasp
-    q_pre = solve(pre, [HOME_QPOS])
+    q_pre = solve(pre, [READY_QPOS])
     if q_pre is None:
         return "no_grasp"
     q_grasp = solve(tool, [q_pre])
@@ -429,7 +455,7 @@ def grasp_and_follow(
     values = joint_values(setup, q_start, q_goal, motion)
     path, k = follow(setup, kin, ik, checker, qpos, grasp, values, q_grasp)
     if k < len(values):
-        reached = setup.fraction(values[k - 1]) if k else setup.fraction(q_start)
+        reached = setup.opened(values[k - 1]) if k else setup.opened(q_start)
         if not (setup.direction == "open" and reached >= OPEN_AT + 0.02):
             return "ik_failed"
         values = values[:k]
@@ -469,12 +495,25 @@ def _sweeps_base(
         for v in values:
             state[setup.qadr] = v
             checker.set_scene(state)
-            for a, b, _ in checker.collisions(HOME_QPOS):
+            for a, b, _ in checker.collisions(READY_QPOS):
                 if (a in link_names and b in BASE_BODIES) or (b in link_names and a in BASE_BODIES):
                     return True
     finally:
         checker.set_scene(qpos)
     return False
+
+
+def _home_free(setup: ArticulatedSetup, checker: CollisionChecker, starts: list[float]) -> bool:
+    """Whether the robot at home collides with nothing with the part at each of the episodes'
+    possible start positions ``starts`` (rad or m)."""
+    try:
+        for v in starts:
+            checker.set_scene(initial_state(setup, float(v)))
+            if not checker.valid(READY_QPOS):
+                return False
+    finally:
+        checker.set_scene(initial_state(setup, float(starts[-1])))
+    return True
 
 
 def setup_scene(
@@ -489,7 +528,7 @@ def setup_scene(
 
     For each part of :func:`~factory.tasks.articulated.parts.choose_parts` (at most
     ``max_parts``), base spots in front of its handle (:func:`_candidates`; the base's height
-    is the closed handle's height - 0.3 m, at least 0) are tried in order; a spot is taken when
+    is the closed handle's height - :data:`BASE_BELOW`, at least 0) are tried in order; a spot is taken when
     the robot at home collides with nothing while the part goes from its hardest start
     (``close``: fully open) to its goal, and the whole motion (pre-grasp, grasp, constrained
     motion, retreat: :func:`grasp_and_follow`) plans for one of the handle's grasps. The
@@ -527,14 +566,15 @@ def setup_scene(
             hi,
         )
         kin = _Kinematics(setup)
-        start = (0.0 if direction == "open" else CLOSE_START[1]) * hi
-        goal = (OPEN_GOAL[1] if direction == "open" else 0.0) * hi
+        span = setup.span
+        start = (0.0 if direction == "open" else CLOSE_START[1]) * span
+        goal = (OPEN_GOAL[1] if direction == "open" else 0.0) * span
         values = joint_values(setup, start, goal, motion)
         center, _, normal = part.handle_in_link()
         q0 = initial_state(setup, start)
         handle = np.array([(kin.link(q0, float(v)) @ np.append(center, 1.0))[:3] for v in values])
         closed = kin.link(q0, 0.0)
-        z = max(0.0, float((closed @ np.append(center, 1.0))[2]) - 0.3)
+        z = max(0.0, float((closed @ np.append(center, 1.0))[2]) - BASE_BELOW)
         spots = _candidates(handle, closed[:3, :3] @ normal, z)
         # the pedestal's height is the spot's: compose once at that height, then move the base
         model = compose(scene, assets_root, spots[0], rig, frozen)
@@ -542,12 +582,13 @@ def setup_scene(
         kin = _Kinematics(setup)
         base_body = model.body("panda/robot0_base").id
         link_names = {model.body(b).name for b in setup.link_bodies()}
+        starts = [0.0] if direction == "open" else list(np.linspace(*CLOSE_START, 9) * span)
         found = None
         for spot in spots:
             move_robot(model, spot, base_body)
             setup.placement = spot
             checker = CollisionChecker(model, setup.robot, q0)
-            if not checker.valid(HOME_QPOS):
+            if not _home_free(setup, checker, starts):
                 why["robot_in_the_way"] += 1
                 continue
             if _sweeps_base(setup, checker, q0, values, link_names):
@@ -652,7 +693,7 @@ class ArticulatedPlanner:
 
     def start_and_goal(self, rng: np.random.Generator) -> tuple[float, float]:
         """The episode's start and goal joint positions (rad or m), drawn with ``rng``."""
-        hi = self.setup.hi
+        hi = self.setup.span
         if self.setup.direction == "open":
             return 0.0, float(rng.uniform(*OPEN_GOAL)) * hi
         return float(rng.uniform(*CLOSE_START)) * hi, 0.0
@@ -669,7 +710,7 @@ class ArticulatedPlanner:
         ck.set_scene(qpos)
         ck.attach(None)
         ck.ignore_bodies([])
-        if not ck.valid(HOME_QPOS):
+        if not ck.valid(READY_QPOS):
             return PlanFailure("collision", "robot at home collides", time.perf_counter() - t0)
         counts: Counter[str] = Counter()
         pregrasp = float(rng.uniform(0.8, 1.2)) * mo.pregrasp
@@ -682,7 +723,7 @@ class ArticulatedPlanner:
                 counts[res] += 1
                 continue
             seconds: dict[str, float] = {}
-            reach = plan(ck, HOME_QPOS, res.q_pre, self.planner_cfg, int(rng.integers(2**31 - 1)))
+            reach = plan(ck, READY_QPOS, res.q_pre, self.planner_cfg, int(rng.integers(2**31 - 1)))
             seconds["reach"] = reach.seconds
             if reach.path is None:
                 counts["plan_failed"] += 1
@@ -731,7 +772,7 @@ class ArticulatedPlanner:
             grip.extend([opening] * (len(timed.q) - 1))
 
         q_pre, q_grasp, path, q_back = res.q_pre, res.q_grasp, res.path, res.q_back
-        hold("settle", HOME_QPOS, mo.settle, GRIP_OPEN)
+        hold("settle", READY_QPOS, mo.settle, GRIP_OPEN)
         move("reach", reach, self.fast, GRIP_OPEN)
         move("approach", np.stack([q_pre, q_grasp]), self.slow, GRIP_OPEN)
         hold("grasp", q_grasp, mo.close, GRIP_CLOSED)
