@@ -528,9 +528,10 @@ def setup_scene(
 
     For each part of :func:`~factory.tasks.articulated.parts.choose_parts` (at most
     ``max_parts``), base spots in front of its handle (:func:`_candidates`; the base's height
-    is the closed handle's height - :data:`BASE_BELOW`, at least 0) are tried in order; a spot is taken when
-    the robot at home collides with nothing while the part goes from its hardest start
-    (``close``: fully open) to its goal, and the whole motion (pre-grasp, grasp, constrained
+    is the closed handle's height - :data:`BASE_BELOW`, at least 0) are tried in order; a spot
+    is taken when the robot at :data:`READY_QPOS` collides with nothing at the episodes'
+    possible starts, the moving link never hits its base (:func:`_sweeps_base`), and the whole
+    motion from the hardest start (``close``: fully open) to the goal (pre-grasp, grasp, constrained
     motion, retreat: :func:`grasp_and_follow`) plans for one of the handle's grasps. The
     articulated object is compiled static (its links move on their joints); movable objects
     farther than ``freeze_beyond`` (m) are static too.
