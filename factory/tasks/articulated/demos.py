@@ -199,9 +199,18 @@ class ArticulatedScene(SimulatingScene):
     def payload(
         self, slot: int, seed: int, plan: Any, rec: Any, rec_cfg: Any, recorder: str = "cpu"
     ) -> tuple[EpisodeInfo, dict[str, np.ndarray]]:
-        """The episode with its part, base spot and the part's joint (``env_state``)."""
+        """The episode with its part, base spot, the calibration of its cameras fixed in the
+        scene (``camera_poses``, ``camera_fovy``) and the part's joint (``env_state``)."""
+        from factory.robots.panda import SCENE_CAMERAS
+        from factory.tasks.pick_place.plan import camera_calibration
+
         setup = self.setup
         p = setup.placement
+        poses: dict[str, list[float]] = {}
+        fovy: dict[str, float] = {}
+        if rec_cfg.render:
+            cams = tuple(c for c in rec_cfg.cameras if c in SCENE_CAMERAS)
+            poses, fovy = camera_calibration(setup, cams)
         meta = episode_meta(
             setup,
             slot,
@@ -217,6 +226,8 @@ class ArticulatedScene(SimulatingScene):
             support_id=setup.part.handle.name,
             robot=RobotBase(p.x, p.y, p.z, p.yaw),
             frozen=list(setup.frozen),
+            camera_poses=poses,
+            camera_fovy=fovy,
         )
         return meta, episode_arrays(rec, env_state=rec.env_state.astype(np.float32))
 
