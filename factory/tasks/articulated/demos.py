@@ -202,7 +202,7 @@ class ArticulatedScene(SimulatingScene):
         """The episode with its part, base spot, the calibration of its cameras fixed in the
         scene (``camera_poses``, ``camera_fovy``) and the part's joint (``env_state``)."""
         from factory.robots.panda import SCENE_CAMERAS
-        from factory.tasks.pick_place.plan import camera_calibration
+        from factory.tasks.articulated.plan import camera_calibration
 
         setup = self.setup
         p = setup.placement

@@ -56,8 +56,9 @@ COLLISION_DEPTH = 0.02
 SLIP = 0.03
 """The tool site farther than this (m) from its grasp on the handle at the end of the motion:
 the hand lost the handle."""
-RELEASED = 0.05
-"""At the end the tool site must be this far (m) from its grasp on the handle, the hand open."""
+RELEASED = 0.04
+"""At the end the tool site must be this far (m) from its grasp on the handle, the hand open
+(the retreat backs off 5-10 cm)."""
 OPEN_HAND = 0.03
 """A gripper opening (m) from which the hand counts as open."""
 

@@ -35,6 +35,7 @@ import logging
 import math
 import time
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -94,6 +95,18 @@ READY_QPOS = np.array([0.0, -1.2, 0.0, -2.9, 0.0, 1.75, 0.785])
 """The arm's start (and the reach's start) of every episode (rad): the Panda's home posture
 tucked in (the tool 0.23 m ahead of the base and 0.36 m above it, pointing down) so that a
 part standing open in front of the robot does not touch the hand."""
+GRASP_SEEDS = (
+    np.array([0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785]),
+    np.array([0.0, 0.3, 0.0, -1.8, 0.0, 2.1, 0.785]),
+    np.array([0.0, 0.0, 0.0, -2.0, 1.5, 1.5, 0.0]),
+    np.array([0.0, 0.0, 0.0, -2.0, -1.5, 1.5, 0.0]),
+)
+"""IK seeds (rad) tried after :data:`READY_QPOS` for the arm at the grasp: the arm's branch
+there decides whether it can follow the handle along the joint (home, reaching out, wrist
+turned either way)."""
+RETREAT_SHARES = (1.0, 0.7, 0.5)
+"""Shares of :attr:`ArticulatedMotion.retreat` tried, in order, for the retreat after the
+release (a door opened far leaves the arm near its limits)."""
 PAD_DEPTH = 0.004
 """The finger pads' centre lies this far (m) behind the tool site along the approach: the site
 goes this far past the handle's centre so that the pads close on it."""
@@ -446,33 +459,51 @@ def grasp_and_follow(
     tool = kin.link(qpos, q_start) @ grasp
     pre = tool.copy()
     pre[:3, 3] -= tool[:3, 2] * pregrasp
-    q_pre = solve(pre, [READY_QPOS])
-    if q_pre is None:
-        return "no_grasp"
-    q_grasp = solve(tool, [q_pre])
-    if q_grasp is None or not checker.segment_valid(q_pre, q_grasp):
-        return "no_grasp"
     values = joint_values(setup, q_start, q_goal, motion)
-    path, k = follow(setup, kin, ik, checker, qpos, grasp, values, q_grasp)
+    # the arm's branch at the grasp decides whether it can follow the handle: try a few
+    seeds = [READY_QPOS, *GRASP_SEEDS]
+    best: tuple[np.ndarray, np.ndarray, int] | None = None
+    tried: list[np.ndarray] = []
+    for seed in seeds:
+        q_grasp = solve(tool, [seed])
+        if q_grasp is None or any(float(np.max(np.abs(q_grasp - t))) < 0.05 for t in tried):
+            continue
+        tried.append(q_grasp)
+        path, k = follow(setup, kin, ik, checker, qpos, grasp, values, q_grasp)
+        if best is None or k > best[2]:
+            best = (q_grasp, path, k)
+        if k == len(values):
+            break
+    if best is None:
+        return "no_grasp"
+    q_grasp, path, k = best
     if k < len(values):
         reached = setup.opened(values[k - 1]) if k else setup.opened(q_start)
         if not (setup.direction == "open" and reached >= OPEN_AT + 0.02):
             return "ik_failed"
         values = values[:k]
+    q_pre = solve(pre, [q_grasp])
+    if q_pre is None or not checker.segment_valid(q_pre, q_grasp):
+        return "no_grasp"
     q_end = float(values[-1])
     end_state = qpos.copy()
     end_state[setup.qadr] = q_end
     tool_end = kin.link(qpos, q_end) @ grasp
-    back = tool_end.copy()
-    back[:3, 3] -= tool_end[:3, 2] * motion.retreat
     checker.set_scene(end_state)
     checker.ignore_bodies(setup.link_bodies())
+    q_back = None
     try:
-        q_back = solve(back, [path[-1]])
+        for share in RETREAT_SHARES:
+            back = tool_end.copy()
+            back[:3, 3] -= tool_end[:3, 2] * motion.retreat * share
+            q = solve(back, [path[-1]])
+            if q is not None and float(np.max(np.abs(q - path[-1]))) <= 1.0:
+                q_back = q
+                break
     finally:
         checker.ignore_bodies([])
         checker.set_scene(qpos)
-    if q_back is None or float(np.max(np.abs(q_back - path[-1]))) > 1.0:
+    if q_back is None:
         return "ik_failed"
     return HandleMotion(grasp, q_pre, q_grasp, path, values, q_back)
 
@@ -501,6 +532,57 @@ def _sweeps_base(
     finally:
         checker.set_scene(qpos)
     return False
+
+
+ROOM_MARGIN = 0.15
+"""A base spot keeps this far (m) inside a room's walls (the pedestal's radius and more)."""
+BLOCK_DEPTH = 0.005
+"""The moving link touching something else deeper than this (m) at a waypoint blocks it."""
+
+
+def _in_a_room(scene: Scene, spot: RobotPlacement) -> bool:
+    """Whether the base spot lies inside one of the scene's rooms, :data:`ROOM_MARGIN` from its
+    walls (a scene without rooms: anywhere)."""
+    if not scene.rooms:
+        return True
+    for r in scene.rooms:
+        x0, y0 = r.position.x + ROOM_MARGIN, r.position.y + ROOM_MARGIN
+        x1 = r.position.x + r.dimensions.width - ROOM_MARGIN
+        y1 = r.position.y + r.dimensions.length - ROOM_MARGIN
+        if x0 <= spot.x <= x1 and y0 <= spot.y <= y1:
+            return True
+    return False
+
+
+def _part_blocked(setup: ArticulatedSetup, qpos: np.ndarray, values: np.ndarray) -> str:
+    """What the moving link runs into (a body's name, ``""``: nothing) at the joint's
+    waypoints ``values``: a wall, the furniture next to it, something standing in front (the
+    articulated object's own bodies and the robot do not count)."""
+    m = setup.model
+    d = mujoco.MjData(m)
+    own = np.zeros(m.nbody, bool)
+    root = m.body(setup.part.obj.id).id
+    for b in range(m.nbody):
+        p = b
+        while p > 0 and p != root:
+            p = int(m.body_parentid[p])
+        own[b] = p == root
+    robot = np.zeros(m.nbody, bool)
+    robot[setup.robot.bodies] = True
+    link = np.zeros(m.nbody, bool)
+    link[setup.link_bodies()] = True
+    for v in values:
+        d.qpos[:] = qpos
+        d.qpos[setup.qadr] = v
+        mujoco.mj_forward(m, d)
+        for c in d.contact[: d.ncon]:
+            b1, b2 = (int(m.geom_bodyid[g]) for g in c.geom)
+            if c.dist > -BLOCK_DEPTH or not (link[b1] or link[b2]):
+                continue
+            other = b2 if link[b1] else b1
+            if not own[other] and not robot[other]:
+                return str(m.body(other).name) or "the world"
+    return ""
 
 
 def _home_free(setup: ArticulatedSetup, checker: CollisionChecker, starts: list[float]) -> bool:
@@ -582,10 +664,24 @@ def setup_scene(
         setup.model, setup.robot = model, RobotIndex.of(model)
         kin = _Kinematics(setup)
         base_body = model.body("panda/robot0_base").id
+        blocked = _part_blocked(setup, q0, values)
+        if blocked:
+            log.info(
+                "scene %s: %s (%s) cannot move: it runs into %s",
+                scene.id,
+                part.key,
+                part.label,
+                blocked,
+            )
+            why["part_blocked"] += 1
+            continue
         link_names = {model.body(b).name for b in setup.link_bodies()}
         starts = [0.0] if direction == "open" else list(np.linspace(*CLOSE_START, 9) * span)
         found = None
         for spot in spots:
+            if not _in_a_room(scene, spot):
+                why["outside_rooms"] += 1
+                continue
             move_robot(model, spot, base_body)
             setup.placement = spot
             checker = CollisionChecker(model, setup.robot, q0)
@@ -791,3 +887,17 @@ class ArticulatedPlanner:
         return ArticulatedPlan(
             qpos, ctrl, targets, phases, float(self.setup.part.handle.thickness), seconds, 0.0, 0
         )
+
+
+def camera_calibration(
+    setup: ArticulatedSetup, cameras: Sequence[str]
+) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """The calibration of those of ``cameras`` fixed in the scene: each one's pose in the
+    robot's base frame (12: position m, rotation rows) and vertical field of view (deg)
+    (:func:`factory.demos.record.calibration.camera_calibration`)."""
+    from factory.demos.record.calibration import camera_calibration as calibrate
+    from factory.robots.panda import CAMERAS, SCENE_CAMERAS, rot_z
+
+    cams = {c: CAMERAS[c] for c in cameras if c in SCENE_CAMERAS}
+    p = setup.placement
+    return calibrate(setup.model, cams, p.pos(), rot_z(p.yaw), None)

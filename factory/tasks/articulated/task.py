@@ -86,8 +86,8 @@ class ArticulatedTask(Task):
     def camera_calibration(
         self, setup: Any, cameras: Sequence[str]
     ) -> tuple[dict[str, list[float]], dict[str, float]]:
-        """:func:`factory.tasks.pick_place.plan.camera_calibration` of the set-up's rig."""
-        from factory.tasks.pick_place.plan import camera_calibration
+        """:func:`factory.tasks.articulated.plan.camera_calibration` of the set-up's rig."""
+        from factory.tasks.articulated.plan import camera_calibration
 
         return camera_calibration(setup, self.calibrated_cameras(cameras))
 
