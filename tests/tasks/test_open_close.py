@@ -1,0 +1,135 @@
+"""``task=open`` and ``task=close`` on the bundled one-cabinet kitchen: the stored episodes meet
+the success rule, parts are named and chosen as documented, and a scene whose part matches
+nothing or cannot be reached is reported with its reason while the run goes on."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from robot_models import require_robot_models
+
+from factory.tasks import get_task
+
+require_robot_models()
+pytest.importorskip("ompl")
+
+SMALL = ("demos.render=false", "demos.workers=1", "demos.fps=10")
+
+
+def example(name: str, run: Path, sid: str | None = None, edit: Any = None) -> str:
+    """Copies task ``name``'s example scene into ``run`` (as ``sid``, after ``edit(scene
+    dict)``); returns its id."""
+    src = get_task(name).example_scene_path()
+    assert src is not None
+    data = json.loads(src.read_text())
+    sid = sid or data["id"]
+    data["id"] = sid
+    if edit is not None:
+        edit(data)
+    out = run / "scenes" / sid
+    out.mkdir(parents=True)
+    (out / "scene.json").write_text(json.dumps(data, indent=1))
+    return sid
+
+
+def demos(run: Path, name: str, cli: Any, *more: str) -> dict[str, Any]:
+    """Runs ``stage=demos task=<name>`` on ``run``; returns its summary."""
+    out = cli(
+        "stage=demos", f"run_dir={run}", f"task={name}", *SMALL, *more, env={"OMP_NUM_THREADS": "1"}
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
+
+
+@pytest.mark.parametrize("name", ["open", "close"])
+def test_demos_meet_the_success_rule(name: str, tmp_path: Path, cli: Any) -> None:
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.tasks.articulated.plan import CLOSED_AT, OPEN_AT
+
+    sid = example(name, tmp_path)
+    summary = demos(tmp_path, name, cli, "demos.episodes_per_scene=2")
+    assert summary["new_successes"] == 2, summary
+    store = EpisodeStore(tmp_path / "episodes" / "shard-0.zarr")
+    for eid in store.episode_ids():
+        info = store.info(eid)
+        arrays = store.arrays(eid)
+        env = np.asarray(arrays["env_state"][:])
+        assert info.task == name and info.success and info.scene_id == sid
+        assert info.pick_id == "base_cabinet_0" and info.target_id == "drawer"
+        assert info.instruction == f"{name} the drawer of the cabinet"
+        assert env.shape == (info.n_frames, 2)
+        # a drawer's span is its range: the stored share of range is the success rule's
+        if name == "open":
+            assert env[0, 1] == pytest.approx(0.0, abs=1e-3)
+            assert env[-1, 1] >= OPEN_AT and info.outcome["opened"] >= OPEN_AT
+        else:
+            assert env[0, 1] >= 0.55
+            assert env[-1, 1] <= CLOSED_AT and info.outcome["fraction"] <= CLOSED_AT
+        assert env[-1, 0] == pytest.approx(info.outcome["joint"], abs=1e-4)
+
+
+def test_bad_parts_are_reported_and_the_run_goes_on(tmp_path: Path, cli: Any) -> None:
+    def unnamed(text: str) -> Any:
+        def edit(d: dict[str, Any]) -> None:
+            d["task"]["instruction"] = text
+            for o in d["objects"]:
+                o["task_joint"] = None
+
+        return edit
+
+    def facing_the_wall(d: dict[str, Any]) -> None:
+        d["objects"][0]["rotation"]["z"] = 180.0  # its front against the wall behind it
+
+    good = example("open", tmp_path, "good")
+    door = example("open", tmp_path, "door", unnamed("open the door of the cabinet"))
+    garage = example("open", tmp_path, "garage", unnamed("open the garage door"))
+    walled = example("open", tmp_path, "walled", facing_the_wall)
+    summary = demos(tmp_path, "open", cli, "demos.episodes_per_scene=1")
+    scenes = summary["scenes"]
+    assert scenes[good]["episodes"] == 1 and scenes[door]["episodes"] == 1, scenes
+    assert "error" not in scenes[good] and "error" not in scenes[door]
+    assert "names no part of the scene" in scenes[garage]["error"]
+    assert "base_cabinet_0:drawer (the drawer of the base cabinet)" in scenes[garage]["error"]
+    assert "the robot can open none of base_cabinet_0:drawer" in scenes[walled]["error"]
+    assert summary["failures"]["scene_unusable"] == 2
+    from factory.demos.record.episodes import EpisodeStore
+
+    store = EpisodeStore(tmp_path / "episodes" / "shard-0.zarr")
+    (eid,) = [e for e in store.episode_ids() if e.startswith(f"{door}-")]
+    assert store.info(eid).target_id == "door" and store.info(eid).success
+
+
+def test_parts_are_named_and_chosen(tmp_path: Path) -> None:
+    """Labels, the instruction's choice and ``task_joint`` (no simulation)."""
+    from factory.errors import TaskError
+    from factory.schema import scene_from_json
+    from factory.tasks.articulated.demos import ensure_assets
+    from factory.tasks.articulated.parts import choose_parts, names_part, scene_parts
+
+    src = get_task("open").example_scene_path()
+    assert src is not None
+    scene = ensure_assets(scene_from_json(src.read_text()), tmp_path)
+    parts = {p.joint.name: p for p in scene_parts(scene, tmp_path)}
+    assert parts["drawer"].label == "the drawer of the base cabinet"
+    assert parts["door"].label == "the door of the base cabinet"
+    assert [p.joint.name for p in choose_parts(scene, tmp_path)] == ["drawer"]  # task_joint
+    assert names_part("open the cupboard door", parts["door"])
+    assert not names_part("open the fridge door", parts["door"])
+    assert not names_part("open the top drawer of the cabinet", parts["drawer"])
+    scene.objects[0].task_joint = None
+    assert scene.task is not None
+    scene.task.instruction = "close the drawer of the cabinet"
+    assert [p.joint.name for p in choose_parts(scene, tmp_path)] == ["drawer"]
+    scene.task.instruction = "open the oven door"
+    with pytest.raises(TaskError, match="names no part of the scene; its parts: "):
+        choose_parts(scene, tmp_path)
+    scene.task.instruction = "a kitchen"
+    assert [p.joint.name for p in choose_parts(scene, tmp_path)] == ["drawer", "door"]
+    shutil.rmtree(tmp_path / scene.objects[0].asset.asset_id)  # type: ignore[union-attr]
+    with pytest.raises(TaskError, match="no articulated object with a handle"):
+        choose_parts(scene, tmp_path)
