@@ -133,3 +133,33 @@ def test_parts_are_named_and_chosen(tmp_path: Path) -> None:
     shutil.rmtree(tmp_path / scene.objects[0].asset.asset_id)  # type: ignore[union-attr]
     with pytest.raises(TaskError, match="no articulated object with a handle"):
         choose_parts(scene, tmp_path)
+
+
+def test_env_observes_the_joint_and_replays_the_plan(tmp_path: Path) -> None:
+    """The evaluation env (the fixed task's batch simulation with the task's rules) starts as
+    the demos do, observes the part's joint as ``observation.environment_state`` and ends the
+    planned episode's actions in success."""
+    from factory.config import DemosConfig
+    from factory.policy.obs_spec import ObsSpec
+    from factory.policy.vector_env import PickPlaceVecEnv, task_sim
+
+    task = get_task("open")
+    sid = example("open", tmp_path)
+    dc = DemosConfig()
+    setup, planner = task.env_scene(tmp_path, sid, dc)
+    spec = ObsSpec(fps=10.0, cameras=(), env_state=True, task="open")
+    env = PickPlaceVecEnv(task_sim(task, setup, planner, 1, spec, nthread=1), max_steps=400)
+    obs, _ = env.reset(seeds=[3])
+    assert obs["observation.environment_state"].shape == (1, 2)
+    assert obs["observation.environment_state"][0] == pytest.approx([0.0, 0.0], abs=1e-4)
+    plan = planner.plan_episode(3)
+    per_frame = round(1.0 / (spec.fps * setup.model.opt.timestep))
+    actions = plan.targets[per_frame - 1 :: per_frame]
+    done = False
+    for a in [*actions, *[actions[-1]] * 20]:
+        obs, _, terminated, truncated, info = env.step(a[None])
+        if terminated[0] or truncated[0]:
+            done = True
+            break
+    assert done and terminated[0] and info["success"][0], info
+    assert obs["observation.environment_state"][0, 1] >= 0.9

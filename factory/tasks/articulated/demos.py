@@ -136,7 +136,7 @@ def episode_instruction(setup: ArticulatedSetup) -> str:
 
 def record_config(dc: DemosConfig, render: bool | None = None) -> Any:
     """The recording settings of ``demos.*`` (``render``: overrides ``demos.render``)."""
-    from factory.demos.execute.cpu import RecordConfig
+    from factory.tasks.articulated.record import RecordConfig
 
     return RecordConfig(
         fps=dc.fps,
@@ -181,9 +181,9 @@ class ArticulatedScene(SimulatingScene):
         return record_config(self.env.demos, render)
 
     def renderer(self, rec_cfg: Any) -> Any:
-        from factory.demos.execute.cpu import FrameRenderer
+        from factory.tasks.articulated.record import ArticulatedRenderer
 
-        return FrameRenderer(self.setup.model, rec_cfg)
+        return ArticulatedRenderer(self.setup.model, rec_cfg)
 
     def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:
         """:func:`~factory.tasks.articulated.execute.execute_episode` (images only with a

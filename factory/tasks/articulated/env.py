@@ -2,9 +2,9 @@
 arm, when an episode ends.
 
 The env steps the task's worlds together on one ``mujoco.batch`` as the fixed task's does
-(:class:`ArticulatedSim`, a :class:`~factory.policy.batch_sim.BatchSim` whose
-``observation.environment_state`` is the part's joint and share of range instead of two
-objects' poses), with :class:`ArticulatedRules`:
+(:class:`~factory.policy.batch_sim.BatchSim`) with :class:`ArticulatedRules`, whose
+:meth:`~ArticulatedRules.env_state` makes ``observation.environment_state`` the part's joint
+and share of range instead of two objects' poses:
 
 * reset: the demos' start of a seed (:meth:`~factory.tasks.articulated.plan.
   ArticulatedPlanner.start_and_goal` with ``np.random.default_rng(seed)``: the part closed for
@@ -27,11 +27,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.policy.batch_sim import BatchSim
 from factory.robots.panda import GRIP_CLOSED, GRIP_OPEN, PANDA
 from factory.tasks.articulated.execute import (
     COLLISION_DEPTH,
-    ENV_STATE_DIM,
     Watch,
     allowed_geoms,
     check_outcome,
@@ -47,7 +45,6 @@ __all__ = [
     "CAMERAS",
     "OBSERVATIONS",
     "ArticulatedRules",
-    "ArticulatedSim",
     "action_bounds",
 ]
 
@@ -98,9 +95,14 @@ class ArticulatedRules:
         self.allowed = allowed_geoms(setup)
         """Geoms (ngeom,) a robot contact with is no collision: the articulated object's."""
         self.env_state_bodies = (setup.body, setup.body)
-        """Unused: :class:`ArticulatedSim` observes the joint, not body poses."""
+        """Unused: the env observes :meth:`env_state`, not body poses."""
         self.grasp = grasps_in_link(setup.part)[0]
         self._watch = [Watch() for _ in range(num_envs)]
+
+    def env_state(self, data: mujoco.MjData) -> np.ndarray:
+        """``observation.environment_state`` (2,): the part's joint position (rad or m) and
+        its share of the range (:func:`~factory.tasks.articulated.execute.env_state`)."""
+        return env_state(self.setup, data)
 
     def sample_qpos(self, seed: int) -> np.ndarray:
         """The initial qpos (nq,) of seed ``seed``: the demos' start of that seed."""
@@ -157,36 +159,3 @@ class ArticulatedRules:
         if out.success or steps >= limit:
             return out
         return None
-
-
-class ArticulatedSim(BatchSim):
-    """:class:`~factory.policy.batch_sim.BatchSim` whose ``observation.environment_state`` is
-    the part's joint position and share of range (:func:`~factory.tasks.articulated.execute.
-    env_state`)."""
-
-    def observe(
-        self,
-        i: int,
-        data: mujoco.MjData,
-        obs: dict[str, np.ndarray],
-        ep: Any,
-        action: np.ndarray | None,
-    ) -> Outcome | None:
-        from factory.demos.execute.cpu import robot_penetration, robot_signals
-
-        m = self.model
-        q, width, ee = robot_signals(m, data, self.robot)
-        obs["observation.state"][i, :7] = q
-        obs["observation.state"][i, 7] = width
-        obs["observation.ee_pose"][i] = ee
-        if self.spec.env_state:
-            obs["observation.environment_state"][i, :ENV_STATE_DIM] = env_state(
-                self.rules.setup, data
-            )
-        depth = robot_penetration(m, data, self._robot_geom, self.rules.allowed)
-        if action is None:
-            self._prev[i, :7] = q
-            self._prev[i, 7] = width
-            self.rules.start(i, data, depth)
-            return None
-        return self.rules.update(i, data, depth, ep.steps, ep.limit)

@@ -3,19 +3,21 @@ and its success check.
 
 The episode runs on one ``MjData`` (``demo_execution = "episode"``): the plan's per-step
 controls are applied physics step by physics step (``mj_step``); at every frame the MuJoCo
-integration state (exact replay), the robot's signals (:func:`~factory.demos.execute.cpu.
-robot_signals`), the action (the plan's targets at the end of the frame), the part's joint
-position and its share of the range (``env_state``) and, when images are drawn, the recording
-cameras (:class:`~factory.demos.execute.cpu.FrameRenderer`) are recorded. Nothing is teleported:
-the part moves only because the fingers pull or push its handle.
+integration state (exact replay), the robot's signals
+(:func:`~factory.tasks.articulated.record.robot_signals`), the action (the plan's targets at
+the end of the frame), the part's joint position and its share of the range (``env_state``)
+and, when images are drawn, the recording cameras
+(:class:`~factory.tasks.articulated.record.ArticulatedRenderer`) are recorded. Nothing is
+teleported: the part moves only because the fingers pull or push its handle.
 
-Success (:func:`check_outcome`): at the end, ``open`` has the joint at :data:`~factory.tasks.
-articulated.plan.OPEN_AT` of its range or more, ``close`` at :data:`~factory.tasks.articulated.
-plan.CLOSED_AT` or less, the hand has let go (open, at least :data:`RELEASED` from the handle)
-and no robot contact with the scene other than the part went deeper than
+Success (:func:`check_outcome`): at the end, ``open`` has the joint at
+:data:`~factory.tasks.articulated.plan.OPEN_AT` of its span or more (a slide's range, a
+hinge's up to 90 deg), ``close`` at :data:`~factory.tasks.articulated.plan.CLOSED_AT` of its
+range or less, the hand has let go (open, at least :data:`RELEASED` from the handle) and no
+robot contact with the scene other than the articulated object went deeper than
 :data:`COLLISION_DEPTH`. Failure reasons: ``collision``, ``not_released``, ``slip`` (the part
-fell short and the hand lost the handle during the motion: more than :data:`SLIP` from it at the
-motion's end), ``not_open`` / ``not_closed`` (fell short otherwise).
+fell short and the hand lost the handle during the motion: more than :data:`SLIP` from it at
+the motion's end), ``not_open`` / ``not_closed`` (fell short otherwise).
 """
 
 from __future__ import annotations
@@ -27,8 +29,6 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.demos.execute.cpu import FrameRenderer, RecordConfig, Recording, robot_penetration
-from factory.demos.execute.cpu import robot_signals as _signals
 from factory.demos.record.payload import STATE_SPEC
 from factory.tasks.articulated.plan import (
     CLOSED_AT,
@@ -36,6 +36,13 @@ from factory.tasks.articulated.plan import (
     ArticulatedPlan,
     ArticulatedSetup,
 )
+from factory.tasks.articulated.record import (
+    ArticulatedRenderer,
+    RecordConfig,
+    Recording,
+    robot_penetration,
+)
+from factory.tasks.articulated.record import robot_signals as _signals
 from factory.tasks.pick_place.objects import Outcome
 
 __all__ = [
@@ -149,7 +156,7 @@ def execute_episode(
     setup: ArticulatedSetup,
     plan: ArticulatedPlan,
     cfg: RecordConfig,
-    renderer: FrameRenderer | None = None,
+    renderer: ArticulatedRenderer | None = None,
 ) -> Recording:
     """Runs one planned episode and records it (images when ``cfg.render`` and a renderer is
     given, or one is made).
@@ -171,7 +178,7 @@ def execute_episode(
     depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
     own = renderer
     if own is None and cfg.render:
-        own = FrameRenderer(m, cfg)
+        own = ArticulatedRenderer(m, cfg)
     rec = Recording(
         time=np.arange(n_frames) / cfg.fps,
         state=np.zeros((n_frames, nstate)),

@@ -104,15 +104,14 @@ class ArticulatedTask(Task):
 
         return episode_instruction(setup)
 
-    def env_sim(
+    def env_rules(
         self, setup: Any, planner: Any, num_envs: int, spec: Any, interpolate: bool
-    ) -> Any | None:
-        """:class:`~factory.tasks.articulated.env.ArticulatedSim` with
-        :class:`~factory.tasks.articulated.env.ArticulatedRules` (one CPU batch)."""
-        from factory.tasks.articulated.env import ArticulatedRules, ArticulatedSim
+    ) -> Any:
+        """:class:`~factory.tasks.articulated.env.ArticulatedRules` (the env steps the worlds
+        together on one batch, as the fixed task's)."""
+        from factory.tasks.articulated.env import ArticulatedRules
 
-        rules = ArticulatedRules(setup, planner, num_envs, spec.fps, interpolate)
-        return ArticulatedSim(rules, num_envs, spec)
+        return ArticulatedRules(setup, planner, num_envs, spec.fps, interpolate)
 
     def claims_features(self, features: Any) -> bool:
         """Never by features alone: the two tasks' policies read the same features (the
