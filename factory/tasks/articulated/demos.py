@@ -29,6 +29,7 @@ from factory.config import DemosConfig
 from factory.demos.record.payload import episode_arrays, episode_meta
 from factory.demos.record.scene import SimulatingScene
 from factory.demos.record.slots import StageEnv
+from factory.errors import TaskError
 from factory.schema import Scene
 from factory.schema.episode import EpisodeInfo, RobotBase
 from factory.tasks.articulated.plan import ArticulatedPlan, ArticulatedPlanner, ArticulatedSetup
@@ -237,14 +238,19 @@ def demo_scene(env: StageEnv, scene_id: str, plan: bool = True) -> ArticulatedSc
     the task's, ``env.task``); with its planner, logs the set-up time and the part.
 
     Raises:
-        TaskError: the scene has no usable part.
+        TaskError: the scene has no usable part, or ``plan`` is False (the GPU pipeline,
+            which cannot draw these tasks yet).
     """
     from factory.tasks import get_task
 
     direction = str(getattr(get_task(env.task), "direction"))  # noqa: B009
     t0 = time.perf_counter()
-    if not plan:
-        return ArticulatedScene(env, scene_setup(env.run_dir, scene_id, env.demos, direction), None)
+    if not plan:  # the GPU pipeline's main process: it would draw with the mobile robot's rig
+        raise TaskError(
+            f"task={env.task} records on the CPU executor only: the GPU pipeline's renderer "
+            "for tasks that simulate their episodes themselves draws the mobile robot's cameras "
+            "(pass demos.executor=cpu)"
+        )
     setup, planner = scene_planner(env.run_dir, scene_id, env.demos, direction)
     log.info(
         "scene %s: %s %s (%s), set up in %.1f s",
