@@ -164,11 +164,12 @@ class ArticulatedScene(SimulatingScene):
         self.instruction = episode_instruction(setup)
 
     def summary(self) -> dict[str, Any]:
-        """The robot's base spot (x, y m, yaw rad) and the part (``<object>:<joint>``)."""
+        """The robot's base spot (x, y m, yaw rad), the objects taken out of the part's way
+        and the part (``<object>:<joint>``)."""
         p = self.setup.placement
         return {
             "robot_base": [p.x, p.y, p.yaw],
-            "cleared": [],
+            "cleared": list(self.setup.cleared),
             "part": self.setup.part.key,
             "instruction": self.instruction,
         }

@@ -37,7 +37,7 @@ import math
 import time
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import mujoco
@@ -96,6 +96,9 @@ generated kitchens (measured on their fridge doors: 1 of 11 spots at 90 deg, 36 
 plan at 54 deg)."""
 MAX_JUMP = 0.5
 """Largest joint change (rad) between two waypoints of the constrained motion."""
+MAX_CLEARED = 3
+"""Light movable objects (chairs, stools) :func:`setup_scene` takes out of a part's way, at
+most, before it gives up on the part."""
 MAX_PARTS = 6
 """Parts :func:`setup_scene` tries before it gives up on a scene."""
 READY_QPOS = np.array([0.0, -1.2, 0.0, -2.9, 0.0, 1.75, 0.785])
@@ -613,6 +616,155 @@ def _home_free(setup: ArticulatedSetup, checker: CollisionChecker, starts: list[
     return True
 
 
+def _clearable(scene: Scene, name: str, part: Part) -> set[str]:
+    """The objects to take out of the scene so that ``part`` can move: the body ``name`` it
+    runs into, when it is a light movable floor object (a chair, a stool, a bin: not static,
+    at most 25 kg and 1 m across), with what stands on it; empty when it is anything else."""
+    ids = {o.id for o in scene.objects}
+    if name not in ids or name == part.obj.id:
+        return set()
+    obj = scene.object(name)
+    light = obj.physics.mass <= 25.0 and max(obj.dimensions.width, obj.dimensions.length) <= 1.0
+    if obj.is_static or obj.placement.kind != "floor" or not light:
+        return set()
+    gone = scene.with_dependents({name})
+    return set() if part.obj.id in gone else gone
+
+
+def _setup_part(
+    scene: Scene,
+    assets_root: str | Path | None,
+    part: Part,
+    direction: str,
+    rig: CameraRig,
+    freeze_beyond: float,
+    ik: IKSolver,
+    motion: ArticulatedMotion,
+    why: Counter[str],
+) -> ArticulatedSetup | str:
+    """:func:`setup_scene` for one part: the set-up, ``"blocked:<body>"`` when the moving link
+    runs into that body, or ``""`` when no base spot works (reasons counted into ``why``)."""
+    from factory.tasks.pick_place.objects import move_robot
+    from factory.tasks.pick_place.plan import aim_cameras, compose, far_objects
+
+    frozen = {part.obj.id} if not part.obj.is_static else set()
+    model = compose(scene, assets_root, RobotPlacement(0.0, 0.0, 0.0, 0.0), rig, frozen)
+    jid = model.joint(part.joint_name).id
+    lo, hi = (float(v) for v in model.jnt_range[jid])
+    setup = ArticulatedSetup(
+        scene,
+        part,
+        direction,
+        RobotPlacement(0.0, 0.0, 0.0, 0.0),
+        model,
+        RobotIndex.of(model),
+        rig,
+        jid,
+        int(model.jnt_qposadr[jid]),
+        model.body(part.body_name).id,
+        lo,
+        hi,
+    )
+    kin = _Kinematics(setup)
+    span = setup.span
+    close_start = setup.close_start
+    start = (0.0 if direction == "open" else close_start[1]) * span
+    goal = (OPEN_GOAL[1] if direction == "open" else 0.0) * span
+    values = joint_values(setup, start, goal, motion)
+    center, _, normal = part.handle_in_link()
+    q0 = initial_state(setup, start)
+    handle = np.array([(kin.link(q0, float(v)) @ np.append(center, 1.0))[:3] for v in values])
+    closed = kin.link(q0, 0.0)
+    z = max(0.0, float((closed @ np.append(center, 1.0))[2]) - BASE_BELOW)
+    spots = _candidates(handle, closed[:3, :3] @ normal, z)
+    # the pedestal's height is the spot's: compose once at that height, then move the base
+    model = compose(scene, assets_root, spots[0], rig, frozen)
+    setup.model, setup.robot = model, RobotIndex.of(model)
+    kin = _Kinematics(setup)
+    base_body = model.body("panda/robot0_base").id
+    blocked = _part_blocked(setup, q0, values)
+    if blocked:
+        log.info(
+            "scene %s: %s (%s) cannot move: it runs into %s",
+            scene.id,
+            part.key,
+            part.label,
+            blocked,
+        )
+        return f"blocked:{blocked}"
+    link_names = {model.body(b).name for b in setup.link_bodies()}
+    starts = [0.0] if direction == "open" else list(np.linspace(*close_start, 9) * span)
+    found = None
+    for spot in spots:
+        if not _in_a_room(scene, spot):
+            why["outside_rooms"] += 1
+            continue
+        move_robot(model, spot, base_body)
+        setup.placement = spot
+        checker = CollisionChecker(model, setup.robot, q0)
+        if not _home_free(setup, checker, starts):
+            why["robot_in_the_way"] += 1
+            continue
+        if _sweeps_base(setup, checker, q0, values, link_names):
+            why["part_hits_base"] += 1
+            continue
+        results = [
+            grasp_and_follow(setup, kin, ik, checker, start, goal, g, motion.pregrasp, motion)
+            for g in grasps_in_link(part)[:1]
+        ]
+        if not isinstance(results[0], HandleMotion):
+            results += [
+                grasp_and_follow(setup, kin, ik, checker, start, goal, g, motion.pregrasp, motion)
+                for g in grasps_in_link(part)[1:]
+            ]
+        ok = [r for r in results if isinstance(r, HandleMotion)]
+        if not ok:
+            why.update(r for r in results if isinstance(r, str))
+            continue
+        found = spot
+        break
+    if found is None:
+        log.info(
+            "scene %s: %s (%s) is out of reach from %d base spots",
+            scene.id,
+            part.key,
+            part.label,
+            len(spots),
+        )
+        return ""
+    cams = aim_cameras(scene, assets_root, found, rig)
+    far = far_objects(scene, found, set(), freeze_beyond) | frozen
+    model = compose(scene, assets_root, found, cams, far)
+    jid = model.joint(part.joint_name).id
+    log.info(
+        "scene %s: %s %s (%s) from base (%.2f, %.2f, %.2f) yaw %.0f deg",
+        scene.id,
+        direction,
+        part.key,
+        part.label,
+        found.x,
+        found.y,
+        found.z,
+        math.degrees(found.yaw),
+    )
+    return ArticulatedSetup(
+        scene,
+        part,
+        direction,
+        found,
+        model,
+        RobotIndex.of(model),
+        cams,
+        jid,
+        int(model.jnt_qposadr[jid]),
+        model.body(part.body_name).id,
+        float(model.jnt_range[jid][0]),
+        float(model.jnt_range[jid][1]),
+        (),
+        tuple(sorted(far)),
+    )
+
+
 def setup_scene(
     scene: Scene,
     assets_root: str | Path | None,
@@ -636,134 +788,34 @@ def setup_scene(
     Raises:
         TaskError: no part, a named part missing, or no part reachable (with the reasons).
     """
-    from factory.tasks.pick_place.objects import move_robot
-    from factory.tasks.pick_place.plan import aim_cameras, compose, far_objects
-
     rig = rig or CameraRig()
     parts = choose_parts(scene, assets_root)
     ik = IKSolver()
     motion = ArticulatedMotion()
     why: Counter[str] = Counter()
     for part in parts[:max_parts]:
-        frozen = {part.obj.id} if not part.obj.is_static else set()
-        model = compose(scene, assets_root, RobotPlacement(0.0, 0.0, 0.0, 0.0), rig, frozen)
-        jid = model.joint(part.joint_name).id
-        lo, hi = (float(v) for v in model.jnt_range[jid])
-        setup = ArticulatedSetup(
-            scene,
-            part,
-            direction,
-            RobotPlacement(0.0, 0.0, 0.0, 0.0),
-            model,
-            RobotIndex.of(model),
-            rig,
-            jid,
-            int(model.jnt_qposadr[jid]),
-            model.body(part.body_name).id,
-            lo,
-            hi,
-        )
-        kin = _Kinematics(setup)
-        span = setup.span
-        close_start = setup.close_start
-        start = (0.0 if direction == "open" else close_start[1]) * span
-        goal = (OPEN_GOAL[1] if direction == "open" else 0.0) * span
-        values = joint_values(setup, start, goal, motion)
-        center, _, normal = part.handle_in_link()
-        q0 = initial_state(setup, start)
-        handle = np.array([(kin.link(q0, float(v)) @ np.append(center, 1.0))[:3] for v in values])
-        closed = kin.link(q0, 0.0)
-        z = max(0.0, float((closed @ np.append(center, 1.0))[2]) - BASE_BELOW)
-        spots = _candidates(handle, closed[:3, :3] @ normal, z)
-        # the pedestal's height is the spot's: compose once at that height, then move the base
-        model = compose(scene, assets_root, spots[0], rig, frozen)
-        setup.model, setup.robot = model, RobotIndex.of(model)
-        kin = _Kinematics(setup)
-        base_body = model.body("panda/robot0_base").id
-        blocked = _part_blocked(setup, q0, values)
-        if blocked:
-            log.info(
-                "scene %s: %s (%s) cannot move: it runs into %s",
-                scene.id,
-                part.key,
-                part.label,
-                blocked,
-            )
-            why["part_blocked"] += 1
-            continue
-        link_names = {model.body(b).name for b in setup.link_bodies()}
-        starts = [0.0] if direction == "open" else list(np.linspace(*close_start, 9) * span)
-        found = None
-        for spot in spots:
-            if not _in_a_room(scene, spot):
-                why["outside_rooms"] += 1
-                continue
-            move_robot(model, spot, base_body)
-            setup.placement = spot
-            checker = CollisionChecker(model, setup.robot, q0)
-            if not _home_free(setup, checker, starts):
-                why["robot_in_the_way"] += 1
-                continue
-            if _sweeps_base(setup, checker, q0, values, link_names):
-                why["part_hits_base"] += 1
-                continue
-            results = [
-                grasp_and_follow(setup, kin, ik, checker, start, goal, g, motion.pregrasp, motion)
-                for g in grasps_in_link(part)[:1]
-            ]
-            if not isinstance(results[0], HandleMotion):
-                results += [
-                    grasp_and_follow(
-                        setup, kin, ik, checker, start, goal, g, motion.pregrasp, motion
+        sc, cleared = scene, set[str]()
+        for _ in range(MAX_CLEARED + 1):
+            res = _setup_part(sc, assets_root, part, direction, rig, freeze_beyond, ik, motion, why)
+            if isinstance(res, ArticulatedSetup):
+                res.cleared = tuple(sorted(cleared))
+                return res
+            if res.startswith("blocked:"):
+                name = res.partition(":")[2]
+                gone = _clearable(sc, name, part)
+                if gone:
+                    log.info(
+                        "scene %s: took %s out of the way of %s (%s)",
+                        scene.id,
+                        sorted(gone),
+                        part.key,
+                        part.label,
                     )
-                    for g in grasps_in_link(part)[1:]
-                ]
-            ok = [r for r in results if isinstance(r, HandleMotion)]
-            if not ok:
-                why.update(r for r in results if isinstance(r, str))
-                continue
-            found = spot
+                    sc = replace(sc, objects=[o for o in sc.objects if o.id not in gone])
+                    cleared |= gone
+                    continue
+                why["part_blocked"] += 1
             break
-        if found is None:
-            log.info(
-                "scene %s: %s (%s) is out of reach from %d base spots",
-                scene.id,
-                part.key,
-                part.label,
-                len(spots),
-            )
-            continue
-        cams = aim_cameras(scene, assets_root, found, rig)
-        far = far_objects(scene, found, set(), freeze_beyond) | frozen
-        model = compose(scene, assets_root, found, cams, far)
-        jid = model.joint(part.joint_name).id
-        log.info(
-            "scene %s: %s %s (%s) from base (%.2f, %.2f, %.2f) yaw %.0f deg",
-            scene.id,
-            direction,
-            part.key,
-            part.label,
-            found.x,
-            found.y,
-            found.z,
-            math.degrees(found.yaw),
-        )
-        return ArticulatedSetup(
-            scene,
-            part,
-            direction,
-            found,
-            model,
-            RobotIndex.of(model),
-            cams,
-            jid,
-            int(model.jnt_qposadr[jid]),
-            model.body(part.body_name).id,
-            float(model.jnt_range[jid][0]),
-            float(model.jnt_range[jid][1]),
-            (),
-            tuple(sorted(far)),
-        )
     tried = ", ".join(f"{p.key} ({p.label})" for p in parts[:max_parts])
     raise TaskError(
         f"scene {scene.id!r}: the robot can {direction} none of {tried} from a free base spot "
