@@ -163,3 +163,41 @@ def test_env_observes_the_joint_and_replays_the_plan(tmp_path: Path) -> None:
             break
     assert done and terminated[0] and info["success"][0], info
     assert obs["observation.environment_state"][0, 1] >= 0.9
+
+
+def test_a_chair_in_the_way_is_taken_out(tmp_path: Path) -> None:
+    """A chair standing where the drawer slides out is taken out of the scene for the robot;
+    a heavy cabinet there makes the part unusable, with the body it runs into named."""
+    import copy
+
+    from factory.errors import TaskError
+    from factory.schema import scene_from_json
+    from factory.tasks.articulated.demos import ensure_assets
+    from factory.tasks.articulated.plan import setup_scene
+
+    src = get_task("open").example_scene_path()
+    assert src is not None
+    data = json.loads(src.read_text())
+    cab = data["objects"][0]
+    chair = copy.deepcopy(cab)
+    chair.update(
+        id="chair_0",
+        category="chair",
+        description="chair",
+        asset=None,
+        joint_states={},
+        task_joint=None,
+        extras={},
+        position={"x": 2.0, "y": 3.2, "z": 0.0},
+        dimensions={"width": 0.45, "length": 0.45, "height": 0.9},
+        physics={"mass": 6.0, "friction": 0.6, "static": False},
+    )
+    data["objects"].append(chair)
+    scene = ensure_assets(scene_from_json(json.dumps(data)), tmp_path)
+    setup = setup_scene(scene, tmp_path, "open")
+    assert setup.cleared == ("chair_0",) and setup.part.key == "base_cabinet_0:drawer"
+    assert "chair_0" not in {o.id for o in setup.scene.objects}
+    chair["physics"]["mass"] = 80.0  # no longer light: the drawer cannot open
+    scene = ensure_assets(scene_from_json(json.dumps(data)), tmp_path)
+    with pytest.raises(TaskError, match="part_blocked"):
+        setup_scene(scene, tmp_path, "open")
