@@ -732,7 +732,12 @@ def _setup_part(
             len(spots),
         )
         return ""
-    cams = aim_cameras(scene, assets_root, found, rig)
+    # the third-person cameras look at the middle of the handle's path, not the default
+    # workspace centre (0.5 m ahead): that is where the hand works
+    ahead = float(np.dot(found.to_base(handle.mean(axis=0))[:2], [1.0, 0.0]))
+    cams = aim_cameras(
+        scene, assets_root, found, replace(rig, workspace=float(np.clip(ahead, 0.3, 0.8)))
+    )
     far = far_objects(scene, found, set(), freeze_beyond) | frozen
     model = compose(scene, assets_root, found, cams, far)
     jid = model.joint(part.joint_name).id
