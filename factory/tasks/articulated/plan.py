@@ -4,30 +4,33 @@ ruckig timing -> per-physics-step control targets.
 Per scene, :func:`setup_scene` chooses the part (:func:`~factory.tasks.articulated.parts.
 choose_parts`) and a base spot for the fixed Panda in front of it from which the whole motion
 is reachable, and composes the scene with the robot there (the articulated object is static,
-its links move on their joints). Per episode, :meth:`ArticulatedPlanner.plan_episode`:
+its links move on their joints; light floor objects in the part's way are taken out). Per
+episode, :meth:`ArticulatedPlanner.plan_episode`:
 
 1. draws the episode's start and goal joint positions: ``open`` starts closed (0) and aims at
-   :data:`OPEN_GOAL` of the span; ``close`` starts open (:data:`CLOSE_START` of the span,
-   :data:`HINGE_CLOSE_START` for a hinge;
-   drawn per seed) and aims at 0;
-2. grasps the handle from its geometry: the tool's approach axis (+z) along the handle's
-   ``-normal``, its closing axis (+x) across the handle's thickness (perpendicular to ``along``
-   and ``normal``), the finger pads centred on the grip; the pre-grasp pose backs off along the
-   normal;
-3. moves the tool with the handle: waypoints every :attr:`ArticulatedMotion.step_deg` (hinge) or
-   :attr:`ArticulatedMotion.step_m` (slide) of the joint, the tool pose rigidly attached to the
-   link (the link posed by MuJoCo's kinematics at the waypoint's joint value), IK by mink seeded
-   by the previous waypoint, within the Panda's joint limits, continuous (no joint jumps more
-   than :data:`MAX_JUMP` between waypoints) and collision-free against the scene posed at the
-   waypoint (contacts with the moving link allowed); where IK fails on a hinge beyond the
-   success threshold the motion stops there;
+   :data:`OPEN_GOAL` of the span; ``close`` starts open (:data:`CLOSE_START` of the span, a
+   hinge :data:`HINGE_CLOSE_START`) and aims at 0;
+2. grasps the handle from its geometry (:func:`grasps_in_link`, two ways round): the tool's
+   approach axis (+z) along the handle's ``-normal``, its closing axis (+x) across the
+   handle's thickness (perpendicular to ``along`` and ``normal``), the finger pads centred on
+   the grip; the pre-grasp pose backs off along the normal;
+3. moves the tool with the handle (:func:`follow`): waypoints every
+   :attr:`ArticulatedMotion.step_deg` (hinge) or :attr:`ArticulatedMotion.step_m` (slide) of
+   the joint, the tool pose rigidly attached to the link (the link posed by MuJoCo's
+   kinematics at the waypoint's joint value), IK by mink seeded by the previous waypoint,
+   within the Panda's joint limits, continuous (no joint jumps more than :data:`MAX_JUMP`
+   between waypoints) and collision-free against the scene posed at the waypoint (contacts
+   with the moving link allowed); the arm's branch at the grasp is the one of a few IK seeds
+   (:data:`GRASP_SEEDS`) that follows furthest; an ``open`` motion that stops beyond the
+   success threshold ends there;
 4. releases and retreats along the handle's normal; RRTConnect (OMPL) plans the free-space
-   reach from home to the pre-grasp.
+   reach from the start posture (:data:`READY_QPOS`) to the pre-grasp.
 
 Free motions are timed segment by segment with ruckig (as the pick-and-place task); the
 constrained motion is one jerk-limited ruckig profile of the path parameter (no stops at the
-waypoints), the joints interpolated linearly between waypoints, its limits chosen so that no
-joint exceeds its share of the Panda's velocity, acceleration and jerk limits.
+waypoints, :func:`time_along`), the joints interpolated linearly between waypoints, its limits
+chosen so that no joint exceeds its share of the Panda's velocity, acceleration and jerk
+limits.
 """
 
 from __future__ import annotations
