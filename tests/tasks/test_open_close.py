@@ -201,3 +201,29 @@ def test_a_chair_in_the_way_is_taken_out(tmp_path: Path) -> None:
     scene = ensure_assets(scene_from_json(json.dumps(data)), tmp_path)
     with pytest.raises(TaskError, match="part_blocked"):
         setup_scene(scene, tmp_path, "open")
+
+
+def test_left_and_right_are_the_viewers(tmp_path: Path) -> None:
+    """Two doors: the one whose handle is on the right of a person facing the front is the
+    right door (object frame: the front faces -y, so the viewer's right is +x)."""
+    from factory.assets.library import AssetLibrary
+    from factory.assets.procedural import AssetSpec
+    from dataclasses import replace
+
+    from factory.schema import scene_from_json
+    from factory.tasks.articulated.parts import part_label
+
+    meta = AssetLibrary(tmp_path, real_meshes=False, articulated=True).get(
+        AssetSpec(category="wall_cabinet", seed=1)
+    )
+    art = meta.articulation
+    assert art is not None
+    handled = [(j, art.link(j.link).handles[0]) for j in art.joints if art.link(j.link).handles]
+    assert len(handled) == 2 and all(h.normal == [0.0, -1.0, 0.0] for _, h in handled)
+    src = get_task("open").example_scene_path()
+    assert src is not None
+    obj = replace(scene_from_json(src.read_text()).objects[0], category="wall_cabinet")
+    labels = {part_label(obj, j, handled): h.center[0] for j, h in handled}
+    assert (
+        labels["the right door of the wall cabinet"] > labels["the left door of the wall cabinet"]
+    )

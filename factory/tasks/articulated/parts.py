@@ -128,10 +128,10 @@ def part_label(
             rank = heights.index(own.center[2])
             qual = "bottom" if rank == 0 else "top" if rank == len(heights) - 1 else "middle"
         else:
-            # seen from the front (the handle's normal points at the viewer): the viewer's
-            # right is normal x up
+            # seen from the front (the handle's normal points at the viewer, who looks along
+            # -normal): the viewer's right is (-normal) x up = up x normal
             n = np.array(own.normal, float)
-            right = np.cross(n, [0.0, 0.0, 1.0])
+            right = np.cross([0.0, 0.0, 1.0], n)
             side = [float(np.dot(h.center, right)) for _, h in same]
             mine = float(np.dot(own.center, right))
             qual = (
