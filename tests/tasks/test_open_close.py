@@ -206,10 +206,10 @@ def test_a_chair_in_the_way_is_taken_out(tmp_path: Path) -> None:
 def test_left_and_right_are_the_viewers(tmp_path: Path) -> None:
     """Two doors: the one whose handle is on the right of a person facing the front is the
     right door (object frame: the front faces -y, so the viewer's right is +x)."""
-    from factory.assets.library import AssetLibrary
-    from factory.assets.procedural import AssetSpec
     from dataclasses import replace
 
+    from factory.assets.library import AssetLibrary
+    from factory.assets.procedural import AssetSpec
     from factory.schema import scene_from_json
     from factory.tasks.articulated.parts import part_label
 
