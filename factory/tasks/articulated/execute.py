@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
 
 import mujoco
 import numpy as np
@@ -244,11 +243,3 @@ def execute_episode(
     rec.sim_seconds = sim_s
     rec.render_seconds = render_s
     return rec
-
-
-def describe(rec: Any) -> str:
-    """One line of a recording's outcome (for logs)."""
-    o = rec.outcome
-    d = o.details
-    verdict = "success" if o.success else o.reason
-    return f"{verdict}: joint at {d['fraction']:.0%} of its range"
