@@ -295,6 +295,12 @@ class AppearanceConfig:
             blue).
         camera_pos: largest shift of a camera along each axis (m).
         camera_angle: largest rotation of a camera (deg).
+        scene_camera_pos: largest shift (m) of a camera placed in the scene (on a static body:
+            ``left``, ``right``; not one riding on the robot) where larger than
+            ``camera_pos`` (0: ``camera_pos``). Such cameras' poses are recorded per episode
+            (their calibration), so a wider range teaches a perception many viewpoints.
+        scene_camera_angle: largest rotation (deg) of a camera placed in the scene where larger
+            than ``camera_angle`` (0: ``camera_angle``).
     """
 
     enabled: bool = True
@@ -309,6 +315,8 @@ class AppearanceConfig:
     light_color: float = 0.1
     camera_pos: float = 0.01
     camera_angle: float = 1.5
+    scene_camera_pos: float = 0.0
+    scene_camera_angle: float = 0.0
 
 
 @dataclass

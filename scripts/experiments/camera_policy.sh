@@ -63,6 +63,8 @@ TAG=${TAG:-gpu}
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
 EVAL_WORKERS=${EVAL_WORKERS:-$(( JOBS * 3 / 4 ))}
 PY=${PY:-python3}
+DEMOS_ARGS=${DEMOS_ARGS:-}  # more demos.* overrides of the training data (shell-quoted words),
+# e.g. wider camera jitter: DEMOS_ARGS="demos.appearance.camera_pos=0.05 demos.appearance.camera_angle=10"
 COMMON="sim.backend=cpu demos.executor=cpu"
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 mkdir -p "$RUN" "$OUT_DIR"
@@ -103,8 +105,9 @@ fi
 
 log "2. $TRAIN_SCENES training kitchens x $EPISODES demos, $HELDOUT_SCENES held out ($DATA_CORES cores)"
 generate "$TRAIN_SCENES" 0
+eval "demos_extra=($DEMOS_ARGS)"
 pin "$DATA_PIN" $PY -m factory stage=demos run_dir="$RUN" $COMMON \
-  demos.episodes_per_scene="$EPISODES" demos.workers="$DATA_CORES"
+  demos.episodes_per_scene="$EPISODES" demos.workers="$DATA_CORES" "${demos_extra[@]}"
 pin "$DATA_PIN" $PY -m factory stage=dataset run_dir="$RUN" dataset.workers="$DATA_CORES"
 generate "$HELDOUT_SCENES" 100000
 echo "{\"data_seconds\": $(( $(date +%s) - t0 ))}" > "$OUT_DIR/data.json"

@@ -137,6 +137,33 @@ def test_bounds_and_task_objects_untouched(setup, index) -> None:
             assert np.all(np.abs(np.asarray(look.tint) - 1) <= 0.21)
 
 
+def test_scene_cameras_take_the_wider_jitter(setup, index) -> None:
+    """``scene_camera_*`` widens the jitter of the cameras placed in the scene (their pose is
+    recorded) and leaves the wrist camera's (computed from the joints) as it was."""
+    from factory.demos.record.appearance import choose, model_patch
+
+    assert index.scene_cameras == ("left", "right")
+    model = setup.model
+    base = AppearanceConfig()
+    wide = replace(base, scene_camera_pos=0.05, scene_camera_angle=10.0)
+    widest = {"left": 0.0, "right": 0.0}
+    for seed in range(20):
+        a, b = choose(index, base, seed), choose(index, wide, seed)
+        assert a.objects == b.objects and a.lights == b.lights
+        p = model_patch(model, index, b)
+        for cam in b.cameras:
+            i = index.cameras[cam.name]
+            shift = float(np.abs(p.cam_pos[i] - model.cam_pos[i]).max())
+            dot = abs(float(np.dot(p.cam_quat[i], model.cam_quat[i])))
+            angle = float(np.degrees(2 * np.arccos(min(1.0, dot))))
+            if cam.name == "wrist":
+                assert cam == next(c for c in a.cameras if c.name == "wrist")
+            else:
+                assert shift <= 0.05 + 1e-9 and angle <= 10.0 + 1e-6
+                widest[cam.name] = max(widest[cam.name], angle)
+    assert min(widest.values()) > base.camera_angle  # wider than the default range
+
+
 def test_recording_applies_appearance_and_restores_model(setup, tmp_path: Path) -> None:
     from factory.config import DemosConfig
     from factory.demos.execute.cpu import STATE_SPEC, FrameRenderer, RecordConfig, execute

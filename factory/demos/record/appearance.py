@@ -62,6 +62,8 @@ class AppearanceIndex:
         lights: names of the lights that may change (those left on; ceiling lights also
             move).
         cameras: recording camera name -> camera id.
+        scene_cameras: the recording cameras placed in the scene (on the world body), whose
+            jitter ``scene_camera_pos`` / ``scene_camera_angle`` may widen.
         lights_off: names of the lights switched off in every episode's recording (the
             other rooms' ceiling lights and lamps).
     """
@@ -71,6 +73,7 @@ class AppearanceIndex:
     lights: tuple[str, ...]
     cameras: dict[str, int]
     lights_off: tuple[str, ...] = ()
+    scene_cameras: tuple[str, ...] = ()
 
 
 @dataclass
@@ -170,6 +173,9 @@ def appearance_index(
         lights=tuple(on),
         cameras={c: model.camera(n).id for c, n in cameras.items()},
         lights_off=tuple(off),
+        scene_cameras=tuple(
+            c for c, n in cameras.items() if int(model.cam_bodyid[model.camera(n).id]) == 0
+        ),
     )
 
 
@@ -222,10 +228,14 @@ def choose(index: AppearanceIndex, cfg: AppearanceConfig, seed: int) -> EpisodeA
             )
     if cfg.camera:
         for cam in index.cameras:
-            offset = cam_rng.uniform(-cfg.camera_pos, cfg.camera_pos, 3)
+            pos, turn = cfg.camera_pos, cfg.camera_angle
+            if cam in index.scene_cameras:  # placed in the scene: its pose is recorded
+                pos = max(pos, cfg.scene_camera_pos)
+                turn = max(turn, cfg.scene_camera_angle)
+            offset = cam_rng.uniform(-pos, pos, 3)
             axis = cam_rng.normal(size=3)
             axis /= np.linalg.norm(axis)
-            angle = cam_rng.uniform(0, cfg.camera_angle)
+            angle = cam_rng.uniform(0, turn)
             app.cameras.append(
                 CameraLook(name=cam, offset=_round(offset, 6), rotation=_round(axis * angle))
             )
