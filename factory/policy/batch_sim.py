@@ -38,7 +38,10 @@ if TYPE_CHECKING:
 
 class BatchRules(Protocol):
     """What :class:`BatchSim` asks a task (see
-    :class:`~factory.tasks.pick_place.env.PickPlaceRules`)."""
+    :class:`~factory.tasks.pick_place.env.PickPlaceRules`). Rules with a method
+    ``env_state(data) -> (d,)`` give ``observation.environment_state`` themselves (e.g.
+    :class:`~factory.tasks.articulated.env.ArticulatedRules`: a joint's position); the others'
+    is the poses of their ``env_state_bodies``."""
 
     setup: Any
     action_dim: int
@@ -150,8 +153,12 @@ class BatchSim:
         obs["observation.state"][i, 7] = width
         obs["observation.ee_pose"][i] = ee
         if self.spec.env_state:
-            bodies = self.rules.env_state_bodies
-            obs["observation.environment_state"][i] = object_poses(data, bodies)
+            own = getattr(self.rules, "env_state", None)  # a task's own environment state
+            if own is not None:
+                obs["observation.environment_state"][i] = own(data)
+            else:
+                bodies = self.rules.env_state_bodies
+                obs["observation.environment_state"][i] = object_poses(data, bodies)
         depth = robot_penetration(m, data, self._robot_geom, self.rules.allowed)
         if action is None:
             self._prev[i, :7] = q

@@ -29,6 +29,8 @@ __all__ = ["DEFAULT_TASK", "TASKS", "get_task", "task_for_scene", "task_names", 
 TASKS: dict[str, str] = {
     "pick_place": "factory.tasks.pick_place.task:PickPlaceTask",
     "mobile_pick_place": "factory.tasks.mobile_pick_place.task:MobilePickPlaceTask",
+    "open": "factory.tasks.open.task:OpenTask",
+    "close": "factory.tasks.close.task:CloseTask",
 }
 """Task name (``task=<name>``, a scene's ``task.kind``) -> ``"module:Class"``."""
 

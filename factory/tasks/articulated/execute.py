@@ -1,0 +1,245 @@
+"""Executing one planned open or close episode through the position controller, with recording,
+and its success check.
+
+The episode runs on one ``MjData`` (``demo_execution = "episode"``): the plan's per-step
+controls are applied physics step by physics step (``mj_step``); at every frame the MuJoCo
+integration state (exact replay), the robot's signals
+(:func:`~factory.tasks.articulated.record.robot_signals`), the action (the plan's targets at
+the end of the frame), the part's joint position and its share of the range (``env_state``)
+and, when images are drawn, the recording cameras
+(:class:`~factory.tasks.articulated.record.ArticulatedRenderer`) are recorded. Nothing is
+teleported: the part moves only because the fingers pull or push its handle.
+
+Success (:func:`check_outcome`): at the end, ``open`` has the joint at
+:data:`~factory.tasks.articulated.plan.OPEN_AT` of its span or more (a slide's range, a
+hinge's up to 90 deg), ``close`` at :data:`~factory.tasks.articulated.plan.CLOSED_AT` of its
+range or less, the hand has let go (open, at least :data:`RELEASED` from the handle) and no
+robot contact with the scene other than the articulated object went deeper than
+:data:`COLLISION_DEPTH`. Failure reasons: ``collision``, ``not_released``, ``slip`` (the part
+fell short and the hand lost the handle during the motion: more than :data:`SLIP` from it at
+the motion's end), ``not_open`` / ``not_closed`` (fell short otherwise).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from factory.demos.record.payload import STATE_SPEC
+from factory.tasks.articulated.plan import (
+    CLOSED_AT,
+    OPEN_AT,
+    ArticulatedPlan,
+    ArticulatedSetup,
+)
+from factory.tasks.articulated.record import (
+    ArticulatedRenderer,
+    RecordConfig,
+    Recording,
+    robot_penetration,
+)
+from factory.tasks.articulated.record import robot_signals as _signals
+from factory.tasks.pick_place.objects import Outcome
+
+__all__ = [
+    "COLLISION_DEPTH",
+    "ENV_STATE_DIM",
+    "RELEASED",
+    "SLIP",
+    "Watch",
+    "check_outcome",
+    "env_state",
+    "execute_episode",
+]
+
+ENV_STATE_DIM = 2
+"""``env_state``: the part's joint position (rad or m) and its share of the range (0 closed)."""
+COLLISION_DEPTH = 0.02
+"""A robot contact with the scene (other than the part) deeper than this (m) fails the episode."""
+SLIP = 0.03
+"""The tool site farther than this (m) from its grasp on the handle at the end of the motion:
+the hand lost the handle."""
+RELEASED = 0.04
+"""At the end the tool site must be this far (m) from its grasp on the handle, the hand open
+(the retreat backs off 5-10 cm)."""
+OPEN_HAND = 0.03
+"""A gripper opening (m) from which the hand counts as open."""
+
+
+def env_state(setup: ArticulatedSetup, data: mujoco.MjData) -> np.ndarray:
+    """The part's joint position (rad or m) and its share of the range, (2,)."""
+    q = float(data.qpos[setup.qadr])
+    return np.array([q, setup.fraction(q)])
+
+
+def grasp_distance(setup: ArticulatedSetup, data: mujoco.MjData, grasp: np.ndarray) -> float:
+    """Distance (m) between the tool site and where the grasp holds the handle (``data`` with
+    current kinematics; ``grasp``: the tool pose in the link frame)."""
+    b = setup.body
+    link = np.eye(4)
+    link[:3, :3] = data.xmat[b].reshape(3, 3)
+    link[:3, 3] = data.xpos[b]
+    want = (link @ grasp)[:3, 3]
+    return float(np.linalg.norm(data.site_xpos[setup.robot.site] - want))
+
+
+@dataclass
+class Watch:
+    """What the success check needs besides the final state, gathered while the episode runs.
+
+    Attributes:
+        worst: deepest robot contact with the scene other than the part (m).
+        slip: tool-to-grasp distance at the end of the constrained motion (m).
+    """
+
+    worst: float = 0.0
+    slip: float = 0.0
+
+
+def allowed_geoms(setup: ArticulatedSetup) -> np.ndarray:
+    """Geoms (ngeom,) a robot contact with is no collision: the articulated object's (its body
+    and links: the fingers hold its handle, the hand may brush its front)."""
+    m = setup.model
+    root = m.body(setup.part.obj.id).id
+    bodies = [b for b in range(m.nbody) if b == root or _below(m, b, root)]
+    return np.isin(m.geom_bodyid, bodies)
+
+
+def _below(m: mujoco.MjModel, b: int, root: int) -> bool:
+    while b > 0:
+        b = int(m.body_parentid[b])
+        if b == root:
+            return True
+    return False
+
+
+def check_outcome(
+    setup: ArticulatedSetup, q_end: float, watch: Watch, released: float, opening: float
+) -> Outcome:
+    """The success check of an episode.
+
+    Args:
+        setup: the scene.
+        q_end: the part's joint position at the end (rad or m).
+        watch: what was seen during the episode.
+        released: tool-to-grasp distance at the end (m).
+        opening: the gripper's opening at the end (m).
+    """
+    frac = setup.fraction(q_end)
+    details = {
+        "joint": float(q_end),
+        "fraction": float(frac),
+        "opened": setup.opened(q_end),
+        "range": float(setup.hi),
+        "span": float(setup.span),
+        "worst_penetration": float(watch.worst),
+        "slip": float(watch.slip),
+        "released": float(released),
+    }
+    if watch.worst > COLLISION_DEPTH:
+        return Outcome(False, "collision", details)
+    done = setup.opened(q_end) >= OPEN_AT if setup.direction == "open" else frac <= CLOSED_AT
+    if not done:
+        if watch.slip > SLIP:
+            return Outcome(False, "slip", details)
+        return Outcome(False, "not_open" if setup.direction == "open" else "not_closed", details)
+    if released < RELEASED or opening < OPEN_HAND:
+        return Outcome(False, "not_released", details)
+    return Outcome(True, "", details)
+
+
+def execute_episode(
+    setup: ArticulatedSetup,
+    plan: ArticulatedPlan,
+    cfg: RecordConfig,
+    renderer: ArticulatedRenderer | None = None,
+) -> Recording:
+    """Runs one planned episode and records it (images when ``cfg.render`` and a renderer is
+    given, or one is made).
+
+    Returns:
+        the recording (``env_state`` (F, 2): the part's joint and share of range), with its
+        outcome (:func:`check_outcome`), simulation and rendering seconds.
+    """
+    m, robot = setup.model, setup.robot
+    data = mujoco.MjData(m)
+    data.qpos[:] = plan.qpos0
+    data.ctrl[:] = plan.ctrl[0]
+    mujoco.mj_forward(m, data)
+    dt = float(m.opt.timestep)
+    per_frame = max(1, round(1.0 / (cfg.fps * dt)))
+    steps = len(plan.ctrl)
+    n_frames = int(np.ceil(steps / per_frame)) + 1
+    nstate = mujoco.mj_stateSize(m, STATE_SPEC)
+    depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
+    own = renderer
+    if own is None and cfg.render:
+        own = ArticulatedRenderer(m, cfg)
+    rec = Recording(
+        time=np.arange(n_frames) / cfg.fps,
+        state=np.zeros((n_frames, nstate)),
+        joint_pos=np.zeros((n_frames, 7)),
+        gripper=np.zeros((n_frames, 1)),
+        ee_pose=np.zeros((n_frames, 7)),
+        action=np.zeros((n_frames, 8)),
+        env_state=np.zeros((n_frames, ENV_STATE_DIM)),
+        rgb={c: np.zeros((n_frames, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
+        if own is not None
+        else {},
+        depth={c: np.zeros((n_frames, cfg.height, cfg.width), depth_type) for c in cfg.cameras}
+        if own is not None
+        else {},
+    )
+    robot_geom = np.zeros(m.ngeom, bool)
+    robot_geom[robot.geoms] = True
+    allowed = allowed_geoms(setup)
+    watch = Watch()
+    pull_end = plan.phases.get("release", steps)
+    sim_s = render_s = 0.0
+    state = np.zeros(nstate)
+
+    def record(frame: int) -> float:
+        t0 = time.perf_counter()
+        mujoco.mj_getState(m, data, state, STATE_SPEC)
+        rec.state[frame] = state
+        q, width, ee = _signals(m, data, robot)
+        rec.joint_pos[frame] = q
+        rec.gripper[frame, 0] = width
+        rec.ee_pose[frame] = ee
+        rec.env_state[frame] = env_state(setup, data)
+        step = min((frame + 1) * per_frame, steps) - 1
+        rec.action[frame] = plan.targets[step]
+        watch.worst = max(watch.worst, robot_penetration(m, data, robot_geom, allowed))
+        if own is not None:
+            rgbs, depths = own.render(data)
+            for c, im, dp in zip(cfg.cameras, rgbs, depths, strict=True):
+                rec.rgb[c][frame] = im
+                rec.depth[c][frame] = dp
+        return time.perf_counter() - t0
+
+    try:
+        render_s += record(0)
+        for f in range(n_frames - 1):
+            t0 = time.perf_counter()
+            for k in range(f * per_frame, (f + 1) * per_frame):
+                data.ctrl[:] = plan.ctrl[min(k, steps - 1)]
+                mujoco.mj_step(m, data)
+                if k == pull_end - 1:
+                    mujoco.mj_kinematics(m, data)
+                    watch.slip = grasp_distance(setup, data, plan.pose_tool_in_link)
+            mujoco.mj_forward(m, data)
+            sim_s += time.perf_counter() - t0
+            render_s += record(f + 1)
+    finally:
+        if renderer is None and own is not None:
+            own.close()
+    released = grasp_distance(setup, data, plan.pose_tool_in_link)
+    rec.outcome = check_outcome(
+        setup, float(data.qpos[setup.qadr]), watch, released, float(rec.gripper[-1, 0])
+    )
+    rec.sim_seconds = sim_s
+    rec.render_seconds = render_s
+    return rec
