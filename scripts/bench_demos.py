@@ -2,7 +2,8 @@
 and failure reasons, planning time per segment, rendering frames/s.
 
     python scripts/bench_demos.py [--scenes 2] [--episodes 4] [--cores 1] [--batch 16]
-        [--executor cpu|warp] [--gpu-batch 512] [--workers N] [--task pick_place|mobile_pick_place]
+        [--executor cpu|warp] [--gpu-batch 512] [--workers N]
+        [--task pick_place|mobile_pick_place|open|close]
         [--runs cold warm] [--set KEY=VALUE ...]
         [--run-dir runs/bench_demos] [--out benchmarks/results/demos-cpu1.json]
 
@@ -15,7 +16,8 @@ cache held at the start (``bare_machine``: none) and each run's time to its firs
 episode (from the command's start, kernel compilation included).
 
 Scenes are generated first (kitchens with a pick-and-place task, or living rooms with a mobile
-"move the can from the coffee table to the desk" task; not timed; kept in
+"move the can from the coffee table to the desk" task, or for ``--task open`` / ``close`` the
+kitchens built with articulated furniture; not timed; kept in
 ``--run-dir`` and reused). ``stage=demos`` then runs through the real CLI on ``--cores`` cores
 (``taskset``; planning workers, simulation threads and Mesa's renderer threads all limited to
 them) twice: a cold run into an empty episode store and a warm run after deleting the episodes
@@ -44,8 +46,15 @@ PROMPTS = {
     "mobile_pick_place": (
         "a living room where the robot moves the coke can from the coffee table to the desk"
     ),
+    # the articulated tasks: the fixed task's kitchens, built with articulated furniture; the
+    # task opens or closes the first part of each that the robot can work
+    # (docs/ARTICULATED_TASKS.md, "Which part")
+    "open": "a kitchen where the robot picks up a mug and puts it in the bowl",
+    "close": "a kitchen where the robot picks up a mug and puts it in the bowl",
 }
 """The generation request of each task's benchmark scenes."""
+GENERATE_ARGS = {"open": ["assets.articulated=true"], "close": ["assets.articulated=true"]}
+"""More ``stage=generate`` overrides of a task's benchmark scenes."""
 
 
 def _cli(
@@ -204,6 +213,7 @@ def main() -> None:
                 f"generate.prompts=[{PROMPTS[args.task]}]",
                 f"generate.scenes_per_prompt={args.scenes}",
                 "generate.render=false",
+                *GENERATE_ARGS.get(args.task, []),
             ],
             os.cpu_count() or 1,
             env,
@@ -295,7 +305,7 @@ def main() -> None:
         "episodes_per_scene": args.episodes,
         "results": results,
     }
-    kind = "mobile-" if args.task == "mobile_pick_place" else ""
+    kind = "" if args.task == "pick_place" else f"{args.task.removesuffix('_pick_place')}-"
     name = f"demos-{kind}{'gpu' if args.executor == 'warp' else 'cpu'}{args.cores}.json"
     path = args.out or ROOT / "benchmarks" / "results" / name
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -62,7 +62,10 @@ def test_demos_meet_the_success_rule(name: str, tmp_path: Path, cli: Any) -> Non
         assert info.task == name and info.success and info.scene_id == sid
         assert info.pick_id == "base_cabinet_0" and info.target_id == "drawer"
         assert info.instruction == f"{name} the drawer of the cabinet"
-        assert env.shape == (info.n_frames, 2)
+        assert env.shape == (info.n_frames, 11)
+        # the hand reaches the handle: the stored tool-to-handle offset shrinks to the grip
+        reach = np.linalg.norm(env[:, 8:11], axis=1)
+        assert reach[0] > 0.1 and reach.min() < 0.03
         # a drawer's span is its range: the stored share of range is the success rule's
         if name == "open":
             assert env[0, 1] == pytest.approx(0.0, abs=1e-3)
@@ -137,8 +140,8 @@ def test_parts_are_named_and_chosen(tmp_path: Path) -> None:
 
 def test_env_observes_the_joint_and_replays_the_plan(tmp_path: Path) -> None:
     """The evaluation env (the fixed task's batch simulation with the task's rules) starts as
-    the demos do, observes the part's joint as ``observation.environment_state`` and ends the
-    planned episode's actions in success."""
+    the demos do, observes the part's joint and its handle (in the robot's base frame) as
+    ``observation.environment_state`` and ends the planned episode's actions in success."""
     from factory.config import DemosConfig
     from factory.policy.obs_spec import ObsSpec
     from factory.policy.vector_env import PickPlaceVecEnv, task_sim
@@ -150,8 +153,13 @@ def test_env_observes_the_joint_and_replays_the_plan(tmp_path: Path) -> None:
     spec = ObsSpec(fps=10.0, cameras=(), env_state=True, task="open")
     env = PickPlaceVecEnv(task_sim(task, setup, planner, 1, spec, nthread=1), max_steps=400)
     obs, _ = env.reset(seeds=[3])
-    assert obs["observation.environment_state"].shape == (1, 2)
-    assert obs["observation.environment_state"][0] == pytest.approx([0.0, 0.0], abs=1e-4)
+    state = obs["observation.environment_state"]
+    assert state.shape == (1, 11)
+    assert state[0, :2] == pytest.approx([0.0, 0.0], abs=1e-4)
+    handle0, normal0 = state[0, 2:5].copy(), state[0, 5:8].copy()
+    assert np.linalg.norm(normal0) == pytest.approx(1.0, abs=1e-4)
+    assert 0.3 <= np.linalg.norm(handle0[:2]) <= 0.8  # ahead of the base, within reach
+    assert float(np.dot(normal0, -handle0)) > 0.0  # the handle faces the robot's side
     plan = planner.plan_episode(3)
     per_frame = round(1.0 / (spec.fps * setup.model.opt.timestep))
     actions = plan.targets[per_frame - 1 :: per_frame]
@@ -162,7 +170,11 @@ def test_env_observes_the_joint_and_replays_the_plan(tmp_path: Path) -> None:
             done = True
             break
     assert done and terminated[0] and info["success"][0], info
-    assert obs["observation.environment_state"][0, 1] >= 0.9
+    state = obs["observation.environment_state"][0]
+    assert state[1] >= 0.9
+    # the drawer slid out along its handle's normal by its joint's travel
+    assert state[2:5] - handle0 == pytest.approx(normal0 * state[0], abs=0.01)
+    assert state[5:8] == pytest.approx(normal0, abs=1e-3)
 
 
 def test_a_chair_in_the_way_is_taken_out(tmp_path: Path) -> None:

@@ -6,9 +6,11 @@ the part: "open the drawer of the base cabinet"):
 
 * ``observation.state`` (8,) float32: arm joints (rad) and the gripper opening (m);
 * ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
-* ``observation.environment_state`` (2,) float32: the manipulated part's joint position (rad
-  for a hinge, m for a slide; 0 closed) and its share of the joint's range (0 closed, 1 at
-  the limit);
+* ``observation.environment_state`` (11,) float32: the manipulated part's joint position
+  (rad for a hinge, m for a slide; 0 closed) and its share of the joint's range (0 closed, 1
+  at the limit); then, in the robot's base frame, the handle's centre (m), its outward normal
+  (unit) and the handle's centre minus the tool site (m)
+  (:func:`factory.tasks.articulated.execute.env_state`);
 * ``action`` (8,) float32: desired arm joints (rad) and the gripper command (m).
 
 The two tasks share the features; each has its own layout (``meta/factory.json``'s
@@ -28,9 +30,16 @@ from factory.tasks.pick_place.dataset import ARM_NAMES, EE_POSE_NAMES, arm_state
 ROBOT_TYPE = "franka_panda"
 """lerobot's ``robot_type`` of the tasks' datasets."""
 ENV_STATE_KEY = "observation.environment_state"
-ENV_STATE_NAMES = ["joint", "joint_fraction"]
+ENV_STATE_NAMES = [
+    "joint",
+    "joint_fraction",
+    *(f"handle_{a}" for a in "xyz"),
+    *(f"handle_normal_{a}" for a in "xyz"),
+    *(f"tool_to_handle_{a}" for a in "xyz"),
+]
 """Names of ``observation.environment_state``: the part's joint position (rad or m) and its
-share of the range."""
+share of the range; the handle's centre, outward normal and offset from the tool in the
+robot's base frame."""
 
 
 def features() -> dict[str, dict[str, Any]]:
@@ -87,7 +96,8 @@ def card(meta: dict[str, Any], cameras: list[str], rgb: dict[str, Any]) -> tuple
         "- **`observation.state`:** 7 arm joint positions (rad) and the gripper opening (m)",
         "- **`observation.ee_pose`:** tool position (m) and quaternion (w, x, y, z), world frame",
         "- **`observation.environment_state`:** the manipulated part's joint position (rad or "
-        "m, 0 closed) and its share of the joint's range",
+        "m, 0 closed) and its share of the joint's range; the handle's centre (m), outward "
+        "normal and offset from the tool (m), in the robot's base frame",
         "- **`action`:** the arm joint targets at the end of the frame (rad) and the gripper "
         "command (m; 0.08 open, negative squeezes)",
         f"- **`observation.images.<camera>`** for {', '.join(f'`{c}`' for c in cameras)}: RGB "

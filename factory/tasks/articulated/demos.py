@@ -11,7 +11,8 @@ Stored episodes fill :class:`~factory.schema.episode.EpisodeInfo` as the fixed t
 ``grasp_width`` the handle's thickness, ``outcome`` the success check's numbers (``joint``,
 ``fraction`` of the range, ``opened`` share of the span, ``range``, ``span``, ...). Arrays: the
 fixed task's (``time``, ``state``, ``joint_pos``, ``gripper``, ``ee_pose``, ``action`` (F, 8))
-and ``env_state`` (F, 2): the part's joint position (rad or m) and its share of the range.
+and ``env_state`` (F, 11): the part's joint and its handle seen from the robot
+(:func:`~factory.tasks.articulated.execute.env_state`).
 ``demos.randomize`` does not apply (each seed draws its start and goal), nor do
 ``demos.appearance`` and ``demos.max_grasps`` (two handle grasps).
 """

@@ -3,8 +3,8 @@ arm, when an episode ends.
 
 The env steps the task's worlds together on one ``mujoco.batch`` as the fixed task's does
 (:class:`~factory.policy.batch_sim.BatchSim`) with :class:`ArticulatedRules`, whose
-:meth:`~ArticulatedRules.env_state` makes ``observation.environment_state`` the part's joint
-and share of range instead of two objects' poses:
+:meth:`~ArticulatedRules.env_state` makes ``observation.environment_state`` the part's joint,
+share of range and handle (seen from the robot) instead of two objects' poses:
 
 * reset: the demos' start of a seed (:meth:`~factory.tasks.articulated.plan.
   ArticulatedPlanner.start_and_goal` with ``np.random.default_rng(seed)``: the part closed for
@@ -100,8 +100,9 @@ class ArticulatedRules:
         self._watch = [Watch() for _ in range(num_envs)]
 
     def env_state(self, data: mujoco.MjData) -> np.ndarray:
-        """``observation.environment_state`` (2,): the part's joint position (rad or m) and
-        its share of the range (:func:`~factory.tasks.articulated.execute.env_state`)."""
+        """``observation.environment_state`` (11,): the part's joint position (rad or m), its
+        share of the range and its handle in the robot's base frame
+        (:func:`~factory.tasks.articulated.execute.env_state`)."""
         return env_state(self.setup, data)
 
     def sample_qpos(self, seed: int) -> np.ndarray:

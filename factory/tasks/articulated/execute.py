@@ -5,7 +5,7 @@ The episode runs on one ``MjData`` (``demo_execution = "episode"``): the plan's 
 controls are applied physics step by physics step (``mj_step``); at every frame the MuJoCo
 integration state (exact replay), the robot's signals
 (:func:`~factory.tasks.articulated.record.robot_signals`), the action (the plan's targets at
-the end of the frame), the part's joint position and its share of the range (``env_state``)
+the end of the frame), the part's joint and its handle as seen from the robot (``env_state``)
 and, when images are drawn, the recording cameras
 (:class:`~factory.tasks.articulated.record.ArticulatedRenderer`) are recorded. Nothing is
 teleported: the part moves only because the fingers pull or push its handle.
@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from factory.demos.record.payload import STATE_SPEC
+from factory.robots.panda import rot_z
 from factory.tasks.articulated.plan import (
     CLOSED_AT,
     OPEN_AT,
@@ -55,8 +56,10 @@ __all__ = [
     "execute_episode",
 ]
 
-ENV_STATE_DIM = 2
-"""``env_state``: the part's joint position (rad or m) and its share of the range (0 closed)."""
+ENV_STATE_DIM = 11
+"""``env_state``: the part's joint position (rad or m) and its share of the range (0 closed),
+the handle's centre and outward normal and the handle's offset from the tool, in the robot's
+base frame (:func:`env_state`)."""
 COLLISION_DEPTH = 0.02
 """A robot contact with the scene (other than the part) deeper than this (m) fails the episode."""
 SLIP = 0.03
@@ -70,9 +73,21 @@ OPEN_HAND = 0.03
 
 
 def env_state(setup: ArticulatedSetup, data: mujoco.MjData) -> np.ndarray:
-    """The part's joint position (rad or m) and its share of the range, (2,)."""
+    """What a policy needs to know of the part, (11,): its joint position (rad or m, 0 closed)
+    and share of the range, then, in the robot's base frame, the handle's centre (m), its
+    outward normal (unit) and the handle's centre minus the tool site (m). ``data`` with
+    current kinematics (the link's ``xpos``/``xmat``, the tool site's ``site_xpos``).
+
+    The joint alone tells a policy how far the part has moved, not where its handle is: in a
+    new kitchen the handle stands elsewhere relative to the robot."""
     q = float(data.qpos[setup.qadr])
-    return np.array([q, setup.fraction(q)])
+    center, _, normal = setup.part.handle_in_link()
+    rot = data.xmat[setup.body].reshape(3, 3)
+    place = setup.placement
+    handle = place.to_base(data.xpos[setup.body] + rot @ center)
+    facing = (rot @ normal) @ rot_z(place.yaw)
+    tool = place.to_base(data.site_xpos[setup.robot.site])
+    return np.concatenate([[q, setup.fraction(q)], handle, facing, handle - tool])
 
 
 def grasp_distance(setup: ArticulatedSetup, data: mujoco.MjData, grasp: np.ndarray) -> float:
@@ -161,7 +176,7 @@ def execute_episode(
     given, or one is made).
 
     Returns:
-        the recording (``env_state`` (F, 2): the part's joint and share of range), with its
+        the recording (``env_state`` (F, 11): :func:`env_state` per frame), with its
         outcome (:func:`check_outcome`), simulation and rendering seconds.
     """
     m, robot = setup.model, setup.robot

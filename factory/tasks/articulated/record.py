@@ -63,8 +63,9 @@ class Recording:
         time: (F,) s; state: (F, nstate) MuJoCo integration state; joint_pos: (F, 7) rad;
         gripper: (F, 1) opening between the fingers (m); ee_pose: (F, 7) tool site position
         (m) and quaternion wxyz, world frame; action: (F, 8) arm joint targets (rad) and
-        gripper command (m) at the end of each frame; env_state: (F, 2) the part's joint
-        (rad or m) and its share of the range; rgb: camera -> (F, H, W, 3) uint8; depth:
+        gripper command (m) at the end of each frame; env_state: (F, 11) the part's joint
+        and its handle seen from the robot (:func:`~factory.tasks.articulated.execute.
+        env_state`); rgb: camera -> (F, H, W, 3) uint8; depth:
         camera -> (F, H, W) uint16 mm or float32 m; outcome: the success check.
     """
 

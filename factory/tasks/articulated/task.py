@@ -68,8 +68,11 @@ class ArticulatedTask(Task):
         return ("articulated", self.direction)
 
     def env_state_dim(self) -> int:
-        """The part's joint position and share of range: 2."""
-        return 2
+        """The part's joint and its handle seen from the robot:
+        :data:`~factory.tasks.articulated.execute.ENV_STATE_DIM` (11)."""
+        from factory.tasks.articulated.execute import ENV_STATE_DIM
+
+        return ENV_STATE_DIM
 
     def env_cameras(self) -> tuple[str, ...]:
         """``left``, ``right``, ``wrist``."""
