@@ -74,6 +74,9 @@ class TrainInfo:
         action: what the model predicts (``tool``, ``tool_rel`` or ``joint``, see
             :mod:`factory.policy.inputs`); the env always gets 8-D joint targets.
         config: the ``train.*`` settings of the run.
+        layout: the dataset's layout (``meta/factory.json``), which names the task it was
+            trained on (:func:`factory.dataset.layout.layout_task`); empty in policies trained
+            before it was recorded (their features tell the task).
     """
 
     name: str
@@ -92,6 +95,7 @@ class TrainInfo:
     episode_indices: list[int] = field(default_factory=list)
     action: str = "joint"
     vision: str = "end_to_end"
+    layout: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return {"schema_version": TRAIN_SCHEMA_VERSION, **asdict(self)}

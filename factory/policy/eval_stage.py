@@ -342,7 +342,12 @@ def run(ctx: StageContext) -> dict[str, Any]:
     if ec.name:
         name = slug(str(ec.name))
     meta = _dataset_meta(dataset)
-    task = evaluated_task(str(cfg.task), meta, policy.info.features if policy is not None else None)
+    task = evaluated_task(
+        str(cfg.task),
+        meta,
+        policy.info.features if policy is not None else None,
+        policy.info.layout if policy is not None else "",
+    )
     run_scenes = store.scene_ids()
     listed = None if isinstance(ec.scenes, str) else [str(s) for s in ec.scenes]
     if listed is not None:

@@ -125,6 +125,11 @@ TOOL_POS = slice(8, 11)
 ENV_DIM = 24
 """Model ``observation.environment_state``: two poses of position (3) + 6D rotation (6), then
 the two tool-to-object offsets (3 each)."""
+OBJECT_POSES_DIM = 14
+"""Dataset ``observation.environment_state`` of the fixed pick-and-place task: the pick object's
+and the target's world poses (position + quaternion wxyz each), converted to :data:`ENV_DIM`
+model values. Other tasks may record their own environment state, already in the robot's base
+frame (:attr:`InputSpec.env_dim`)."""
 ACTION_DIMS = {"tool": 10, "tool_rel": 10, "joint": 8}
 """Model ``action`` size per ``train.action``."""
 MOBILE_CAMERAS = ("left", "right", "wrist", "fisheye_front", "fisheye_back")
@@ -163,6 +168,11 @@ class InputSpec:
         pose_cameras: the cameras of the dataset's :data:`CAMERA_POSES`, in its order, where
             the perception network reads that calibration (``rgbd``, ``train.perception_points``
             and one of them among ``cameras``); empty: not read.
+        env_dim: 0: the dataset's ``observation.environment_state`` holds the two objects'
+            world poses (:data:`OBJECT_POSES_DIM`), which the model reads as :data:`ENV_DIM`
+            base-frame values (:func:`env_features`); n > 0: the dataset records its task's
+            own environment state of n values, read as it is (e.g. the articulated tasks' part
+            joint and handle in the robot's base frame).
     """
 
     inputs: str
@@ -173,6 +183,7 @@ class InputSpec:
     mobile: bool = False
     perception: bool = False
     pose_cameras: tuple[str, ...] = ()
+    env_dim: int = 0
 
     @property
     def action_dim(self) -> int:
@@ -200,7 +211,7 @@ class InputSpec:
         else:
             out = {STATE: [8], EE_POSE: [7]}
         if self.inputs == "state" and not self.mobile:
-            out[ENV_STATE] = [14]
+            out[ENV_STATE] = [self.env_dim or OBJECT_POSES_DIM]
         for k in self.image_keys():
             out[k] = [h, w, 3]
         for k in self.depth_keys():
@@ -220,10 +231,19 @@ class InputSpec:
         else:
             out = {STATE: [ROBOT_DIM]}
         if self.inputs == "state" and not self.mobile:
-            out[ENV_STATE] = [ENV_DIM]
+            out[ENV_STATE] = [self.env_dim or ENV_DIM]
         for k in self.visual_keys():
             out[k] = [3, h, w]
         return out
+
+    def env_model(
+        self, state: np.ndarray, ee_pose: np.ndarray, env_state: np.ndarray
+    ) -> np.ndarray:
+        """Model ``observation.environment_state`` (..., :data:`ENV_DIM` or ``env_dim``) from
+        the dataset's or env's state (..., 8), ee_pose (..., 7) and environment state."""
+        if self.env_dim:
+            return np.asarray(env_state, np.float32)
+        return env_features(state, ee_pose, env_state)
 
     def dataset_keys(self) -> list[str]:
         """Dataset features read for training (observations and the action)."""
@@ -298,7 +318,7 @@ def _input_spec(
             f"the dataset lacks {', '.join(missing)} (train.inputs={inputs}): {REFRESH}"
         )
     if inputs == "state":
-        return InputSpec("state", action=action)
+        return InputSpec("state", action=action, env_dim=_own_env_dim(features))
     cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
     if not cams:
         raise PolicyError(
@@ -315,6 +335,20 @@ def _input_spec(
     shape = features[f"{IMAGE_PREFIX}{cams[0]}"]["shape"]
     size = (int(shape[0]), int(shape[1]))
     return InputSpec(inputs, cams, size, action=action, perception=perception)
+
+
+def _own_env_dim(features: Mapping[str, Any]) -> int:
+    """:attr:`InputSpec.env_dim` of a dataset: 0 where its ``observation.environment_state`` is
+    the fixed task's two object poses (their names; without names, its width of
+    :data:`OBJECT_POSES_DIM`), else its width."""
+    from factory.tasks.pick_place.dataset import ENV_STATE_NAMES as OBJECT_POSE_NAMES
+
+    feat = features[ENV_STATE]
+    width = int(feat["shape"][0])
+    names = feat.get("names")
+    if names:
+        return 0 if list(names) == OBJECT_POSE_NAMES else width
+    return 0 if width == OBJECT_POSES_DIM else width
 
 
 def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> InputSpec:
@@ -374,8 +408,12 @@ def spec_from_features(
     perception: bool = False,
 ) -> InputSpec:
     """The spec recorded by a training run (``TrainInfo.features``: raw key -> shape), without
-    :attr:`InputSpec.pose_cameras` (a perception network's settings name them)."""
+    :attr:`InputSpec.pose_cameras` (a perception network's settings name them). A state
+    policy's environment state of other than :data:`OBJECT_POSES_DIM` values is its task's own
+    (:attr:`InputSpec.env_dim`)."""
     mobile = SUBTASK_KEY in features
+    env = features.get(ENV_STATE)
+    env_dim = 0 if not env or int(env[0]) == OBJECT_POSES_DIM else int(env[0])
     cams = tuple(
         c for c in (MOBILE_CAMERAS if mobile else CAMERAS) if f"{IMAGE_PREFIX}{c}" in features
     )
@@ -383,7 +421,9 @@ def spec_from_features(
     if cams:
         shape = features[f"{IMAGE_PREFIX}{cams[0]}"]
         size = (int(shape[0]), int(shape[1]))
-    return InputSpec(inputs, cams, size, float(depth_max_m), action, mobile, perception)
+    return InputSpec(
+        inputs, cams, size, float(depth_max_m), action, mobile, perception, env_dim=env_dim
+    )
 
 
 # ---- geometry: poses in the robot's base frame
@@ -740,7 +780,7 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
     if spec.mobile:
         out[ENV_STATE] = torch.from_numpy(subtask_onehot(item[SUBTASK_KEY], state.shape[:-1]))
     elif spec.inputs == "state":
-        env = env_features(state, item[EE_POSE].numpy(), item[ENV_STATE].numpy())
+        env = spec.env_model(state, item[EE_POSE].numpy(), item[ENV_STATE].numpy())
         out[ENV_STATE] = torch.from_numpy(env)
     for k in spec.image_keys():
         out[k] = item[k].to(torch.float32)
@@ -768,7 +808,7 @@ def convert_observation(spec: InputSpec, obs: Mapping[str, np.ndarray]) -> dict[
     if spec.mobile:
         out[ENV_STATE] = torch.from_numpy(subtask_onehot(obs[SUBTASK_KEY], state.shape[:-1]))
     elif spec.inputs == "state":
-        env = env_features(state, np.asarray(obs[EE_POSE]), np.asarray(obs[ENV_STATE]))
+        env = spec.env_model(state, np.asarray(obs[EE_POSE]), np.asarray(obs[ENV_STATE]))
         out[ENV_STATE] = torch.from_numpy(env)
     for k in spec.image_keys():
         img = torch.from_numpy(np.ascontiguousarray(obs[k]))

@@ -232,7 +232,7 @@ class LowDimFrames:
         if spec.mobile:
             self.values[ENV_STATE] = subtask_onehot(column(SUBTASK_KEY), state.shape[:-1])
         elif spec.inputs == "state" or spec.perception:
-            self.values[ENV_STATE] = env_features(state, column(EE_POSE), column(ENV_STATE))
+            self.values[ENV_STATE] = spec.env_model(state, column(EE_POSE), column(ENV_STATE))
         if aux:  # the auxiliary target: the environment state of the sample's frame
             self.values[AUX_TARGET] = env_features(state, column(EE_POSE), column(ENV_STATE))
         self.episode = np.asarray(table.column("episode_index").to_numpy(), np.int64)
@@ -530,7 +530,7 @@ def model_stats(
         onehot = subtask_onehot(rows[SUBTASK_KEY], rows[STATE].shape[:-1])
         stats[ENV_STATE] = get_feature_stats(onehot, axis=0, keepdims=False)
     elif spec.inputs == "state" or spec.perception:
-        env = env_features(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
+        env = spec.env_model(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
         stats[ENV_STATE] = get_feature_stats(env, axis=0, keepdims=False)
     if spec.perception:  # the lerobot policy reads no images (the perception network does)
         return stats

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from factory.context import StageContext
+from factory.dataset.layout import meta_layout
 from factory.errors import ConfigError, PolicyError
 from factory.policy.checkpoint import (
     CHECKPOINTS,
@@ -202,6 +203,7 @@ def train_info(tc: Any, spec: InputSpec, root: Path) -> TrainInfo:
         episode_indices=indices,
         action=spec.action,
         vision="perception" if spec.perception else "end_to_end",
+        layout=meta_layout(meta),
     )
 
 

@@ -55,6 +55,29 @@ def test_settings_read_what_they_name() -> None:
     assert set(INPUTS) == {"state", "rgb", "rgbd"}
 
 
+def test_a_task_s_own_environment_state_is_read_as_recorded() -> None:
+    """A dataset whose environment state is not the two objects' poses (the articulated tasks'
+    part joint and handle, already in the base frame) is read as it is, by a trained policy's
+    recorded spec too; the fixed task's named object poses still become the 24 model values."""
+    from factory.policy.inputs import spec_from_features
+    from factory.tasks.articulated.dataset import ENV_STATE_NAMES as PART_NAMES
+    from factory.tasks.pick_place.dataset import ENV_STATE_NAMES as OBJECT_NAMES
+
+    feats = _features(cams=())
+    feats[ENV_STATE] = {"dtype": "float32", "shape": [len(PART_NAMES)], "names": PART_NAMES}
+    own = input_spec("state", feats, "tool")
+    assert own.env_dim == len(PART_NAMES) == 11
+    assert own.raw_features()[ENV_STATE] == [11] and own.model_features()[ENV_STATE] == [11]
+    env = np.random.default_rng(0).normal(size=(5, 11)).astype(np.float32)
+    assert np.array_equal(own.env_model(np.zeros((5, 8)), np.zeros((5, 7)), env), env)
+    again = spec_from_features("state", own.raw_features(), 2.0, "tool")
+    assert again.env_dim == 11 and again.model_features() == own.model_features()
+    feats[ENV_STATE] = {"dtype": "float32", "shape": [14], "names": OBJECT_NAMES}
+    objects = input_spec("state", feats)
+    assert objects.env_dim == 0 and objects.model_features()[ENV_STATE] == [24]
+    assert spec_from_features("state", objects.raw_features(), 2.0).env_dim == 0
+
+
 @pytest.mark.parametrize(
     ("inputs", "feats", "words"),
     [

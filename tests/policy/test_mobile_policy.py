@@ -409,3 +409,19 @@ def test_mobile_and_fixed_do_not_mix() -> None:
         evaluated_task("mobile_pick_place", None, {"observation.state": [8]})
     with pytest.raises(PolicyError, match="mobile task, but the dataset is of the fixed-base"):
         evaluated_task("mobile_pick_place", fixed, None)
+
+
+def test_a_policy_s_task_is_its_dataset_s_layout() -> None:
+    """A policy records its dataset's layout, which names its task even where two tasks' policies
+    read the same features (``task=open`` and ``task=close``); a mismatch names both tasks."""
+    from factory.policy.eval_task import evaluated_task
+
+    feats = {"observation.state": [8], "observation.environment_state": [11]}
+    opened = {"layout": "articulated_open"}
+    assert evaluated_task("pick_place", None, feats, "articulated_open").name == "open"
+    assert evaluated_task("open", opened, feats, "articulated_open").name == "open"
+    assert evaluated_task("pick_place", opened, None).name == "open"
+    with pytest.raises(PolicyError, match=r"^task=close was asked for, but the policy is of "):
+        evaluated_task("close", None, feats, "articulated_open")
+    with pytest.raises(PolicyError, match="trained on a task=close dataset, but the evaluation"):
+        evaluated_task("open", opened, feats, "articulated_close")
