@@ -54,7 +54,15 @@ from factory.demos.plan.grasps import (
 from factory.demos.plan.planner import Attachment, PlannerConfig, plan
 from factory.demos.plan.timing import Limits, time_path
 from factory.errors import TaskError
-from factory.robots.panda import GRIP_CLOSED, GRIP_OPEN, pose_matrix, rot_z, yaw_quat
+from factory.robots.panda import (
+    GRIP_CLOSED,
+    GRIP_OPEN,
+    RobotIndex,
+    RobotPlacement,
+    pose_matrix,
+    rot_z,
+    yaw_quat,
+)
 from factory.schema import Scene, SceneObject
 from factory.tasks.articulated.parts import Part, scene_parts
 from factory.tasks.articulated.plan import (
@@ -243,6 +251,16 @@ class PlaceInsideSetup:
     def model(self) -> mujoco.MjModel:
         """The composed scene + robot."""
         return self.art.model
+
+    @property
+    def robot(self) -> RobotIndex:
+        """The robot's index in :attr:`model`."""
+        return self.art.robot
+
+    @property
+    def placement(self) -> RobotPlacement:
+        """The robot's base pose (world frame)."""
+        return self.art.placement
 
     @property
     def scene(self) -> Scene:
