@@ -1,9 +1,9 @@
 """Planning one "put the mug in the drawer" demonstration: open the part, pick the object, place
 it on the interior support behind the part, release, retreat, close the part.
 
-Per scene, :func:`setup_scene` chooses the container part (:func:`container_parts`: a drawer
-whose link carries an interior support and volume, empty and tall enough for the object), the
-pick object (:func:`pick_object`) and, through the articulated tasks' set-up
+Per scene, :func:`setup_scene` chooses the container part (a drawer whose link carries an
+interior support and volume, empty and tall enough for the object), the pick object
+(:mod:`~factory.tasks.place_inside.containers`) and, through the articulated tasks' set-up
 (:func:`factory.tasks.articulated.plan.setup_scene` for that part, direction ``open``), the
 robot's base spot in front of the part. The pick object stands on the container's top (the
 counter above the drawer): it is moved there, and what else stands on that top is taken out
@@ -64,7 +64,6 @@ from factory.robots.panda import (
     yaw_quat,
 )
 from factory.schema import Scene, SceneObject
-from factory.tasks.articulated.parts import Part, scene_parts
 from factory.tasks.articulated.plan import (
     READY_QPOS,
     ArticulatedMotion,
@@ -79,26 +78,21 @@ from factory.tasks.articulated.plan import (
     time_along,
 )
 from factory.tasks.pick_place.plan import targets_to_ctrl
+from factory.tasks.place_inside.containers import (
+    MARGIN,
+    Interior,
+    container_parts,
+    container_top,
+    on_top,
+    pick_object,
+)
 
-__all__ = [
-    "PICK_CATEGORIES",
-    "Interior",
-    "PlaceInsidePlan",
-    "PlaceInsidePlanner",
-    "PlaceInsideSetup",
-    "container_parts",
-    "pick_object",
-    "setup_scene",
-]
+__all__ = ["PlaceInsidePlan", "PlaceInsidePlanner", "PlaceInsideSetup", "setup_scene"]
 
 log = logging.getLogger(__name__)
 
-PICK_CATEGORIES = ("mug", "cup", "can", "apple", "orange", "jar")
-"""Small objects the task puts away when the scene names no pick object (``task_role``)."""
 MAX_CONTAINERS = 4
 """Container parts :func:`setup_scene` tries before it gives up on a scene."""
-MARGIN = 0.03
-"""Clearance (m) between the object and the interior's walls, and from the top's edges."""
 TOP_FRONT = 0.10
 """The object stands at least this far (m) behind the container top's front edge (the hand
 holding the drawer's handle below works there)."""
@@ -110,117 +104,6 @@ PLACE_DROP = 0.01
 """The object is released this far above the drawer's floor (m)."""
 MAX_GRASPS = 8
 """Object grasps tried per episode."""
-
-
-@dataclass(frozen=True)
-class Interior:
-    """The interior behind a part: the support and volume its link carries.
-
-    Attributes:
-        floor_z: the support's height (m, object frame, scaled).
-        lo, hi: the interior volume's corners (3,) (m, object frame in the closed pose, which is
-            the link's frame; scaled).
-    """
-
-    floor_z: float
-    lo: np.ndarray
-    hi: np.ndarray
-
-
-def _interior(part: Part, assets_root: str | Path) -> Interior | None:
-    """The interior support and volume carried by the part's link, or None (a door's link
-    carries none: the case behind it does not move)."""
-    from factory.assets.cache import cached
-
-    assert part.obj.asset is not None
-    meta = cached(Path(assets_root), part.obj.asset.asset_id)
-    if meta is None:
-        return None
-    s = np.array(part.scale, float)
-    sup = [x for x in meta.supports if x.get("link") == part.joint.link]
-    vol = [x for x in meta.containers if x.get("link") == part.joint.link]
-    if not sup or not vol:
-        return None
-    return Interior(
-        float(sup[0]["z"]) * s[2], np.array(vol[0]["lo"], float) * s, np.array(vol[0]["hi"]) * s
-    )
-
-
-def _top(obj: SceneObject, assets_root: str | Path) -> tuple[float, np.ndarray] | None:
-    """The container's top surface: its height (m, object frame, scaled) and rectangle
-    ``[x0, y0, x1, y1]`` (m, object frame, scaled), or None."""
-    from factory.assets.cache import cached
-
-    assert obj.asset is not None
-    meta = cached(Path(assets_root), obj.asset.asset_id)
-    if meta is None:
-        return None
-    tops = [x for x in meta.supports if x.get("name") == "case_top"]
-    if not tops:
-        return None
-    sc = obj.asset.scale
-    rect = np.array(tops[0]["rect"], float) * np.array([sc.x, sc.y, sc.x, sc.y])
-    return float(tops[0]["z"]) * sc.z, rect
-
-
-def pick_object(scene: Scene) -> SceneObject:
-    """The object to put away: the scene's ``task_role`` ``pick`` object, else the first
-    movable object of :data:`PICK_CATEGORIES`.
-
-    Raises:
-        TaskError: none (lists the categories looked for).
-    """
-    for o in scene.objects:
-        if o.task_role == "pick" and not o.is_static:
-            return o
-    for cat in PICK_CATEGORIES:
-        for o in scene.objects:
-            if o.category == cat and not o.is_static:
-                return o
-    raise TaskError(
-        f"scene {scene.id!r}: no object to put away (task_role 'pick', or one of "
-        f"{', '.join(PICK_CATEGORIES)})"
-    )
-
-
-def _stored_on(scene: Scene, link_part: Part, interior: Interior) -> list[str]:
-    """Objects standing on the part's interior support (by height, in the scene's closed
-    pose)."""
-    obj = link_part.obj
-    out = []
-    for o in scene.objects:
-        if o.placement.support_id != obj.id:
-            continue
-        if abs((o.position.z - obj.position.z) - interior.floor_z) < 0.02:
-            out.append(o.id)
-    return out
-
-
-def container_parts(
-    scene: Scene, assets_root: str | Path, pick: SceneObject, why: Counter[str]
-) -> list[tuple[Part, Interior]]:
-    """The parts the object can be put behind, in scene order: parts whose link carries an
-    interior support and volume (drawers), whose object has a top to stand the object on,
-    empty, with room for the object (its height + :data:`MARGIN` under the volume's top, its
-    footprint + 2 :data:`MARGIN` across). Refusals are counted into ``why`` (``no_interior``,
-    ``occupied``, ``too_small``)."""
-    out = []
-    d = pick.dimensions
-    foot = max(d.width, d.length)
-    for part in scene_parts(scene, assets_root):
-        inner = _interior(part, assets_root)
-        if inner is None or _top(part.obj, assets_root) is None:
-            why["no_interior"] += 1
-            continue
-        if _stored_on(scene, part, inner):
-            why["occupied"] += 1
-            continue
-        size = inner.hi - inner.lo
-        if size[2] < d.height + MARGIN or min(size[0], size[1]) < foot + 2 * MARGIN:
-            why["too_small"] += 1
-            continue
-        out.append((part, inner))
-    return out
 
 
 @dataclass
@@ -281,8 +164,9 @@ class PlaceInsideSetup:
         )
 
     def instruction(self) -> str:
-        """"put the <object> in <the part's label>" ("put the mug in the drawer of the base
-        cabinet"), or the scene's instruction when the scene was made for the task."""
+        """The episode's instruction: the scene's when the scene was made for the task, else
+        "put the <object> in <the part's label>" ("put the mug in the drawer of the base
+        cabinet")."""
         task = self.scene.task
         if task is not None and task.kind == "place_inside" and task.instruction:
             return str(task.instruction)
@@ -297,32 +181,6 @@ class _CarriedSetup(ArticulatedSetup):
 
     def link_bodies(self) -> np.ndarray:
         return np.append(super().link_bodies(), self.carried)
-
-
-def _on_top(scene: Scene, container: SceneObject, top_z: float, pick: SceneObject) -> Scene:
-    """``scene`` with ``pick`` standing on the container's top (its centre, turned as the
-    container) and everything else on the top taken out (with what stands on it)."""
-    on = {
-        o.id
-        for o in scene.objects
-        if o.placement.support_id == container.id
-        and o.id != pick.id
-        and o.position.z - container.position.z >= top_z - 1e-3
-    }
-    gone = scene.with_dependents(on) if on else set()
-    gone.discard(pick.id)
-    moved = replace(
-        pick,
-        position=replace(
-            pick.position,
-            x=container.position.x,
-            y=container.position.y,
-            z=container.position.z + top_z,
-        ),
-        placement=replace(pick.placement, kind="on_top", support_id=container.id),
-    )
-    objects = [moved if o.id == pick.id else o for o in scene.objects if o.id not in gone]
-    return replace(scene, objects=objects)
 
 
 def setup_scene(
@@ -341,9 +199,9 @@ def setup_scene(
     why: Counter[str] = Counter()
     parts = container_parts(scene, assets_root, pick, why)
     for part, inner in parts[:MAX_CONTAINERS]:
-        top = _top(part.obj, assets_root)
+        top = container_top(part.obj, assets_root)
         assert top is not None
-        sc = _on_top(scene, part.obj, top[0], pick)
+        sc = on_top(scene, part.obj, top[0], pick)
         cleared = sorted({o.id for o in scene.objects} - {o.id for o in sc.objects})
         sc = replace(
             sc,
@@ -525,7 +383,9 @@ class PlaceInsidePlanner:
                 f"no spot on the top of {s.container.id!r} within {REACH} m of the robot's base"
             )
         quat = np.zeros(4)
-        mujoco.mju_mulQuat(quat, yaw_quat(float(rng.uniform(-math.pi, math.pi))), self.home_pose[3:])
+        mujoco.mju_mulQuat(
+            quat, yaw_quat(float(rng.uniform(-math.pi, math.pi))), self.home_pose[3:]
+        )
         return np.array([xy[0], xy[1], s.top_z, *quat])
 
     def initial_qpos(self, seed: int) -> np.ndarray:
@@ -587,10 +447,9 @@ class PlaceInsidePlanner:
         out = []
         for g in cands:
             tool = pose @ g.pose_tool_in_obj
-            clear = self.grasp_cfg.clearance
-            if gripper_clear(
-                m, data, self.shape, tool, clear, self.robot.bodies
-            ) and gripper_clear(m, data, self.shape, tool @ back, clear, self.robot.bodies):
+            clear, bodies = self.grasp_cfg.clearance, self.robot.bodies
+            free = gripper_clear(m, data, self.shape, tool, clear, bodies)
+            if free and gripper_clear(m, data, self.shape, tool @ back, clear, bodies):
                 out.append(g)
             if len(out) >= MAX_GRASPS:
                 break
@@ -699,23 +558,21 @@ class PlaceInsidePlanner:
         """Plans one episode (deterministic in ``seed``; module docstring)."""
         t0 = time.perf_counter()
         rng = np.random.default_rng(seed)
-        s, ck = self.setup, self.checker
+        ck = self.checker
         try:
             start = self.object_pose(rng)
         except TaskError as e:
             return PlanFailure("no_object_pose", str(e), time.perf_counter() - t0)
         self._set_object(start)
         try:
-            return self._plan(seed, rng, start, t0)
+            return self._plan(rng, t0)
         finally:
             self._set_object(self.home_pose)
             ck.attach(None)
             ck.ignore_bodies([])
 
-    def _plan(
-        self, seed: int, rng: np.random.Generator, start: np.ndarray, t0: float
-    ) -> PlaceInsidePlan | PlanFailure:
-        s, ck, mo = self.setup, self.checker, self.motion
+    def _plan(self, rng: np.random.Generator, t0: float) -> PlaceInsidePlan | PlanFailure:
+        s = self.setup
         opened = self.opener.plan_episode(int(rng.integers(2**31 - 1)))
         if isinstance(opened, PlanFailure):
             return PlanFailure(
@@ -769,7 +626,7 @@ class PlaceInsidePlanner:
     ) -> tuple[HandleMotion, np.ndarray] | None:
         """The close motion (the object resting at ``place_obj`` in the open drawer) and the
         reach to its pre-grasp from ``q_from``; None (counted) when they do not plan."""
-        s, ck = self.setup, self.checker
+        s = self.setup
         placed = np.zeros(7)
         placed[:3] = place_obj[:3, 3]
         mujoco.mju_mat2Quat(placed[3:], place_obj[:3, :3].flatten())
