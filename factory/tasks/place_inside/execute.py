@@ -14,10 +14,10 @@ frame and within :data:`FLOOR_TOL` of its floor), the part is closed (at most
 :data:`~factory.tasks.articulated.plan.CLOSED_AT` of its range), the hand is open and away from
 the handle, and no robot contact with the scene other than the container and the object went
 deeper than :data:`~factory.tasks.articulated.execute.COLLISION_DEPTH`. Failure reasons, the
-first that applies: ``collision``; ``slip`` (the object was not lifted off the top: less than
-:data:`LIFTED` above its start at the end of the lift); ``dropped`` (it was farther than
-:data:`DROPPED` from its planned place pose when the hand opened); ``not_inside``;
-``not_closed``; ``not_released``.
+first that applies: ``collision``; the object not inside: ``slip`` (it was not lifted off the
+top: less than :data:`LIFTED` above its start at the end of the lift), ``dropped`` (it was
+farther than :data:`DROPPED` from its planned place pose when the hand opened), else
+``not_inside``; ``not_closed``; ``not_released``.
 """
 
 from __future__ import annotations
@@ -148,17 +148,19 @@ def check_outcome(
     }
     if watch.worst > COLLISION_DEPTH:
         return Outcome(False, "collision", details)
-    if watch.lifted < LIFTED:
-        return Outcome(False, "slip", details)
-    if watch.off_place > DROPPED:
-        return Outcome(False, "dropped", details)
+    closed = art.fraction(q) <= CLOSED_AT
+    let_go = released >= RELEASED and float(fingers[0] - fingers[1]) >= OPEN_HAND
+    if ok and closed and let_go:
+        return Outcome(True, "", details)
     if not ok:
+        if watch.lifted < LIFTED:
+            return Outcome(False, "slip", details)
+        if watch.off_place > DROPPED:
+            return Outcome(False, "dropped", details)
         return Outcome(False, "not_inside", details)
-    if art.fraction(q) > CLOSED_AT:
+    if not closed:
         return Outcome(False, "not_closed", details)
-    if released < RELEASED or float(fingers[0] - fingers[1]) < OPEN_HAND:
-        return Outcome(False, "not_released", details)
-    return Outcome(True, "", details)
+    return Outcome(False, "not_released", details)
 
 
 def execute_episode(

@@ -547,7 +547,7 @@ class PlaceInsidePlanner:
             ("pick_approach", np.stack([q_pre, q_grasp]), "slow_open"),
             ("pick_close", q_grasp[None], "hold_closed"),
             ("pick_lift", np.stack([q_grasp, q_lift]), "slow_closed"),
-            ("transport", carry.path, "fast_closed"),
+            ("transport", carry.path, "slow_closed"),
             ("lower", np.stack([q_preplace, q_place]), "slow_closed"),
             ("place_release", q_place[None], "hold_open"),
             ("place_retreat", np.stack([q_place, q_up]), "slow_open"),
