@@ -18,7 +18,7 @@ import numpy as np
 
 from factory.errors import TaskError
 from factory.schema import Scene, SceneObject
-from factory.tasks.articulated.parts import Part, scene_parts
+from factory.tasks.articulated.parts import Part, names_part, scene_parts
 
 __all__ = [
     "MARGIN",
@@ -126,12 +126,21 @@ def container_parts(
     """The parts the object can be put behind, in scene order: parts whose link carries an
     interior support and volume (drawers), whose object has a top to stand the object on,
     empty, with room for the object (its height + :data:`MARGIN` under the volume's top, its
-    footprint + 2 :data:`MARGIN` across). Refusals are counted into ``why`` (``no_interior``,
-    ``occupied``, ``too_small``)."""
+    footprint + 2 :data:`MARGIN` across). A scene made for the task (``task.kind``
+    ``place_inside``) whose instruction names parts (role word and category, as
+    :func:`~factory.tasks.articulated.parts.names_part` reads them: "put the mug in the drawer of
+    the base cabinet") offers only those. Refusals are counted into ``why`` (``not_named``,
+    ``no_interior``, ``occupied``, ``too_small``)."""
     out = []
     d = pick.dimensions
     foot = max(d.width, d.length)
-    for part in scene_parts(scene, assets_root):
+    parts = scene_parts(scene, assets_root)
+    task = scene.task
+    if task is not None and task.kind == "place_inside" and task.instruction:
+        named = [p for p in parts if names_part(str(task.instruction), p)]
+        why["not_named"] += len(parts) - len(named)
+        parts = named or parts
+    for part in parts:
         inner = _interior(part, assets_root)
         if inner is None or container_top(part.obj, assets_root) is None:
             why["no_interior"] += 1
