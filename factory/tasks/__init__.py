@@ -31,6 +31,7 @@ TASKS: dict[str, str] = {
     "mobile_pick_place": "factory.tasks.mobile_pick_place.task:MobilePickPlaceTask",
     "open": "factory.tasks.open.task:OpenTask",
     "close": "factory.tasks.close.task:CloseTask",
+    "place_inside": "factory.tasks.place_inside.task:PlaceInsideTask",
 }
 """Task name (``task=<name>``, a scene's ``task.kind``) -> ``"module:Class"``."""
 

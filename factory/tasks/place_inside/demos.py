@@ -1,0 +1,177 @@
+"""What ``stage=demos`` records of ``task=place_inside``: a scene of a run composed with the
+Panda in front of the container part (:func:`scene_planner`, also the evaluation env's set-up)
+and :class:`PlaceInsideScene`, the :class:`~factory.demos.record.scene.SimulatingScene` the
+demos machinery plans, simulates and stores with (``demo_execution = "episode"``: an episode
+at a time on one ``MjData``, :func:`~factory.tasks.place_inside.execute.execute_episode`).
+
+Stored episodes fill :class:`~factory.schema.episode.EpisodeInfo` as the articulated tasks do,
+with ``pick_id`` the object put away, ``target_id`` the part (``<object>:<joint>``),
+``support_id`` the container, ``robot`` the base spot, ``frozen`` the objects compiled
+static, ``grasp_width`` the object grasp's span, ``outcome`` the success check's numbers
+(``joint``, ``fraction`` of the range, the object's position in the link's frame
+``object_x/y/z``, ``lifted``, ``off_place``, ...). Arrays: the fixed task's (``time``,
+``state``, ``joint_pos``, ``gripper``, ``ee_pose``, ``action`` (F, 8)) and ``env_state``
+(F, 9): the part's joint position (rad or m) and share of its range, the object's position (m)
+and quaternion (wxyz), world frame.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from factory.config import DemosConfig
+from factory.demos.record.payload import episode_arrays, episode_meta
+from factory.demos.record.scene import SimulatingScene
+from factory.demos.record.slots import StageEnv
+from factory.errors import TaskError
+from factory.schema.episode import EpisodeInfo, RobotBase
+from factory.tasks.articulated.demos import ensure_assets, record_config
+from factory.tasks.place_inside.plan import PlaceInsidePlan, PlaceInsidePlanner, PlaceInsideSetup
+
+__all__ = ["PlaceInsideScene", "demo_scene", "scene_planner"]
+
+log = logging.getLogger(__name__)
+
+
+def scene_planner(
+    run_dir: str | Path, scene_id: str, dc: DemosConfig
+) -> tuple[PlaceInsideSetup, PlaceInsidePlanner]:
+    """A scene of a run composed with the robot in front of its container part as
+    ``stage=demos`` records it (:func:`~factory.tasks.place_inside.plan.setup_scene`,
+    deterministic per scene) and its planner (free-motion speed and RRTConnect timeout from
+    ``demos.*``).
+
+    Raises:
+        TaskError: no object to put away, or no container part the robot can work.
+    """
+    import mujoco
+
+    from factory.demos.plan.planner import PlannerConfig
+    from factory.store import RunStore
+    from factory.tasks.articulated.plan import ArticulatedMotion
+    from factory.tasks.place_inside.plan import setup_scene
+
+    store = RunStore(run_dir)
+    scene = ensure_assets(store.load_scene(scene_id), store.assets_dir)
+    setup = setup_scene(scene, store.assets_dir, freeze_beyond=dc.freeze_beyond)
+    if not dc.sleep:
+        setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    motion = ArticulatedMotion(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
+    return setup, PlaceInsidePlanner(setup, motion, PlannerConfig(timeout=dc.plan_timeout))
+
+
+class PlaceInsideScene(SimulatingScene):
+    """A scene of ``task=place_inside`` set up for ``stage=demos`` (episodes simulated one at a
+    time)."""
+
+    plan_type: ClassVar[type[Any]] = PlaceInsidePlan
+    setup: PlaceInsideSetup
+
+    def __init__(
+        self, env: StageEnv, setup: PlaceInsideSetup, planner: PlaceInsidePlanner | None
+    ) -> None:
+        super().__init__(env, setup, planner)
+        self.instruction = setup.instruction()
+
+    def summary(self) -> dict[str, Any]:
+        """The robot's base spot (x, y m, yaw rad), the objects taken out, the part
+        (``<object>:<joint>``), the object put away and the instruction."""
+        p = self.setup.art.placement
+        return {
+            "robot_base": [p.x, p.y, p.yaw],
+            "cleared": list(self.setup.cleared),
+            "part": self.setup.art.part.key,
+            "object": self.setup.pick.id,
+            "instruction": self.instruction,
+        }
+
+    def plan(self, seed: int) -> Any:
+        """:meth:`~factory.tasks.place_inside.plan.PlaceInsidePlanner.plan_episode`."""
+        assert self.planner is not None, "a scene set up without its planner"
+        return self.planner.plan_episode(seed)
+
+    def record_config(self, render: bool | None = None) -> Any:
+        return record_config(self.env.demos, render)
+
+    def renderer(self, rec_cfg: Any) -> Any:
+        from factory.tasks.articulated.record import ArticulatedRenderer
+
+        return ArticulatedRenderer(self.setup.model, rec_cfg)
+
+    def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:
+        """:func:`~factory.tasks.place_inside.execute.execute_episode` (images only with a
+        renderer)."""
+        from factory.tasks.place_inside.execute import execute_episode
+
+        if renderer is None:
+            from dataclasses import replace
+
+            rec_cfg = replace(rec_cfg, render=False)
+        return execute_episode(self.setup, plan, rec_cfg, renderer)
+
+    def payload(
+        self, slot: int, seed: int, plan: Any, rec: Any, rec_cfg: Any, recorder: str = "cpu"
+    ) -> tuple[EpisodeInfo, dict[str, np.ndarray]]:
+        """The episode with its object, part, container, base spot, the calibration of its
+        cameras fixed in the scene and ``env_state`` (F, 9)."""
+        from factory.robots.panda import SCENE_CAMERAS
+        from factory.tasks.articulated.plan import camera_calibration
+
+        art = self.setup.art
+        p = art.placement
+        poses: dict[str, list[float]] = {}
+        fovy: dict[str, float] = {}
+        if rec_cfg.render:
+            cams = tuple(c for c in rec_cfg.cameras if c in SCENE_CAMERAS)
+            poses, fovy = camera_calibration(art, cams)
+        meta = episode_meta(
+            self.setup,
+            slot,
+            seed,
+            plan,
+            rec,
+            task=self.env.task,
+            instruction=self.instruction,
+            rec_cfg=rec_cfg,
+            recorder=recorder,
+            pick_id=self.setup.pick.id,
+            target_id=art.part.key,
+            support_id=art.part.obj.id,
+            robot=RobotBase(p.x, p.y, p.z, p.yaw),
+            frozen=list(art.frozen),
+            camera_poses=poses,
+            camera_fovy=fovy,
+        )
+        return meta, episode_arrays(rec, env_state=rec.env_state.astype(np.float32))
+
+
+def demo_scene(env: StageEnv, scene_id: str, plan: bool = True) -> PlaceInsideScene:
+    """:meth:`factory.tasks.base.Task.demo_scene` of ``task=place_inside``; logs the set-up
+    time, the part and the object.
+
+    Raises:
+        TaskError: the scene cannot host the task, or ``plan`` is False (the GPU pipeline,
+            which cannot draw the task yet).
+    """
+    t0 = time.perf_counter()
+    if not plan:
+        raise TaskError(
+            f"task={env.task} records on the CPU executor only: the GPU pipeline's renderer "
+            "for tasks that simulate their episodes themselves draws the mobile robot's cameras "
+            "(pass demos.executor=cpu)"
+        )
+    setup, planner = scene_planner(env.run_dir, scene_id, env.demos)
+    log.info(
+        "scene %s: put %s in %s (%s), set up in %.1f s",
+        scene_id,
+        setup.pick.id,
+        setup.art.part.key,
+        setup.art.part.label,
+        time.perf_counter() - t0,
+    )
+    return PlaceInsideScene(env, setup, planner)

@@ -1,0 +1,718 @@
+"""Planning one "put the mug in the drawer" demonstration: open the part, pick the object, place
+it on the interior support behind the part, release, retreat, close the part.
+
+Per scene, :func:`setup_scene` chooses the container part (a drawer whose link carries an
+interior support and volume, empty and tall enough for the object), the pick object
+(:mod:`~factory.tasks.place_inside.containers`) and, through the articulated tasks' set-up
+(:func:`factory.tasks.articulated.plan.setup_scene` for that part, direction ``open``), the
+robot's base spot in front of the part. The pick object stands on the container's top (the
+counter above the drawer): it is moved there, and what else stands on that top is taken out
+of the scene (``cleared``).
+
+Per episode (:meth:`PlaceInsidePlanner.plan_episode`):
+
+1. the object's pose on the top is drawn (:meth:`PlaceInsidePlanner.object_pose`) and written
+   into the model's ``qpos0`` (so that the articulated planner sees it);
+2. ``open``: the articulated planner's episode (reach, handle grasp, constrained pull, release,
+   retreat: :meth:`~factory.tasks.articulated.plan.ArticulatedPlanner.plan_episode`);
+3. pick and place with the pick-and-place machinery: antipodal grasps
+   (:class:`~factory.demos.plan.grasps.GraspPool`), IK (mink), RRTConnect (OMPL) for the
+   reach and the transport (the object attached), the object set upright on the drawer's
+   floor in the part of the drawer that stands out of the cabinet, lowered from above,
+   released, the hand raised;
+4. ``close``: the handle grasp and the constrained push back to 0
+   (:func:`~factory.tasks.articulated.plan.grasp_and_follow`, the object carried by the drawer
+   ignored by the checker like the drawer itself), reached by RRTConnect, then release and
+   retreat.
+
+Every free motion is timed with ruckig segment by segment; the constrained motions as one
+ruckig profile of the path parameter (:func:`~factory.tasks.articulated.plan.time_along`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+import zlib
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from factory.demos.plan.grasps import (
+    Grasp,
+    GraspConfig,
+    GraspPool,
+    GripperShape,
+    collision_pieces,
+    facing_order,
+    gripper_clear,
+)
+from factory.demos.plan.planner import Attachment, PlannerConfig, plan
+from factory.demos.plan.timing import Limits, time_path
+from factory.errors import TaskError
+from factory.robots.panda import (
+    GRIP_CLOSED,
+    GRIP_OPEN,
+    RobotIndex,
+    RobotPlacement,
+    pose_matrix,
+    rot_z,
+    yaw_quat,
+)
+from factory.schema import Scene, SceneObject
+from factory.tasks.articulated.plan import (
+    READY_QPOS,
+    ArticulatedMotion,
+    ArticulatedPlan,
+    ArticulatedPlanner,
+    ArticulatedSetup,
+    HandleMotion,
+    PlanFailure,
+    grasp_and_follow,
+    grasps_in_link,
+    initial_state,
+    time_along,
+)
+from factory.tasks.pick_place.plan import targets_to_ctrl
+from factory.tasks.place_inside.containers import (
+    MARGIN,
+    Interior,
+    container_parts,
+    container_top,
+    on_top,
+    pick_object,
+)
+
+__all__ = ["PlaceInsidePlan", "PlaceInsidePlanner", "PlaceInsideSetup", "setup_scene"]
+
+log = logging.getLogger(__name__)
+
+MAX_CONTAINERS = 4
+"""Container parts :func:`setup_scene` tries before it gives up on a scene."""
+TOP_FRONT = 0.10
+"""The object stands at least this far (m) behind the container top's front edge (the hand
+holding the drawer's handle below works there)."""
+REACH = (0.30, 0.72)
+"""Horizontal distances (m) from the base at which the object may stand on the top."""
+LIFT = 0.12
+"""Lift after the grasp and height of the pre-place pose above the place pose (m)."""
+PLACE_DROP = 0.01
+"""The object is released this far above the drawer's floor (m)."""
+MAX_GRASPS = 8
+"""Object grasps tried per episode."""
+
+
+@dataclass
+class PlaceInsideSetup:
+    """A scene ready for planning.
+
+    Attributes:
+        art: the articulated set-up of the part (direction ``open``): the composed model, the
+            robot's base spot, the part's joint.
+        pick: the object put away (standing on the container's top in ``art.scene``).
+        interior: the interior behind the part.
+        top_z: the container top's height (m, world frame); top_rect: its rectangle
+            ``[x0, y0, x1, y1]`` (m, the container's frame).
+        pick_body, pick_adr: the object's body id and free-joint qpos address in the model.
+        cleared: objects taken out of the scene (from the top, out of the part's way).
+    """
+
+    art: ArticulatedSetup
+    pick: SceneObject
+    interior: Interior
+    top_z: float
+    top_rect: np.ndarray
+    pick_body: int
+    pick_adr: int
+    cleared: tuple[str, ...] = ()
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The composed scene + robot."""
+        return self.art.model
+
+    @property
+    def robot(self) -> RobotIndex:
+        """The robot's index in :attr:`model`."""
+        return self.art.robot
+
+    @property
+    def placement(self) -> RobotPlacement:
+        """The robot's base pose (world frame)."""
+        return self.art.placement
+
+    @property
+    def scene(self) -> Scene:
+        """The scene as composed (the object on the top, ``cleared`` taken out)."""
+        return self.art.scene
+
+    @property
+    def container(self) -> SceneObject:
+        """The articulated object holding the part."""
+        return self.art.part.obj
+
+    def pose_container(self) -> np.ndarray:
+        """The container's pose (4, 4), world frame."""
+        c = self.container
+        return pose_matrix(
+            np.array([c.position.x, c.position.y, c.position.z]),
+            rot_z(math.radians(c.rotation.z)),
+        )
+
+    def instruction(self) -> str:
+        """The episode's instruction: the scene's when the scene was made for the task, else
+        "put the <object> in <the part's label>" ("put the mug in the drawer of the base
+        cabinet")."""
+        task = self.scene.task
+        if task is not None and task.kind == "place_inside" and task.instruction:
+            return str(task.instruction)
+        return f"put the {self.pick.category.replace('_', ' ')} in {self.art.part.label}"
+
+
+class _CarriedSetup(ArticulatedSetup):
+    """The articulated set-up whose moving link carries the placed object too: the collision
+    checker ignores the object with the link while the part closes (it moves with it)."""
+
+    carried: int = -1
+
+    def link_bodies(self) -> np.ndarray:
+        return np.append(super().link_bodies(), self.carried)
+
+
+def setup_scene(
+    scene: Scene, assets_root: str | Path, freeze_beyond: float = 1.0
+) -> PlaceInsideSetup:
+    """Chooses the container part, the pick object and the robot's base spot (module
+    docstring), and composes the scene with the robot there.
+
+    Raises:
+        TaskError: no pick object, no container part (none with an interior, occupied, too
+            small) or none the robot can open from a free base spot (with the reasons).
+    """
+    from factory.tasks.articulated.plan import setup_scene as setup_part
+
+    pick = pick_object(scene)
+    why: Counter[str] = Counter()
+    parts = container_parts(scene, assets_root, pick, why)
+    for part, inner in parts[:MAX_CONTAINERS]:
+        top = container_top(part.obj, assets_root)
+        assert top is not None
+        sc = on_top(scene, part.obj, top[0], pick)
+        cleared = sorted({o.id for o in scene.objects} - {o.id for o in sc.objects})
+        sc = replace(
+            sc,
+            objects=[
+                replace(o, task_joint=part.joint.name if o.id == part.obj.id else None)
+                for o in sc.objects
+            ],
+        )
+        try:
+            art = setup_part(sc, assets_root, "open", freeze_beyond=freeze_beyond)
+        except TaskError as e:
+            log.info("scene %s: %s: %s", scene.id, part.key, e)
+            why["unreachable"] += 1
+            continue
+        if pick.id in art.frozen:
+            why["object_out_of_reach"] += 1
+            continue
+        m = art.model
+        body = m.body(pick.id).id
+        adr = int(m.jnt_qposadr[m.body_jntadr[body]])
+        out = PlaceInsideSetup(
+            art,
+            pick,
+            inner,
+            part.obj.position.z + top[0],
+            top[1],
+            body,
+            adr,
+            tuple(sorted(set(cleared) | set(art.cleared))),
+        )
+        log.info(
+            "scene %s: put %s in %s (%s); cleared %s",
+            scene.id,
+            pick.id,
+            part.key,
+            part.label,
+            list(out.cleared),
+        )
+        return out
+    raise TaskError(
+        f"scene {scene.id!r}: no container part for {pick.id!r} "
+        f"({len(parts)} candidate(s); {dict(why) or 'no articulated part with an interior'})"
+    )
+
+
+@dataclass
+class PlaceInsidePlan:
+    """What execution needs for one episode (as
+    :class:`~factory.tasks.articulated.plan.ArticulatedPlan`).
+
+    Attributes:
+        qpos0: initial state (nq,): the part closed, the object on the top, the arm at
+            :data:`~factory.tasks.articulated.plan.READY_QPOS`.
+        ctrl: actuator controls per physics step (T, nu).
+        targets: desired arm joints (rad) and gripper command (m) per physics step (T, 8).
+        phases: phase name -> first physics step (``open_*``, ``pick_*``, ``close_*``).
+        grasp_width: the object grasp's span (m).
+        plan_seconds: planning time per planned free motion (s).
+        seconds: total planning time (s).
+        attempts: object grasps tried.
+        q_open: the part's joint after opening (rad or m, as planned).
+        pose_obj_place: the object's planned pose on the drawer's floor (4, 4), world frame.
+        pose_tool_in_link_open, pose_tool_in_link_close: the handle grasps (4, 4), link frame.
+    """
+
+    qpos0: np.ndarray
+    ctrl: np.ndarray
+    targets: np.ndarray
+    phases: dict[str, int]
+    grasp_width: float
+    plan_seconds: dict[str, float]
+    seconds: float
+    attempts: int
+    q_open: float = 0.0
+    pose_obj_place: np.ndarray = field(default_factory=lambda: np.eye(4))
+    pose_tool_in_link_open: np.ndarray = field(default_factory=lambda: np.eye(4))
+    pose_tool_in_link_close: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+
+class _Timeline:
+    """Arm targets, velocities and gripper commands per physics step, phase by phase."""
+
+    def __init__(self, dt: float) -> None:
+        self.dt = dt
+        self.arm: list[np.ndarray] = []
+        self.vel: list[np.ndarray] = []
+        self.grip: list[float] = []
+        self.phases: dict[str, int] = {}
+
+    def hold(self, name: str, q: np.ndarray, secs: float, opening: float) -> None:
+        self.phases[name] = len(self.arm)
+        n = max(1, round(secs / self.dt))
+        self.arm.extend([q] * n)
+        self.vel.extend([np.zeros(7)] * n)
+        self.grip.extend([opening] * n)
+
+    def move(self, name: str, path: np.ndarray, limits: Limits, opening: float) -> None:
+        self.phases[name] = len(self.arm)
+        timed = time_path(path, limits, self.dt)
+        self.arm.extend(list(timed.q[1:]))
+        self.vel.extend(list(timed.qd[1:]))
+        self.grip.extend([opening] * (len(timed.q) - 1))
+
+    def along(self, name: str, path: np.ndarray, limits: Limits, opening: float) -> None:
+        self.phases[name] = len(self.arm)
+        q, qd = time_along(path, limits, self.dt)
+        self.arm.extend(list(q[1:]))
+        self.vel.extend(list(qd[1:]))
+        self.grip.extend([opening] * (len(q) - 1))
+
+
+class PlaceInsidePlanner:
+    """Plans the episodes of one scene (deterministic per seed).
+
+    Args:
+        setup: the scene with the robot placed.
+        motion: timing and geometry of the handle motions (the free motions use its speeds).
+        planner_cfg: RRTConnect settings.
+    """
+
+    def __init__(
+        self,
+        setup: PlaceInsideSetup,
+        motion: ArticulatedMotion | None = None,
+        planner_cfg: PlannerConfig | None = None,
+    ) -> None:
+        self.setup = setup
+        self.motion = motion or ArticulatedMotion()
+        self.planner_cfg = planner_cfg or PlannerConfig()
+        self.opener = ArticulatedPlanner(setup.art, self.motion, self.planner_cfg)
+        art = setup.art
+        fields = {f: getattr(art, f) for f in art.__dataclass_fields__}
+        self.closer = _CarriedSetup(**{**fields, "direction": "close"})
+        self.closer.carried = setup.pick_body
+        m = setup.model
+        self.model = m
+        self.robot = art.robot
+        self.ik = self.opener.ik
+        self.checker = self.opener.checker
+        self.kin = self.opener.kin
+        self.dt = float(m.opt.timestep)
+        self.grasp_cfg = GraspConfig()
+        self.shape = GripperShape.of(m, self.robot, GRIP_OPEN)
+        self.pieces = collision_pieces(m, setup.pick_body)
+        key = f"{setup.scene.id}/{setup.pick.id}".encode()
+        self.pool = GraspPool(
+            self.pieces, self.grasp_cfg, zlib.crc32(key), m.body_ipos[setup.pick_body]
+        )
+        self.home_pose = np.array(m.qpos0[setup.pick_adr : setup.pick_adr + 7])
+        mo = self.motion
+        self.fast = Limits.panda(mo.speed, mo.accel, mo.jerk)
+        self.slow = Limits.panda(mo.speed * mo.slow, mo.accel * mo.slow, mo.jerk * mo.slow)
+        self.pull = Limits.panda(mo.pull, mo.pull, mo.pull)
+
+    # -- the object's start ------------------------------------------------------------------
+
+    def object_pose(self, rng: np.random.Generator, tries: int = 200) -> np.ndarray:
+        """The object's start pose on the container's top (7: position m, quaternion wxyz;
+        world frame): a spot of the top :data:`MARGIN` inside its sides, :data:`TOP_FRONT`
+        behind its front edge, :data:`REACH` from the base, turned at random.
+
+        Raises:
+            TaskError: no such spot on the top.
+        """
+        s = self.setup
+        d = s.pick.dimensions
+        r = 0.5 * math.hypot(d.width, d.length)
+        x0, y0, x1, y1 = s.top_rect
+        world = s.pose_container()
+        base = s.art.placement.pos()[:2]
+        for _ in range(tries):
+            u = rng.uniform(x0 + r + MARGIN, x1 - r - MARGIN)
+            v = rng.uniform(y0 + r + TOP_FRONT, y1 - r - MARGIN)
+            xy = (world @ np.array([u, v, 0.0, 1.0]))[:2]
+            if REACH[0] <= float(np.linalg.norm(xy - base)) <= REACH[1]:
+                break
+        else:
+            raise TaskError(
+                f"no spot on the top of {s.container.id!r} within {REACH} m of the robot's base"
+            )
+        quat = np.zeros(4)
+        mujoco.mju_mulQuat(
+            quat, yaw_quat(float(rng.uniform(-math.pi, math.pi))), self.home_pose[3:]
+        )
+        return np.array([xy[0], xy[1], s.top_z, *quat])
+
+    def initial_qpos(self, seed: int) -> np.ndarray:
+        """The initial qpos (nq,) of seed ``seed`` (the demos' and the env's): the part closed,
+        the arm at the start posture, the object at :meth:`object_pose` of the seed.
+
+        Raises:
+            TaskError: no spot for the object.
+        """
+        pose = self.object_pose(np.random.default_rng(seed))
+        q = initial_state(self.setup.art, 0.0)
+        q[self.setup.pick_adr : self.setup.pick_adr + 7] = pose
+        return q
+
+    def _set_object(self, pose: np.ndarray) -> None:
+        """Writes the object's pose (7) into the model's ``qpos0``: the articulated planner's
+        scenes (:func:`~factory.tasks.articulated.plan.initial_state`) start from it."""
+        a = self.setup.pick_adr
+        self.model.qpos0[a : a + 7] = pose
+
+    # -- where the object goes ---------------------------------------------------------------
+
+    def place_xy(self, q_open: float) -> np.ndarray:
+        """The middle (2,) (m, world frame) of the drawer's floor standing out of the cabinet
+        with the part at ``q_open``, :data:`MARGIN` plus the object's radius from its walls
+        and from the cabinet's front."""
+        s = self.setup
+        inner = s.interior
+        axis = np.array(s.art.part.joint.axis, float)
+        shift = axis * q_open  # the link's displacement, the container's frame
+        lo, hi = inner.lo + shift, inner.hi + shift
+        front = float(s.top_rect[1])  # the case's front (-y) in the container's frame
+        d = s.pick.dimensions
+        r = 0.5 * math.hypot(d.width, d.length)
+        y_hi = min(hi[1], front) - r - MARGIN
+        y_lo = lo[1] + r + MARGIN
+        v = 0.5 * (y_lo + y_hi) if y_hi > y_lo else y_hi
+        u = 0.5 * (lo[0] + hi[0])
+        return (s.pose_container() @ np.array([u, v, 0.0, 1.0]))[:2]
+
+    def floor_z(self, q_open: float) -> float:
+        """The drawer floor's height (m, world frame) with the part at ``q_open``."""
+        s = self.setup
+        axis = np.array(s.art.part.joint.axis, float)
+        return float(s.container.position.z + s.interior.floor_z + axis[2] * q_open)
+
+    # -- planning ------------------------------------------------------------------------------
+
+    def _grasps(self, qpos: np.ndarray, rng: np.random.Generator) -> list[Grasp]:
+        m, s = self.model, self.setup
+        data = mujoco.MjData(m)
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(m, data)
+        pose = pose_matrix(data.xpos[s.pick_body], data.xmat[s.pick_body])
+        cands = self.pool.candidates(pose[:3, :3], rng)
+        cands = facing_order(cands, pose, s.art.placement.pos()[:2], 1.0)
+        back = np.eye(4)
+        back[2, 3] = -self.grasp_cfg.pregrasp
+        out = []
+        for g in cands:
+            tool = pose @ g.pose_tool_in_obj
+            clear, bodies = self.grasp_cfg.clearance, self.robot.bodies
+            free = gripper_clear(m, data, self.shape, tool, clear, bodies)
+            if free and gripper_clear(m, data, self.shape, tool @ back, clear, bodies):
+                out.append(g)
+            if len(out) >= MAX_GRASPS:
+                break
+        return out
+
+    def _ik(self, pose: np.ndarray, seeds: list[np.ndarray]) -> np.ndarray | None:
+        base_inv = np.linalg.inv(self.setup.art.placement.matrix())
+        return self.ik.solve(base_inv @ pose, seeds, accept=self.checker.valid)
+
+    def _pick_place(
+        self,
+        g: Grasp,
+        qpos: np.ndarray,
+        q_from: np.ndarray,
+        q_open: float,
+        rng: np.random.Generator,
+        counts: Counter[str],
+        seconds: dict[str, float],
+    ) -> tuple[list[tuple[str, np.ndarray, str]], np.ndarray, np.ndarray] | None:
+        """The pick-and-place motions of one grasp: [(phase, joint path, kind)], the place
+        pose of the object (4, 4), the arm after the retreat (7,); None (counted) when they
+        do not plan."""
+        s, ck = self.setup, self.checker
+        a = s.pick_adr
+        obj = pose_matrix(qpos[a : a + 3], _quat_mat(qpos[a + 3 : a + 7]))
+        grasp = obj @ g.pose_tool_in_obj
+        pre = grasp.copy()
+        pre[:3, 3] -= grasp[:3, 2] * self.grasp_cfg.pregrasp
+        lift = grasp.copy()
+        lift[2, 3] += LIFT
+        ck.set_scene(qpos)
+        ck.attach(None)
+        ck.ignore_bodies([])
+        q_pre = self._ik(pre, [q_from, READY_QPOS])
+        q_grasp = None if q_pre is None else self._ik(grasp, [q_pre])
+        if q_pre is None or q_grasp is None or not ck.segment_valid(q_pre, q_grasp):
+            counts["ik_failed"] += 1
+            return None
+        pose_obj_in_tool = np.linalg.inv(grasp) @ obj
+        ck.attach(Attachment(s.pick_body, a, pose_obj_in_tool))
+        ck.ignore_bodies([self.model.body(s.container.id).id])
+        q_lift = self._ik(lift, [q_grasp])
+        ok_lift = q_lift is not None and ck.segment_valid(q_grasp, q_lift)
+        ck.ignore_bodies([])
+        if q_lift is None or not ok_lift:
+            counts["ik_failed"] += 1
+            return None
+        xy = self.place_xy(q_open)
+        z = self.floor_z(q_open) + PLACE_DROP
+        found = None
+        for turn in (0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4):
+            place_obj = np.eye(4)
+            place_obj[:3, :3] = rot_z(turn) @ obj[:3, :3]
+            place_obj[:3, 3] = [xy[0], xy[1], z]
+            place = place_obj @ np.linalg.inv(pose_obj_in_tool)
+            preplace = place.copy()
+            preplace[2, 3] += LIFT
+            q_preplace = self._ik(preplace, [q_lift])
+            if q_preplace is None:
+                continue
+            q_place = self._ik(place, [q_preplace])
+            if q_place is None or not ck.segment_valid(q_preplace, q_place):
+                continue
+            found = (q_preplace, q_place, place, place_obj)
+            break
+        if found is None:
+            counts["ik_failed"] += 1
+            return None
+        q_preplace, q_place, place, place_obj = found
+        ck.attach(None)
+        ck.ignore_bodies([s.pick_body])
+        up = place.copy()
+        up[2, 3] += LIFT
+        q_up = self._ik(up, [q_place])
+        ok_up = q_up is not None and ck.segment_valid(q_place, q_up)
+        ck.ignore_bodies([])
+        if q_up is None or not ok_up:
+            counts["ik_failed"] += 1
+            return None
+        seed = int(rng.integers(2**31 - 1))
+        reach = plan(ck, q_from, q_pre, self.planner_cfg, seed)
+        seconds["pick_reach"] = reach.seconds
+        if reach.path is None:
+            counts["plan_failed"] += 1
+            return None
+        ck.attach(Attachment(s.pick_body, a, pose_obj_in_tool))
+        carry = plan(ck, q_lift, q_preplace, self.planner_cfg, seed + 1)
+        ck.attach(None)
+        seconds["transport"] = carry.seconds
+        if carry.path is None:
+            counts["plan_failed"] += 1
+            return None
+        moves = [
+            ("pick_reach", reach.path, "fast_open"),
+            ("pick_approach", np.stack([q_pre, q_grasp]), "slow_open"),
+            ("pick_close", q_grasp[None], "hold_closed"),
+            ("pick_lift", np.stack([q_grasp, q_lift]), "slow_closed"),
+            ("transport", carry.path, "slow_closed"),
+            ("lower", np.stack([q_preplace, q_place]), "slow_closed"),
+            ("place_release", q_place[None], "hold_open"),
+            ("place_retreat", np.stack([q_place, q_up]), "slow_open"),
+        ]
+        return moves, place_obj, q_up
+
+    def plan_episode(self, seed: int) -> PlaceInsidePlan | PlanFailure:
+        """Plans one episode (deterministic in ``seed``; module docstring)."""
+        t0 = time.perf_counter()
+        rng = np.random.default_rng(seed)
+        ck = self.checker
+        try:
+            start = self.object_pose(rng)
+        except TaskError as e:
+            return PlanFailure("no_object_pose", str(e), time.perf_counter() - t0)
+        self._set_object(start)
+        try:
+            return self._plan(rng, t0)
+        finally:
+            self._set_object(self.home_pose)
+            ck.attach(None)
+            ck.ignore_bodies([])
+
+    def _plan(self, rng: np.random.Generator, t0: float) -> PlaceInsidePlan | PlanFailure:
+        s = self.setup
+        opened = self.opener.plan_episode(int(rng.integers(2**31 - 1)))
+        if isinstance(opened, PlanFailure):
+            return PlanFailure(
+                opened.reason, f"open: {opened.detail}", time.perf_counter() - t0, opened.counts
+            )
+        q_open = float(opened.q_goal)
+        q_from = opened.targets[-1, :7]
+        qpos = initial_state(s.art, q_open)
+        counts: Counter[str] = Counter()
+        grasps = self._grasps(qpos, rng)
+        if not grasps:
+            return PlanFailure(
+                "no_grasp",
+                f"no collision-free grasp on {s.pick.id!r}",
+                time.perf_counter() - t0,
+            )
+        seconds = dict(opened.plan_seconds)
+        for attempt, g in enumerate(grasps):
+            res = self._pick_place(g, qpos, q_from, q_open, rng, counts, seconds)
+            if res is None:
+                continue
+            moves, place_obj, q_up = res
+            closing = self._close(place_obj, q_open, q_up, rng, counts, seconds)
+            if closing is None:
+                continue
+            out = self._timeline(opened, moves, closing, g.width)
+            out.plan_seconds = seconds
+            out.attempts = attempt + 1
+            out.q_open = q_open
+            out.pose_obj_place = place_obj
+            out.pose_tool_in_link_open = opened.pose_tool_in_link
+            out.pose_tool_in_link_close = closing[0].grasp
+            out.seconds = time.perf_counter() - t0
+            return out
+        reason = counts.most_common(1)[0][0] if counts else "no_grasp"
+        return PlanFailure(
+            reason,
+            f"{s.pick.id} into {s.art.part.key}: {len(grasps)} grasps tried: {dict(counts)}",
+            time.perf_counter() - t0,
+            dict(counts),
+        )
+
+    def _close(
+        self,
+        place_obj: np.ndarray,
+        q_open: float,
+        q_from: np.ndarray,
+        rng: np.random.Generator,
+        counts: Counter[str],
+        seconds: dict[str, float],
+    ) -> tuple[HandleMotion, np.ndarray] | None:
+        """The close motion (the object resting at ``place_obj`` in the open drawer) and the
+        reach to its pre-grasp from ``q_from``; None (counted) when they do not plan."""
+        s = self.setup
+        placed = np.zeros(7)
+        placed[:3] = place_obj[:3, 3]
+        mujoco.mju_mat2Quat(placed[3:], place_obj[:3, :3].flatten())
+        before = np.array(self.model.qpos0[s.pick_adr : s.pick_adr + 7])
+        self._set_object(placed)
+        try:
+            return self._close_from(q_open, q_from, rng, counts, seconds)
+        finally:
+            self._set_object(before)
+
+    def _close_from(
+        self,
+        q_open: float,
+        q_from: np.ndarray,
+        rng: np.random.Generator,
+        counts: Counter[str],
+        seconds: dict[str, float],
+    ) -> tuple[HandleMotion, np.ndarray] | None:
+        s, ck = self.setup, self.checker
+        pregrasp = float(rng.uniform(0.8, 1.2)) * self.motion.pregrasp
+        grasps = grasps_in_link(s.art.part)
+        for gi in rng.permutation(len(grasps)):
+            res = grasp_and_follow(
+                self.closer, self.kin, self.ik, ck, q_open, 0.0, grasps[gi], pregrasp, self.motion
+            )
+            if isinstance(res, str):
+                counts[f"close_{res}"] += 1
+                continue
+            ck.set_scene(initial_state(s.art, q_open))
+            ck.attach(None)
+            ck.ignore_bodies([])
+            reach = plan(ck, q_from, res.q_pre, self.planner_cfg, int(rng.integers(2**31 - 1)))
+            seconds["close_reach"] = reach.seconds
+            if reach.path is None:
+                counts["plan_failed"] += 1
+                continue
+            return res, reach.path
+        return None
+
+    def _timeline(
+        self,
+        opened: ArticulatedPlan,
+        moves: list[tuple[str, np.ndarray, str]],
+        closing: tuple[HandleMotion, np.ndarray],
+        width: float,
+    ) -> PlaceInsidePlan:
+        mo = self.motion
+        tl = _Timeline(self.dt)
+        for name, path, kind in moves:
+            opening = GRIP_CLOSED if kind.endswith("closed") else GRIP_OPEN
+            if kind.startswith("hold"):
+                secs = mo.close if kind == "hold_closed" else mo.release
+                tl.hold(name, path[0], secs, opening)
+            else:
+                tl.move(name, path, self.fast if kind.startswith("fast") else self.slow, opening)
+        res, reach = closing
+        tl.move("close_reach", reach, self.fast, GRIP_OPEN)
+        tl.move("close_approach", np.stack([res.q_pre, res.q_grasp]), self.slow, GRIP_OPEN)
+        tl.hold("close_grasp", res.q_grasp, mo.close, GRIP_CLOSED)
+        tl.along("close_push", np.vstack([res.q_grasp[None], res.path]), self.pull, GRIP_CLOSED)
+        tl.hold("close_release", res.path[-1], mo.release, GRIP_OPEN)
+        tl.move("close_retreat", np.stack([res.path[-1], res.q_back]), self.slow, GRIP_OPEN)
+        tl.hold("hold", res.q_back, mo.hold, GRIP_OPEN)
+        n0 = len(opened.ctrl)
+        phases = {f"open_{k}" if k != "end" else "open_end": v for k, v in opened.phases.items()}
+        phases.update({k: v + n0 for k, v in tl.phases.items()})
+        phases["end"] = n0 + len(tl.arm)
+        ctrl = targets_to_ctrl(
+            self.model, self.robot, np.asarray(tl.arm), np.asarray(tl.vel), tl.grip
+        )
+        targets = np.concatenate([np.asarray(tl.arm), np.asarray(tl.grip)[:, None]], axis=1)
+        qpos0 = opened.qpos0.copy()
+        return PlaceInsidePlan(
+            qpos0,
+            np.concatenate([opened.ctrl, ctrl]),
+            np.concatenate([opened.targets, targets]),
+            phases,
+            float(width),
+            {},
+            0.0,
+            0,
+        )
+
+
+def _quat_mat(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
+    out = np.zeros(9)
+    mujoco.mju_quat2Mat(out, np.asarray(quat, float))
+    return out.reshape(3, 3)
