@@ -17,17 +17,22 @@ TASK=${TASK:-open}
 TRAIN_SCENES=${TRAIN_SCENES:-8}
 HELDOUT_SCENES=${HELDOUT_SCENES:-3}
 EPISODES=${EPISODES:-30}
-STEPS=${STEPS:-20000}
+STEPS=${STEPS:-10000}  # about 25 min at 1 thread (6.8 steps/s on this 2-core VM, shared)
 TRAIN_MINUTES=${TRAIN_MINUTES:-30}
 EVAL_EPISODES=${EVAL_EPISODES:-20}
 WORKERS=${WORKERS:-1}
 THREADS=${THREADS:-1}
+# the U-Net of the CPU state policies (4.4 M parameters: docs/POLICY.md, "Results measured")
+TRAIN_OPTIONS=${TRAIN_OPTIONS:-"{diffusion: {down_dims: [64, 128, 256]}}"}
 PY=${PY:-python3}
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 COMMON="sim.backend=cpu demos.executor=cpu task=$TASK"
 log() { echo "$(date +%T) ${TASK}_policy: $*"; }
 t0=$(date +%s)
 
+if [ -f "$RUN/dataset/merged/meta/info.json" ] && [ -f "$RUN/heldout_done" ]; then
+  log "1. the data are there ($RUN/dataset/merged)"
+else
 log "1. $TRAIN_SCENES kitchens x $EPISODES demos, $HELDOUT_SCENES held out"
 $PY -m factory stage=generate run_dir="$RUN" "generate.prompts=[$PROMPT]" $COMMON \
   assets.articulated=true generate.render=false generate.scenes_per_prompt="$TRAIN_SCENES" seed=0
@@ -37,11 +42,14 @@ $PY -m factory stage=dataset run_dir="$RUN" $COMMON
 $PY -m factory stage=generate run_dir="$RUN" "generate.prompts=[$PROMPT]" $COMMON \
   assets.articulated=true generate.render=false generate.scenes_per_prompt="$HELDOUT_SCENES" \
   seed=100000
+touch "$RUN/heldout_done"
+fi
 t1=$(date +%s)
 
 log "2. the state policy: at most $STEPS steps in $TRAIN_MINUTES min"
 $PY -m factory stage=train run_dir="$RUN" $COMMON train.inputs=state train.device=cpu \
-  train.threads="$THREADS" train.steps="$STEPS" train.max_minutes="$TRAIN_MINUTES"
+  train.threads="$THREADS" train.steps="$STEPS" train.max_minutes="$TRAIN_MINUTES" \
+  "train.options=$TRAIN_OPTIONS"
 t2=$(date +%s)
 
 log "3. evaluation: the policy and the planner, $EVAL_EPISODES configurations per kitchen"
