@@ -11,7 +11,8 @@ request alone (no ``assets.articulated``: the request's task turns it on) and th
 ``task_for_scene``), the CPU executor, no images, through the command line; then reads each
 scene's ``task``, its compiled ``model.xml``'s hinge and slide joints of articulated links
 (MuJoCo joint group 3), and the demos' summary (stored / tried, unusable scenes and why).
-``--reuse`` reads runs made before. Prints and saves JSON.
+``--reuse`` reads runs made before. Prints and saves JSON; runs of an earlier ``--out`` that
+are not named in ``--runs`` keep their results (each run records its ``git_sha``).
 """
 
 from __future__ import annotations
@@ -93,6 +94,16 @@ def _scene_facts(scene_dir: Path) -> dict[str, object]:
     }
 
 
+def _cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``), else the machine type."""
+    info = Path("/proc/cpuinfo")
+    if info.is_file():
+        for line in info.read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.machine()
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", default=",".join(RUNS), help="comma-separated names of RUNS")
@@ -106,6 +117,14 @@ def main() -> None:
     )
     args = p.parse_args()
     results: dict[str, object] = {}
+    if args.out.is_file():  # runs not re-run keep their results (and their commit)
+        before = json.loads(args.out.read_text())
+        results = {
+            k: {"git_sha": before.get("git_sha"), **v} for k, v in before.get("runs", {}).items()
+        }
+    sha = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
     for name in args.runs.split(","):
         request, n = RUNS[name]
         run = args.run_root / name
@@ -120,6 +139,7 @@ def main() -> None:
         usable = [s for s in scenes if per_scene.get(s, {}).get("episodes", 0) > 0]
         results[name] = {
             "request": request,
+            "git_sha": sha,
             "commands": [
                 "python -m factory " + " ".join(c).replace(str(args.run_root), "<runs>")
                 for c in (gen_cmd, demos_cmd)
@@ -128,7 +148,8 @@ def main() -> None:
             "demos_seconds": demos_s,
             "scenes_usable": f"{len(usable)} / {len(scenes)}",
             "stored": summary.get("new_successes"),
-            "tried": summary.get("attempts"),
+            "tried": summary["new_successes"]
+            + sum(v for k, v in summary["failures"].items() if k != "scene_unusable"),
             "failures": summary.get("failures"),
             "scenes": {s: {**facts, "demos": per_scene.get(s)} for s, facts in scenes.items()},
         }
@@ -137,14 +158,12 @@ def main() -> None:
         "benchmark": "articulated-requests",
         "machine": {
             "cpus": os.cpu_count(),
-            "cpu": platform.processor() or platform.machine(),
+            "cpu": _cpu_model(),
             "gpu": None,
             "python": platform.python_version(),
         },
-        "git_sha": subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
-        ).stdout.strip(),
-        "command": "python scripts/bench_articulated_requests.py " + " ".join(sys.argv[1:]),
+        "command": "python scripts/bench_articulated_requests.py "
+        + " ".join(sys.argv[1:]).replace(str(args.run_root), "<runs>"),
         "runs": results,
     }
     text = json.dumps(out, indent=2)

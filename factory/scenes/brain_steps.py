@@ -18,7 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from factory.scenes.part_read import PartSpec, check_part_request, openable_category
+from factory.scenes.part_read import (
+    PartSpec,
+    catalogue_category,
+    check_part_request,
+    openable_category,
+)
 from factory.scenes.request import TaskSpec, parse_any_task, parse_request
 from factory.scenes.rooms import ROOM_TYPES, Item
 
@@ -192,16 +197,24 @@ class Brain:
         return spec
 
     def openable(self, spec: PartSpec) -> None:
-        """The object an open or close task names, where the room program did not place one
-        (a room without a microwave): against a wall, or on the largest table-like support
-        for a countertop object (the catalogue's ``placement``). The task's feasibility critic
-        then judges whether the robot can work its part (``stage=generate``'s last step)."""
+        """The object an open or close task names, where the room program places none (it
+        may queue one for a counter, a microwave, placed later): against a wall, or on the
+        largest table-like support for a countertop object (the catalogue's ``placement``).
+        The task's feasibility critic then judges whether the robot can work its part
+        (``stage=generate``'s last step)."""
         from factory.assets.catalog import CATEGORIES
 
         if not spec.category:
             return
         objects = self.call("get_scene_info")["objects"]
         if any(o["category"] == spec.category for o in objects):
+            return
+        queued = [  # the room program's countertop items come later (small_objects)
+            item
+            for item, n, _ in self.state.small
+            if n > 0 and openable_category(catalogue_category(item.text)) == spec.category
+        ]
+        if queued:
             return
         cat = CATEGORIES[spec.category]
         text = spec.named or spec.category.replace("_", " ")

@@ -32,6 +32,7 @@ from factory.scenes.task_words import ARTICLES, PART_QUALIFIERS, PART_ROLES
 
 __all__ = [
     "PartSpec",
+    "catalogue_category",
     "check_part_request",
     "openable_category",
     "openable_names",
@@ -108,7 +109,7 @@ def _phrases() -> dict[str, str]:
     return out
 
 
-def _category_of(words: str) -> str:
+def catalogue_category(words: str) -> str:
     """The catalogue category of the longest catalogue phrase in ``words`` (a plural "s"
     allowed), ``""`` if none."""
     text = f" {words.replace('-', ' ')} "
@@ -180,7 +181,7 @@ def read_part_task(text: str) -> PartSpec | None:
     post = _ENDS.sub("", m.group("post") or "")
     qualifier = next((PART_QUALIFIERS[w] for w in pre.split() if w in PART_QUALIFIERS), "")
     named = _clean(post) or _clean(pre)
-    named_category = _category_of(named) if named else ""
+    named_category = catalogue_category(named) if named else ""
     return PartSpec(
         verb=m.group("verb"),
         role=PART_ROLES[m.group("role")],
