@@ -1,7 +1,7 @@
 """Open and close requests through generation and demonstrations: usable scenes, stored
 episodes, wall time and the moving joints of each generated model.
 
-    python scripts/bench_articulated_requests.py [--runs fridge,microwave,wardrobe,nightstand]
+    python scripts/bench_articulated_requests.py [--runs fridge,microwave,kitchen_drawer,wardrobe,nightstand]
         [--run-root runs/articulated-requests] [--episodes 5] [--reuse]
         [--out benchmarks/results/articulated-requests-cpu2.json]
 
@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RUNS: dict[str, tuple[str, int]] = {
     "fridge": ("open the fridge door", 3),
     "microwave": ("close the microwave door", 2),
+    "kitchen_drawer": ("a kitchen where the robot closes the top drawer", 2),
     "wardrobe": ("open the wardrobe door", 2),
     "nightstand": ("open the top drawer of the nightstand", 2),
 }

@@ -128,6 +128,15 @@ def test_parts_are_named_and_chosen(tmp_path: Path) -> None:
     scene.task.instruction = "open the oven door"
     with pytest.raises(TaskError, match="names no part of the scene; its parts: "):
         choose_parts(scene, tmp_path)
+    # no object named: any object's part of that role; a qualifier an object's only drawer
+    # meets ("the top drawer": the cabinet's one drawer, over its door)
+    assert names_part("a kitchen where the robot opens the drawer", parts["drawer"])
+    assert names_part("open the counter door", parts["door"])  # kitchen_cabinet's synonym
+    scene.task.instruction = "a kitchen where the robot opens the top drawer"
+    assert [p.joint.name for p in choose_parts(scene, tmp_path)] == ["drawer"]
+    scene.task.instruction = "open the top drawer of the nightstand"
+    with pytest.raises(TaskError, match="names no part of the scene"):
+        choose_parts(scene, tmp_path)
     scene.task.instruction = "a kitchen"
     assert [p.joint.name for p in choose_parts(scene, tmp_path)] == ["drawer", "door"]
     shutil.rmtree(tmp_path / scene.objects[0].asset.asset_id)  # type: ignore[union-attr]
