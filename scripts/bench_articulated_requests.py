@@ -1,7 +1,8 @@
 """Open and close requests through generation and demonstrations: usable scenes, stored
 episodes, wall time and the moving joints of each generated model.
 
-    python scripts/bench_articulated_requests.py [--runs fridge,microwave,kitchen_drawer,wardrobe,nightstand]
+    python scripts/bench_articulated_requests.py
+        [--runs fridge,microwave,kitchen_drawer,wardrobe,nightstand]
         [--run-root runs/articulated-requests] [--episodes 5] [--reuse]
         [--out benchmarks/results/articulated-requests-cpu2.json]
 
