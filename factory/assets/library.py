@@ -133,6 +133,15 @@ class AssetLibrary:
             articulated=getattr(cfg, "articulated", False),
         )
 
+    def articulated_copy(self) -> AssetLibrary:
+        """This library with :attr:`articulated` on (the same folder, backend and settings):
+        for a request whose task needs doors and drawers that move."""
+        import copy
+
+        out = copy.copy(self)
+        out.articulated = True
+        return out
+
     # ---- front
     def from_text(
         self, text: str, seed: int = 0, dims: Any = None, finish: tuple[str, ...] = ()

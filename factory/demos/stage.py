@@ -20,6 +20,7 @@ import os
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,7 @@ from factory.demos.cpu_items import run_item, run_item_logged
 from factory.demos.record.slots import StageEnv, WorkItem, episode_id
 from factory.errors import ConfigError, StoreError
 from factory.store import atomic_write_json
-from factory.tasks import get_task
+from factory.tasks import get_task, task_of_scenes
 
 __all__ = ["EXECUTORS", "check_config", "resolve_executor", "run"]
 
@@ -131,6 +132,10 @@ def run(ctx: StageContext) -> dict[str, Any]:
     ids = store.scene_ids()
     if not ids:
         raise StoreError(f"no scenes in {store.scenes_dir}: run stage=generate or ingest first")
+    task = task_of_scenes(cfg.task, [store.load_scene(sid) for sid in ids])
+    if task != cfg.task:
+        log.info("stage=demos: every scene of the run was made for task=%s: recording it", task)
+        cfg = replace(cfg, task=task)
     scene_ids = ctx.shard.select(ids)
     episodes = EpisodeStore(store.episodes_shard(ctx.shard))
     episodes.clean_staging()

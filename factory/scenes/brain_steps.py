@@ -18,7 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from factory.scenes.request import TaskSpec, parse_request, parse_task
+from factory.scenes.part_read import (
+    PartSpec,
+    catalogue_category,
+    check_part_request,
+    openable_category,
+)
+from factory.scenes.request import TaskSpec, parse_any_task, parse_request
 from factory.scenes.rooms import ROOM_TYPES, Item
 
 log = logging.getLogger(__name__)
@@ -162,15 +168,24 @@ class Brain:
         alive = {o["id"] for o in self.call("get_scene_info").get("objects", [])}
         self.state.keyed = {k: [i for i in v if i in alive] for k, v in self.state.keyed.items()}
 
-    def task_objects(self, request: str, task: str | None) -> TaskSpec | None:
+    def task_objects(self, request: str, task: str | None) -> TaskSpec | PartSpec | None:
         """Step 3: the task's objects first: on the support the request picks from, else on
         the largest table-like surface; a travelling task's place support apart
-        (:meth:`two_supports`)."""
-        spec = None
+        (:meth:`two_supports`); an open or close task's object (:meth:`openable`).
+
+        Raises:
+            ConfigError: an open or close task names an object that does not open or that
+                the request's rooms do not hold (:func:`~.part_read.check_part_request`).
+        """
+        spec: TaskSpec | PartSpec | None = None
         if self.cfg.task_objects:  # the request's own task is read from its English reading
-            spec = parse_task(task) if task else parse_request(request).task
+            spec = parse_any_task(task) if task else parse_request(request).task
         if spec is None:
             return None
+        if isinstance(spec, PartSpec):
+            check_part_request(spec, parse_request(request).room_types)
+            self.openable(spec)
+            return spec
         objects = self.call("get_scene_info")["objects"]
         if spec.travel:
             self.two_supports(spec, objects)
@@ -180,6 +195,42 @@ class Brain:
             for text, role in ((spec.target, "place_target"), (spec.pick, "pick")):
                 self.place(text=text, placement="on_top", target=table["id"], task_role=role)
         return spec
+
+    def openable(self, spec: PartSpec) -> None:
+        """The object an open or close task names, where the room program places none (it
+        may queue one for a counter, a microwave, placed later): against a wall, or on the
+        largest table-like support for a countertop object (the catalogue's ``placement``).
+        The task's feasibility critic then judges whether the robot can work its part
+        (``stage=generate``'s last step)."""
+        from factory.assets.catalog import CATEGORIES
+
+        if not spec.category:
+            return
+        objects = self.call("get_scene_info")["objects"]
+        if any(o["category"] == spec.category for o in objects):
+            return
+        queued = [  # the room program's countertop items come later (small_objects)
+            item
+            for item, n, _ in self.state.small
+            if n > 0 and openable_category(catalogue_category(item.text)) == spec.category
+        ]
+        if queued:
+            return
+        cat = CATEGORIES[spec.category]
+        text = spec.named or spec.category.replace("_", " ")
+        if cat.placement == "on_top":
+            # table-like supports and the articulated ones standing for them (base_cabinet)
+            counters = {*TABLES, *(openable_category(t) for t in TABLES)}
+            tables = [o for o in objects if o["category"] in counters]
+            if tables:
+                best = max(tables, key=lambda o: o["size"][0] * o["size"][1])
+                res = self.place(text=text, placement="on_top", target=best["id"])
+                if res.get("ok"):
+                    return
+        for rule in ("wall", "free"):
+            if self.place(text=text, placement="floor", rule=rule).get("ok"):
+                return
+        log.warning("request %r: could not place the %s it names", spec.instruction, text)
 
     def pick_support(self, spec: TaskSpec, objects: list[dict[str, Any]]) -> dict[str, Any] | None:
         """The support the object is picked from: the one "from the <source>" names (placed

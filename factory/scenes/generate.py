@@ -11,7 +11,8 @@ from typing import Any
 from factory.assets import AssetLibrary
 from factory.scenes.brain import AgentConfig, generate_scene
 from factory.scenes.mcp_client import SyncMCPCaller
-from factory.scenes.request import primary_room_type
+from factory.scenes.part_read import PartSpec, check_part_request
+from factory.scenes.request import parse_any_task, parse_request, primary_room_type
 from factory.schema import Scene, check_id
 
 log = logging.getLogger(__name__)
@@ -39,6 +40,35 @@ def _read_prompts(cfg: Any) -> list[str]:
         prompts = [describe_image(cfg.image, hint, base_url=cfg.vlm_base_url, model=cfg.vlm_model)]
         log.info("image %s described as: %s", cfg.image, prompts[0])
     return prompts
+
+
+def _library_for(prompt: str, task: str, library: AssetLibrary) -> AssetLibrary:
+    """The asset library for a prompt: ``library``, or its articulated copy when the task the
+    prompt (or ``generate.task``) asks for needs moving doors and drawers
+    (:attr:`factory.tasks.base.Task.articulated_assets`: "open the fridge door"), logged.
+
+    Raises:
+        ConfigError: an open or close task names an object that does not open or that the
+            prompt's rooms do not hold (:func:`~.part_read.check_part_request`).
+    """
+    from factory.scenes.brain import task_kind
+    from factory.tasks import get_task
+
+    spec = parse_any_task(task) if task else parse_request(prompt).task
+    if spec is None:
+        return library
+    if isinstance(spec, PartSpec):
+        check_part_request(spec, parse_request(prompt).room_types)
+    kind = task_kind(spec.__dict__)
+    if library.articulated or not get_task(kind).articulated_assets:
+        return library
+    log.info(
+        "request %r: task=%s needs doors and drawers that move: its assets are built "
+        "articulated (as with assets.articulated=true)",
+        prompt,
+        kind,
+    )
+    return library.articulated_copy()
 
 
 def _generate_with(
@@ -163,6 +193,7 @@ def run(ctx: Any) -> dict[str, Any]:
     if gcfg.task_attempts < 1:
         raise ConfigError(f"generate.task_attempts={gcfg.task_attempts} must be at least 1")
     library = AssetLibrary.from_config(ctx.cfg.assets, store.assets_dir)
+    libraries = {p: _library_for(p, gcfg.task or "", library) for p in dict.fromkeys(prompts)}
     agent_cfg = AgentConfig(physics_critic=gcfg.physics_critic, max_objects=gcfg.max_objects)
 
     def one(scene_id: str) -> str:
@@ -177,7 +208,9 @@ def run(ctx: Any) -> dict[str, Any]:
         for attempt in range(gcfg.task_attempts):
             s = attempt_seed(seed, attempt)
             try:
-                scene, report = _generate_with(gcfg, prompt, library, s, agent_cfg, scene_id)
+                scene, report = _generate_with(
+                    gcfg, prompt, libraries[prompt], s, agent_cfg, scene_id
+                )
             except ValueError as e:
                 raise ConfigError(f"prompt {prompt!r}: {e}") from None
             validate(scene)

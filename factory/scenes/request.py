@@ -4,7 +4,10 @@
 :mod:`.translate`) into a :class:`ParsedRequest`: the room types to build (one room, or a
 whole home's program: :mod:`.homes`), the rooms named by owner or purpose
 (:mod:`.room_mentions`), the style, condition and material words (:mod:`.style_words`), the
-pick-and-place task, and notes and warnings on what was approximated or not understood.
+task (pick-and-place, :mod:`.task_read`, or opening and closing a door or drawer,
+:mod:`.part_read`), and notes and warnings on what was approximated or not understood. A
+request that names no room but an object that opens ("open the fridge door") builds the
+object's room (the catalogue's ``rooms``: a kitchen).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 
 from factory.scenes.homes import find_home, home_rooms, is_open_plan
+from factory.scenes.part_read import PartSpec, part_rooms, read_part_task
 from factory.scenes.room_meaning import RoomGuess, nearest_room_type
 from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
 from factory.scenes.style_words import COLOURS, CONDITIONS, STYLE_WORDS, read_style
@@ -30,8 +34,11 @@ __all__ = [
     "DEFAULT_ROOM",
     "STYLE_WORDS",
     "ParsedRequest",
+    "PartSpec",
     "TaskSpec",
     "names_a_room",
+    "parse_any_task",
+    "parse_part_task",
     "parse_request",
     "parse_task",
     "primary_room_type",
@@ -44,6 +51,18 @@ def parse_task(text: str) -> TaskSpec | None:
     """Reads "pick up the mug [from the table] and put it in the bowl" style instructions
     (English; the rules: :mod:`.task_read`)."""
     return read_task(text)
+
+
+def parse_part_task(text: str) -> PartSpec | None:
+    """Reads "open the fridge door", "close the top drawer of the nightstand" style
+    instructions (English; the rules: :mod:`.part_read`)."""
+    return read_part_task(text)
+
+
+def parse_any_task(text: str) -> TaskSpec | PartSpec | None:
+    """The task an instruction asks for: pick-and-place (:func:`parse_task`) first, else
+    opening or closing a part (:func:`parse_part_task`); None if neither."""
+    return parse_task(text) or parse_part_task(text)
 
 
 @dataclass(frozen=True)
@@ -102,9 +121,9 @@ class ParsedRequest:
         return bool(self.home or self.rooms or self.guess)
 
     @property
-    def task(self) -> TaskSpec | None:
-        """The pick-and-place task of the request, read from its English reading."""
-        return parse_task(self.english)
+    def task(self) -> TaskSpec | PartSpec | None:
+        """The task of the request (:func:`parse_any_task`), read from its English reading."""
+        return parse_any_task(self.english)
 
     def summary(self) -> dict[str, object]:
         """A JSON-ready digest for tool results and reports (empty fields left out)."""
@@ -200,12 +219,17 @@ def parse_request(text: str) -> ParsedRequest:
     rooms = find_rooms(english)
     home = find_home(english, rooms, _is_object)
     notes = [f"{r.phrase!r}: {r.note}" for r in rooms if r.note]
-    guess = None if home is not None or rooms else _guess_room(english, tr.unknown)
+    part = read_part_task(english)
+    part_room = part_rooms(part.category)[:1] if part is not None and part.category else ()
+    guess = None if home is not None or rooms or part_room else _guess_room(english, tr.unknown)
     if home is not None:
         named = [r for r in rooms if r.end <= home.start or r.start >= home.end]
         room_types = tuple(home_rooms(home, named))
     elif rooms:
         room_types = (_main_room(rooms).room_type,)
+    elif part is not None and part_room:
+        room_types = part_room
+        notes.append(f"{part.named!r}: no room named; built its room, a {part_room[0]}")
     elif guess is not None:
         room_types = (guess.room_type,)
         notes.append(
@@ -215,7 +239,7 @@ def parse_request(text: str) -> ParsedRequest:
     else:
         room_types = (DEFAULT_ROOM,)
     warnings = [tr.warning] if tr.unknown else []
-    if home is None and not rooms and guess is None:
+    if home is None and not rooms and guess is None and not part_room:
         warnings.append(
             f"no known room type in {text!r} (another language?); built a {DEFAULT_ROOM}"
         )

@@ -1,5 +1,7 @@
-"""The words of a pick-and-place request, as data: which verbs pick, which say the robot
-travels, which prepositions name a destination, which words name a support.
+"""The words of a task request, as data: which verbs pick, which say the robot travels, which
+prepositions name a destination, which words name a support; which words name a moving part
+and which one (:mod:`.part_read`; the verbs that open or close are the tasks' own,
+:attr:`factory.tasks.base.Task.request_verbs`).
 
 :func:`factory.scenes.task_read.read_task` reads a request with these tables; the rules that
 use them are written there. A request is the mobile task (the base drives) only when the
@@ -170,9 +172,34 @@ PLACE_ENDS: tuple[str, ...] = (
 )
 """Words that end a support's name ("the desk in the study": the desk, then its room)."""
 
+PART_ROLES: dict[str, str] = {
+    "door": "door",
+    "doors": "door",
+    "drawer": "drawer",
+    "drawers": "drawer",
+}
+"""Words that name a moving part -> its role word (as
+:data:`factory.tasks.articulated.parts.ROLE_WORDS` labels parts)."""
+
+PART_QUALIFIERS: dict[str, str] = {
+    "top": "top",
+    "upper": "top",
+    "uppermost": "top",
+    "middle": "middle",
+    "bottom": "bottom",
+    "lower": "bottom",
+    "lowest": "bottom",
+    "left": "left",
+    "right": "right",
+}
+"""Words that say which of several parts -> the qualifier of the parts' labels (drawers by
+height, doors left or right seen from the front)."""
+
 __all__ = [
     "ARTICLES",
     "DESTINATION_PREPOSITIONS",
+    "PART_QUALIFIERS",
+    "PART_ROLES",
     "PICK_VERBS",
     "PLACE_ENDS",
     "PLACE_VERBS",

@@ -15,6 +15,7 @@ in :data:`TASKS`.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Sequence
 from functools import cache
 from typing import TYPE_CHECKING
 
@@ -24,7 +25,15 @@ if TYPE_CHECKING:
     from factory.schema import Scene
     from factory.tasks.base import Task
 
-__all__ = ["DEFAULT_TASK", "TASKS", "get_task", "task_for_scene", "task_names", "tasks"]
+__all__ = [
+    "DEFAULT_TASK",
+    "TASKS",
+    "get_task",
+    "task_for_scene",
+    "task_names",
+    "task_of_scenes",
+    "tasks",
+]
 
 TASKS: dict[str, str] = {
     "pick_place": "factory.tasks.pick_place.task:PickPlaceTask",
@@ -73,3 +82,13 @@ def task_for_scene(scene: Scene) -> Task:
         if task.claims(scene):
             return task
     return get_task(DEFAULT_TASK)
+
+
+def task_of_scenes(asked: str, scenes: Sequence[Scene]) -> str:
+    """The task a stage records in ``scenes``: ``asked`` (``task=``), except that the default
+    task stands aside for the one other task that every scene claims (:func:`task_for_scene`:
+    a run generated for "open the fridge door" records ``open`` with no ``task=``)."""
+    if asked != DEFAULT_TASK or not scenes:
+        return asked
+    claimed = {task_for_scene(s).name for s in scenes}
+    return claimed.pop() if len(claimed) == 1 else asked

@@ -56,10 +56,22 @@ class Task:
         return scene.task is not None and scene.task.kind == self.name
 
     def matches_request(self, spec: dict[str, Any]) -> bool:
-        """Whether a parsed request's task (the ``TaskSpec`` fields of
-        :mod:`factory.scenes.request`: ``pick``, ``place``, ``source``, ...) asks for this
-        task; the scene agent writes the matching task's name as the scene's ``task.kind``."""
+        """Whether a parsed request's task asks for this task: the fields of a ``TaskSpec``
+        (:mod:`factory.scenes.task_read`: ``pick``, ``target``, ``source``, ``travel``, ...)
+        or a ``PartSpec`` (:mod:`factory.scenes.part_read`: ``action``, ``role``,
+        ``category``, ...); the scene agent writes the first matching task's name as the
+        scene's ``task.kind``."""
         return False
+
+    request_verbs: ClassVar[tuple[str, ...]] = ()
+    """Verbs of a request that asks the task to move a part of an articulated object ("open",
+    "opens", "shut", ...): the request parser reads "<verb> the <part> [of the <object>]" with
+    them (:mod:`factory.scenes.part_read`); none by default."""
+
+    articulated_assets: ClassVar[bool] = False
+    """A scene made for the task needs articulated furniture (doors and drawers that move):
+    ``stage=generate`` builds its assets articulated (``assets.articulated``) whatever the
+    setting says, and logs it."""
 
     def feasibility(self, scene: Scene, assets_root: Path | None) -> dict[str, Any] | None:
         """The task's feasibility critic: whether ``scene``, made for this task, can host its

@@ -12,9 +12,13 @@ others) and the object's category.
 Which part a scene's episodes act on (:func:`choose_parts`), first match wins:
 
 1. an object's ``task_joint`` (the scene names the joint outright);
-2. the scene's ``task.instruction`` when it names a part: its words must hold the role word
-   and a word of the object's category (``fridge`` for ``upright_fridge``) and, where given,
-   the qualifier; a request that names a part no object has is an error listing the parts;
+2. the scene's ``task.instruction`` when it names a part: its words must hold the role word,
+   a word of the object's category (``fridge`` for ``upright_fridge``, ``nightstand`` for
+   ``bedside_cabinet``: :func:`category_words`) unless it names no object at all ("open the
+   top drawer": any object's), and, where given, the qualifier, which an object's only part
+   of that role also meets when no part matches it outright ("the top drawer of the
+   nightstand": its one drawer); a request that names a part no object has is an error
+   listing the parts;
 3. otherwise (a generated kitchen made for another task) every part, in the scene's object
    order: the set-up (:func:`factory.tasks.articulated.plan.setup_scene`) takes the first one
    the robot can work from a free base spot.
@@ -24,6 +28,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +48,7 @@ ROLE_WORDS: dict[str, str] = {
 }
 """Joint role -> the word an instruction calls its part by."""
 
-CATEGORY_NOISE = frozenset({"upright", "base", "oven", "unit", "small", "large"})
+CATEGORY_NOISE = frozenset({"upright", "base", "oven", "unit", "small", "large", "built", "in"})
 """Category words an instruction need not say ("the fridge" is the ``upright_fridge``; "the
 microwave" the ``microwave_oven``)."""
 
@@ -103,14 +108,28 @@ def _words(text: str) -> list[str]:
     return re.findall(r"[a-z]+", text.lower())
 
 
+@cache
 def category_words(category: str) -> tuple[str, ...]:
-    """The words of ``category`` an instruction names the object by (with synonyms)."""
+    """The words of ``category`` an instruction names the object by: its name's words (with
+    :data:`SYNONYMS`) and the head word of every catalogue name and synonym of the category
+    and of the rigid categories that stand for it (``nightstand`` for the
+    ``bedside_cabinet``, ``closet`` for the ``built_in_wardrobe``)."""
+    from factory.assets.catalog import CATEGORIES
+
     out: list[str] = []
     for w in category.split("_"):
-        if w in CATEGORY_NOISE:
+        if w in CATEGORY_NOISE or w in ROLE_WORDS:  # "drawer" of drawer_chest names no chest
             continue
         out.extend(SYNONYMS.get(w, (w,)))
-    return tuple(out) or (category,)
+    for name, cat in CATEGORIES.items():
+        if name != category and cat.articulated_as != category:
+            continue
+        for phrase in (name.replace("_", " "), *cat.synonyms):
+            words = phrase.lower().replace("-", " ").split(" of ")[0].split()
+            head = words[-1] if words else ""
+            if head and head not in CATEGORY_NOISE and head not in ROLE_WORDS:
+                out.append(head)
+    return tuple(dict.fromkeys(out)) or (category,)
 
 
 def part_label(
@@ -175,21 +194,38 @@ def scene_parts(scene: Scene, assets_root: str | Path | None) -> list[Part]:
 
 
 def names_part(text: str, part: Part) -> bool:
-    """Whether the instruction ``text`` names ``part`` (role word, a category word, and the
-    qualifier where the text gives one)."""
+    """Whether the instruction ``text`` names ``part``: its role word; a word of the object's
+    category (:func:`category_words`), or no object at all ("open the top drawer": any
+    object's); and the qualifier where the text gives one."""
+    from factory.scenes.part_read import read_part_task
+
     words = set(_words(text))
     label = _words(part.label)
     word = ROLE_WORDS.get(part.joint.role, part.joint.role)
     if word not in words and f"{word}s" not in words:
         return False
     if not words & set(category_words(part.obj.category)):
-        return False
+        spec = read_part_task(text)
+        if spec is None or (spec.named and spec.category != part.obj.category):
+            return False
     quals = {"top", "middle", "bottom", "left", "right", "upper", "lower"}
     asked = words & quals
     if not asked:
         return True
     asked = {"top" if w == "upper" else "bottom" if w == "lower" else w for w in asked}
     return bool(asked & set(label))
+
+
+def _sole_of_role(text: str, parts: list[Part]) -> list[Part]:
+    """The parts ``text`` names but for its qualifier that are the only part of their role
+    on their object ("the top drawer of the nightstand": its one drawer, over its door)."""
+    out = []
+    for p in parts:
+        word = ROLE_WORDS.get(p.joint.role, p.joint.role)
+        unqualified = re.sub(r"\b(?:top|middle|bottom|left|right|upper|lower)\b", " ", text)
+        if p.label.startswith(f"the {word} of") and names_part(unqualified, p):
+            out.append(p)
+    return out
 
 
 def choose_parts(scene: Scene, assets_root: str | Path | None) -> list[Part]:
@@ -223,7 +259,7 @@ def choose_parts(scene: Scene, assets_root: str | Path | None) -> list[Part]:
     words = set(_words(text))
     mentions_part = bool(words & {*ROLE_WORDS.values(), *(f"{w}s" for w in ROLE_WORDS.values())})
     if text and mentions_part:
-        chosen = [p for p in parts if names_part(text, p)]
+        chosen = [p for p in parts if names_part(text, p)] or _sole_of_role(text, parts)
         if not chosen:
             raise TaskError(
                 f"scene {scene.id!r}: the instruction {text!r} names no part of the scene; "

@@ -40,12 +40,30 @@ class ArticulatedTask(Task):
 
     # -- scenes ---------------------------------------------------------------------------------
 
+    articulated_assets: ClassVar[bool] = True
+
     def matches_request(self, spec: dict[str, Any]) -> bool:
-        """No request asks for it yet: the request parser (:mod:`factory.scenes.request`) reads
-        pick-and-place requests only; a scene for the task names its part in ``task_joint``
-        or its instruction, or the task picks a reachable part of a generated kitchen
-        (:mod:`factory.tasks.articulated.parts`)."""
-        return False
+        """A request to move a part the task's way ("open the fridge door", "close the top
+        drawer of the nightstand": the ``PartSpec`` fields of
+        :mod:`factory.scenes.part_read`, its ``verb`` one of :attr:`request_verbs`)."""
+        return spec.get("verb") in self.request_verbs and bool(spec.get("role"))
+
+    def feasibility(self, scene: Any, assets_root: Any) -> dict[str, Any] | None:
+        """The demos' set-up (:func:`factory.tasks.articulated.plan.setup_scene`, at the
+        default ``demos.freeze_beyond``): a part the scene's instruction names that the robot
+        can work from a free base spot, with the whole motion planned from its hardest start;
+        its failure's message is the verdict's ``detail``."""
+        from factory.config import DemosConfig
+        from factory.errors import TaskError
+        from factory.tasks.articulated.plan import setup_scene
+
+        try:
+            setup = setup_scene(
+                scene, assets_root, self.direction, freeze_beyond=DemosConfig().freeze_beyond
+            )
+        except TaskError as e:
+            return {"reason": "no_workable_part", "detail": str(e)}
+        return {"reason": "", "detail": f"{setup.part.key} ({setup.part.label})"}
 
     # -- demos ----------------------------------------------------------------------------------
 

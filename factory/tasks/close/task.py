@@ -19,3 +19,13 @@ class CloseTask(ArticulatedTask):
     direction: ClassVar[str] = "close"
     layout: ClassVar[str] = "articulated_close"
     example_scene: ClassVar[str | None] = "tasks/close/kitchen_cabinet_drawer_close"
+    request_verbs: ClassVar[tuple[str, ...]] = (
+        "close",
+        "closes",
+        "closing",
+        "shut",
+        "shuts",
+        "shutting",
+        "push shut",
+        "pushes shut",
+    )

@@ -19,3 +19,10 @@ class OpenTask(ArticulatedTask):
     direction: ClassVar[str] = "open"
     layout: ClassVar[str] = "articulated_open"
     example_scene: ClassVar[str | None] = "tasks/open/kitchen_cabinet_drawer_open"
+    request_verbs: ClassVar[tuple[str, ...]] = (
+        "open",
+        "opens",
+        "opening",
+        "pull open",
+        "pulls open",
+    )

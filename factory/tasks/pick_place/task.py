@@ -26,8 +26,9 @@ class PickPlaceTask(Task):
 
     def matches_request(self, spec: dict[str, Any]) -> bool:
         """A request the robot serves without travelling ("put the mug in the bowl", "pick
-        up the mug from the table and put it in the bowl": ``travel`` false)."""
-        return not spec.get("travel")
+        up the mug from the table and put it in the bowl": an object to pick, ``travel``
+        false)."""
+        return bool(spec.get("pick")) and not spec.get("travel")
 
     def feasibility(self, scene: Any, assets_root: Any) -> dict[str, Any] | None:
         """A free base spot and room for the task objects within reach
