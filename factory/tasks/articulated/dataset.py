@@ -42,17 +42,18 @@ share of the range; the handle's centre, outward normal and offset from the tool
 robot's base frame."""
 
 
-def features() -> dict[str, dict[str, Any]]:
-    """The tasks' features other than the cameras', in the dataset's order."""
+def features(env_names: list[str] = ENV_STATE_NAMES) -> dict[str, dict[str, Any]]:
+    """The tasks' features other than the cameras', in the dataset's order (``env_names``:
+    the columns of ``observation.environment_state``; ``task=place_inside`` gives its own)."""
     return {
         "observation.state": vector(ARM_NAMES),
         "observation.ee_pose": vector(EE_POSE_NAMES),
-        ENV_STATE_KEY: vector(ENV_STATE_NAMES),
+        ENV_STATE_KEY: vector(env_names),
         "action": vector(ARM_NAMES),
     }
 
 
-def arrays_of(n_frames: int) -> dict[str, tuple[int, ...]]:
+def arrays_of(n_frames: int, env_names: list[str] = ENV_STATE_NAMES) -> dict[str, tuple[int, ...]]:
     """The arrays of an episode (other than the cameras') and their shapes."""
     n = n_frames
     return {
@@ -60,22 +61,24 @@ def arrays_of(n_frames: int) -> dict[str, tuple[int, ...]]:
         "gripper": (n, 1),
         "ee_pose": (n, 7),
         "action": (n, len(ARM_NAMES)),
-        "env_state": (n, len(ENV_STATE_NAMES)),
+        "env_state": (n, len(env_names)),
     }
 
 
-def columns(info: Any, arrays: Any, scene_json: bytes) -> dict[str, np.ndarray]:
+def columns(
+    info: Any, arrays: Any, scene_json: bytes, env_names: list[str] = ENV_STATE_NAMES
+) -> dict[str, np.ndarray]:
     """The values of :func:`features` of one episode, (F, ...) each.
 
     Raises:
         StoreError: the episode has no ``env_state`` of the right shape (re-record it).
     """
     env = np.asarray(arrays["env_state"][:], np.float32) if "env_state" in arrays else None
-    if env is None or env.shape != (info.n_frames, len(ENV_STATE_NAMES)):
+    if env is None or env.shape != (info.n_frames, len(env_names)):
         raise StoreError(
             f"episode {info.episode_id!r}: env_state has shape "
             f"{None if env is None else env.shape}, expected ({info.n_frames}, "
-            f"{len(ENV_STATE_NAMES)}) (re-record the episode with stage=demos)"
+            f"{len(env_names)}) (re-record the episode with stage=demos)"
         )
     return {
         "observation.state": arm_state(arrays),
@@ -85,19 +88,36 @@ def columns(info: Any, arrays: Any, scene_json: bytes) -> dict[str, np.ndarray]:
     }
 
 
-def card(meta: dict[str, Any], cameras: list[str], rgb: dict[str, Any]) -> tuple[str, list[str]]:
-    """The tasks' part of the dataset card: the opening paragraph and the feature lines."""
+CARD_WHAT = (
+    "opening or closing a drawer or door (a handle grasped and pulled or pushed along the joint)"
+)
+"""What the tasks' demonstrations show (the dataset card's opening sentence)."""
+CARD_ENV_STATE = (
+    "the manipulated part's joint position (rad or m, 0 closed) and its share of the joint's "
+    "range; the handle's centre (m), outward normal and offset from the tool (m), in the "
+    "robot's base frame"
+)
+"""The dataset card's line on ``observation.environment_state``."""
+
+
+def card(
+    meta: dict[str, Any],
+    cameras: list[str],
+    rgb: dict[str, Any],
+    what: str = CARD_WHAT,
+    env_state: str = CARD_ENV_STATE,
+) -> tuple[str, list[str]]:
+    """The tasks' part of the dataset card: the opening paragraph and the feature lines
+    (``what`` the demonstrations show and the ``env_state`` line: ``task=place_inside``
+    gives its own)."""
     intro = (
-        "Franka Panda demonstrations of opening or closing a drawer or door (a handle grasped "
-        "and pulled or pushed along the joint) planned and recorded in physically validated "
+        f"Franka Panda demonstrations of {what} planned and recorded in physically validated "
         f"MuJoCo scenes by factory {meta['factory_version'] or '(unknown version)'}."
     )
     return intro, [
         "- **`observation.state`:** 7 arm joint positions (rad) and the gripper opening (m)",
         "- **`observation.ee_pose`:** tool position (m) and quaternion (w, x, y, z), world frame",
-        "- **`observation.environment_state`:** the manipulated part's joint position (rad or "
-        "m, 0 closed) and its share of the joint's range; the handle's centre (m), outward "
-        "normal and offset from the tool (m), in the robot's base frame",
+        f"- **`observation.environment_state`:** {env_state}",
         "- **`action`:** the arm joint targets at the end of the frame (rad) and the gripper "
         "command (m; 0.08 open, negative squeezes)",
         f"- **`observation.images.<camera>`** for {', '.join(f'`{c}`' for c in cameras)}: RGB "
