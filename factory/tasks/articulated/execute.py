@@ -23,7 +23,9 @@ the motion's end), ``not_open`` / ``not_closed`` (fell short otherwise).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -54,6 +56,7 @@ __all__ = [
     "check_outcome",
     "env_state",
     "execute_episode",
+    "record_plan",
 ]
 
 ENV_STATE_DIM = 11
@@ -166,27 +169,41 @@ def check_outcome(
     return Outcome(True, "", details)
 
 
-def execute_episode(
-    setup: ArticulatedSetup,
-    plan: ArticulatedPlan,
+def record_plan(
+    m: mujoco.MjModel,
+    robot: Any,
+    qpos0: np.ndarray,
+    ctrl: np.ndarray,
+    targets: np.ndarray,
     cfg: RecordConfig,
-    renderer: ArticulatedRenderer | None = None,
-) -> Recording:
-    """Runs one planned episode and records it (images when ``cfg.render`` and a renderer is
-    given, or one is made).
+    renderer: ArticulatedRenderer | None,
+    observe: Callable[[mujoco.MjData], np.ndarray],
+    env_dim: int,
+    allowed: np.ndarray,
+    on_step: Callable[[int, mujoco.MjData], None],
+) -> tuple[Recording, mujoco.MjData, float]:
+    """Runs a plan's open-loop controls on one ``MjData`` physics step by physics step and
+    records every frame (the articulated tasks' and ``task=place_inside``'s episodes).
+
+    Args:
+        qpos0: the start (nq,); ctrl: controls per physics step (T, nu); targets: the arm's
+            joint targets and gripper command per physics step (T, 8), recorded as the action.
+        renderer: draws the cameras (None: one is made when ``cfg.render``).
+        observe: ``env_state`` of the frame, (env_dim,).
+        allowed: geoms (ngeom,) the robot may touch without it counting as penetration.
+        on_step: called after each physics step ``k`` (phase checks).
 
     Returns:
-        the recording (``env_state`` (F, 11): :func:`env_state` per frame), with its
-        outcome (:func:`check_outcome`), simulation and rendering seconds.
+        the recording (its outcome unset; simulation and rendering seconds set), the final
+        ``MjData`` and the deepest robot penetration (m) over the frames.
     """
-    m, robot = setup.model, setup.robot
     data = mujoco.MjData(m)
-    data.qpos[:] = plan.qpos0
-    data.ctrl[:] = plan.ctrl[0]
+    data.qpos[:] = qpos0
+    data.ctrl[:] = ctrl[0]
     mujoco.mj_forward(m, data)
     dt = float(m.opt.timestep)
     per_frame = max(1, round(1.0 / (cfg.fps * dt)))
-    steps = len(plan.ctrl)
+    steps = len(ctrl)
     n_frames = int(np.ceil(steps / per_frame)) + 1
     nstate = mujoco.mj_stateSize(m, STATE_SPEC)
     depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
@@ -200,7 +217,7 @@ def execute_episode(
         gripper=np.zeros((n_frames, 1)),
         ee_pose=np.zeros((n_frames, 7)),
         action=np.zeros((n_frames, 8)),
-        env_state=np.zeros((n_frames, ENV_STATE_DIM)),
+        env_state=np.zeros((n_frames, env_dim)),
         rgb={c: np.zeros((n_frames, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
         if own is not None
         else {},
@@ -210,13 +227,12 @@ def execute_episode(
     )
     robot_geom = np.zeros(m.ngeom, bool)
     robot_geom[robot.geoms] = True
-    allowed = allowed_geoms(setup)
-    watch = Watch()
-    pull_end = plan.phases.get("release", steps)
+    worst = 0.0
     sim_s = render_s = 0.0
     state = np.zeros(nstate)
 
     def record(frame: int) -> float:
+        nonlocal worst
         t0 = time.perf_counter()
         mujoco.mj_getState(m, data, state, STATE_SPEC)
         rec.state[frame] = state
@@ -224,10 +240,10 @@ def execute_episode(
         rec.joint_pos[frame] = q
         rec.gripper[frame, 0] = width
         rec.ee_pose[frame] = ee
-        rec.env_state[frame] = env_state(setup, data)
+        rec.env_state[frame] = observe(data)
         step = min((frame + 1) * per_frame, steps) - 1
-        rec.action[frame] = plan.targets[step]
-        watch.worst = max(watch.worst, robot_penetration(m, data, robot_geom, allowed))
+        rec.action[frame] = targets[step]
+        worst = max(worst, robot_penetration(m, data, robot_geom, allowed))
         if own is not None:
             rgbs, depths = own.render(data)
             for c, im, dp in zip(cfg.cameras, rgbs, depths, strict=True):
@@ -240,21 +256,56 @@ def execute_episode(
         for f in range(n_frames - 1):
             t0 = time.perf_counter()
             for k in range(f * per_frame, (f + 1) * per_frame):
-                data.ctrl[:] = plan.ctrl[min(k, steps - 1)]
+                data.ctrl[:] = ctrl[min(k, steps - 1)]
                 mujoco.mj_step(m, data)
-                if k == pull_end - 1:
-                    mujoco.mj_kinematics(m, data)
-                    watch.slip = grasp_distance(setup, data, plan.pose_tool_in_link)
+                on_step(k, data)
             mujoco.mj_forward(m, data)
             sim_s += time.perf_counter() - t0
             render_s += record(f + 1)
     finally:
         if renderer is None and own is not None:
             own.close()
+    rec.sim_seconds = sim_s
+    rec.render_seconds = render_s
+    return rec, data, worst
+
+
+def execute_episode(
+    setup: ArticulatedSetup,
+    plan: ArticulatedPlan,
+    cfg: RecordConfig,
+    renderer: ArticulatedRenderer | None = None,
+) -> Recording:
+    """Runs one planned episode and records it (images when ``cfg.render`` and a renderer is
+    given, or one is made; :func:`record_plan`).
+
+    Returns:
+        the recording (``env_state`` (F, 11): :func:`env_state` per frame), with its
+        outcome (:func:`check_outcome`), simulation and rendering seconds.
+    """
+    watch = Watch()
+    pull_end = plan.phases.get("release", len(plan.ctrl))
+
+    def on_step(k: int, data: mujoco.MjData) -> None:
+        if k == pull_end - 1:
+            mujoco.mj_kinematics(setup.model, data)
+            watch.slip = grasp_distance(setup, data, plan.pose_tool_in_link)
+
+    rec, data, watch.worst = record_plan(
+        setup.model,
+        setup.robot,
+        plan.qpos0,
+        plan.ctrl,
+        plan.targets,
+        cfg,
+        renderer,
+        lambda d: env_state(setup, d),
+        ENV_STATE_DIM,
+        allowed_geoms(setup),
+        on_step,
+    )
     released = grasp_distance(setup, data, plan.pose_tool_in_link)
     rec.outcome = check_outcome(
         setup, float(data.qpos[setup.qadr]), watch, released, float(rec.gripper[-1, 0])
     )
-    rec.sim_seconds = sim_s
-    rec.render_seconds = render_s
     return rec

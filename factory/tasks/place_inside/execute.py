@@ -22,23 +22,25 @@ farther than :data:`DROPPED` from its planned place pose when the hand opened), 
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from factory.demos.record.payload import STATE_SPEC
-from factory.tasks.articulated.execute import COLLISION_DEPTH, OPEN_HAND, RELEASED, allowed_geoms
+from factory.tasks.articulated.execute import (
+    COLLISION_DEPTH,
+    OPEN_HAND,
+    RELEASED,
+    allowed_geoms,
+    record_plan,
+)
 from factory.tasks.articulated.execute import grasp_distance as handle_distance
 from factory.tasks.articulated.plan import CLOSED_AT
 from factory.tasks.articulated.record import (
     ArticulatedRenderer,
     RecordConfig,
     Recording,
-    robot_penetration,
 )
-from factory.tasks.articulated.record import robot_signals as _signals
 from factory.tasks.pick_place.objects import Outcome
 from factory.tasks.place_inside.plan import PlaceInsidePlan, PlaceInsideSetup
 
@@ -170,90 +172,38 @@ def execute_episode(
     renderer: ArticulatedRenderer | None = None,
 ) -> Recording:
     """Runs one planned episode and records it (images when ``cfg.render`` and a renderer is
-    given, or one is made).
+    given, or one is made; :func:`factory.tasks.articulated.execute.record_plan`).
 
     Returns:
         the recording (``env_state`` (F, 9)), with its outcome (:func:`check_outcome`),
         simulation and rendering seconds.
     """
-    m, robot = setup.model, setup.art.robot
-    data = mujoco.MjData(m)
-    data.qpos[:] = plan.qpos0
-    data.ctrl[:] = plan.ctrl[0]
-    mujoco.mj_forward(m, data)
-    dt = float(m.opt.timestep)
-    per_frame = max(1, round(1.0 / (cfg.fps * dt)))
-    steps = len(plan.ctrl)
-    n_frames = int(np.ceil(steps / per_frame)) + 1
-    nstate = mujoco.mj_stateSize(m, STATE_SPEC)
-    depth_type = np.uint16 if cfg.depth == "uint16_mm" else np.float32
-    own = renderer
-    if own is None and cfg.render:
-        own = ArticulatedRenderer(m, cfg)
-    rec = Recording(
-        time=np.arange(n_frames) / cfg.fps,
-        state=np.zeros((n_frames, nstate)),
-        joint_pos=np.zeros((n_frames, 7)),
-        gripper=np.zeros((n_frames, 1)),
-        ee_pose=np.zeros((n_frames, 7)),
-        action=np.zeros((n_frames, 8)),
-        env_state=np.zeros((n_frames, ENV_STATE_DIM)),
-        rgb={c: np.zeros((n_frames, cfg.height, cfg.width, 3), np.uint8) for c in cfg.cameras}
-        if own is not None
-        else {},
-        depth={c: np.zeros((n_frames, cfg.height, cfg.width), depth_type) for c in cfg.cameras}
-        if own is not None
-        else {},
-    )
-    robot_geom = np.zeros(m.ngeom, bool)
-    robot_geom[robot.geoms] = True
-    ok_geoms = allowed(setup)
     watch = Watch()
-    z0 = float(plan.qpos0[setup.pick_adr + 2])
+    a = setup.pick_adr
+    z0 = float(plan.qpos0[a + 2])
+    steps = len(plan.ctrl)
     lift_end = plan.phases.get("transport", steps)
     release = plan.phases.get("place_release", steps)
-    sim_s = render_s = 0.0
-    state = np.zeros(nstate)
 
-    def record(frame: int) -> float:
-        t0 = time.perf_counter()
-        mujoco.mj_getState(m, data, state, STATE_SPEC)
-        rec.state[frame] = state
-        q, width, ee = _signals(m, data, robot)
-        rec.joint_pos[frame] = q
-        rec.gripper[frame, 0] = width
-        rec.ee_pose[frame] = ee
-        rec.env_state[frame] = env_state(setup, data)
-        step = min((frame + 1) * per_frame, steps) - 1
-        rec.action[frame] = plan.targets[step]
-        watch.worst = max(watch.worst, robot_penetration(m, data, robot_geom, ok_geoms))
-        if own is not None:
-            rgbs, depths = own.render(data)
-            for c, im, dp in zip(cfg.cameras, rgbs, depths, strict=True):
-                rec.rgb[c][frame] = im
-                rec.depth[c][frame] = dp
-        return time.perf_counter() - t0
+    def on_step(k: int, data: mujoco.MjData) -> None:
+        if k == lift_end - 1:
+            watch.lifted = float(data.qpos[a + 2]) - z0
+        if k == release - 1:
+            want = plan.pose_obj_place[:3, 3]
+            watch.off_place = float(np.linalg.norm(data.qpos[a : a + 3] - want))
 
-    try:
-        render_s += record(0)
-        for f in range(n_frames - 1):
-            t0 = time.perf_counter()
-            for k in range(f * per_frame, (f + 1) * per_frame):
-                data.ctrl[:] = plan.ctrl[min(k, steps - 1)]
-                mujoco.mj_step(m, data)
-                if k == lift_end - 1:
-                    watch.lifted = float(data.qpos[setup.pick_adr + 2]) - z0
-                if k == release - 1:
-                    want = plan.pose_obj_place[:3, 3]
-                    a = setup.pick_adr
-                    watch.off_place = float(np.linalg.norm(data.qpos[a : a + 3] - want))
-            mujoco.mj_forward(m, data)
-            sim_s += time.perf_counter() - t0
-            render_s += record(f + 1)
-    finally:
-        if renderer is None and own is not None:
-            own.close()
+    rec, data, watch.worst = record_plan(
+        setup.model,
+        setup.art.robot,
+        plan.qpos0,
+        plan.ctrl,
+        plan.targets,
+        cfg,
+        renderer,
+        lambda d: env_state(setup, d),
+        ENV_STATE_DIM,
+        allowed(setup),
+        on_step,
+    )
     rec.outcome = check_outcome(setup, data, watch, plan.pose_tool_in_link_close)
-    rec.sim_seconds = sim_s
-    rec.render_seconds = render_s
     return rec
