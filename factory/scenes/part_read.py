@@ -36,10 +36,10 @@ from factory.errors import ConfigError
 from factory.scenes.task_words import (
     ARTICLES,
     DRAWER_CONTAINERS,
-    STOW_OBJECTS,
     PART_QUALIFIERS,
     PART_ROLES,
     PLACE_VERBS,
+    STOW_OBJECTS,
 )
 
 __all__ = [

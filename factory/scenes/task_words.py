@@ -211,8 +211,8 @@ __all__ = [
     "PICK_VERBS",
     "PLACE_ENDS",
     "PLACE_VERBS",
-    "STOW_OBJECTS",
     "RELATIONS",
+    "STOW_OBJECTS",
     "SUPPORT_WORDS",
     "TRAVEL_VERBS",
 ]
