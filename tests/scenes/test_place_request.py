@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from factory.errors import FactoryError
@@ -53,3 +58,27 @@ def test_bad_put_away_requests_list_the_choices(text: str, words: str) -> None:
     assert spec is not None
     with pytest.raises(FactoryError, match=words):
         check_part_request(spec, parse_request(text).room_types)  # type: ignore[arg-type]
+
+
+@pytest.mark.slow
+def test_generated_scene_is_place_inside(tmp_path: Path) -> None:
+    """One kitchen for "put the mug in the drawer" (about 30 s on 2 cores)."""
+    run = tmp_path / "run"
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "factory",
+            "stage=generate",
+            f"run_dir={run}",
+            "sim.backend=cpu",
+            "generate.prompts=[put the mug in the drawer]",
+            "generate.scenes_per_prompt=1",
+        ],
+        check=True,
+        capture_output=True,
+    )
+    (scene,) = run.glob("scenes/*/scene.json")
+    data = json.loads(scene.read_text())
+    assert data["task"] == {"kind": "place_inside", "instruction": "put the mug in the drawer"}
+    assert any(o.get("task_role") == "pick" and o["category"] == "mug" for o in data["objects"])
