@@ -185,6 +185,7 @@ class Brain:
         if isinstance(spec, PartSpec):
             check_part_request(spec, parse_request(request).room_types)
             self.openable(spec)
+            self.put_away_item(spec)
             return spec
         objects = self.call("get_scene_info")["objects"]
         if spec.travel:
@@ -231,6 +232,25 @@ class Brain:
             if self.place(text=text, placement="floor", rule=rule).get("ok"):
                 return
         log.warning("request %r: could not place the %s it names", spec.instruction, text)
+
+    def put_away_item(self, spec: PartSpec) -> None:
+        """The object a "put the mug in the drawer" request puts away (``PartSpec.item``), on
+        the largest table-like support, marked ``pick`` (the task's set-up moves it onto the
+        drawer's counter top)."""
+        if not spec.item_named:
+            return
+        objects = self.call("get_scene_info")["objects"]
+        tables = [o for o in objects if o["category"] in TABLES]
+        if tables:
+            best = max(tables, key=lambda o: o["size"][0] * o["size"][1])
+            res = self.place(
+                text=spec.item_named, placement="on_top", target=best["id"], task_role="pick"
+            )
+            if res.get("ok"):
+                return
+        log.warning(
+            "request %r: could not place the %s it names", spec.instruction, spec.item_named
+        )
 
     def pick_support(self, spec: TaskSpec, objects: list[dict[str, Any]]) -> dict[str, Any] | None:
         """The support the object is picked from: the one "from the <source>" names (placed

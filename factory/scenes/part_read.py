@@ -16,6 +16,11 @@ The rules, with the word tables of :mod:`.task_words` and the asset catalogue's 
    (:func:`check_part_request`) listing the objects that open.
 3. Without an object ("a kitchen where the robot opens the top drawer") any part of that role
    in the room will do (:mod:`factory.tasks.articulated.parts`).
+4. "<place verb> the P [away] in the [Q] drawer [of the X]" or "... in the [Q] X drawer": put
+   P away in a drawer (``item`` is P's catalogue category); the drawer's object is one of
+   :data:`~.task_words.DRAWER_CONTAINERS` (a base cabinet when none is named), checked by
+   :func:`check_part_request`. A place target that is no drawer ("puts it in the bowl") is
+   pick-and-place (:mod:`.task_read`).
 
 The reading is deterministic and English (a foreign request is read through its English
 reading, :mod:`.translate`).
@@ -28,7 +33,14 @@ from dataclasses import dataclass
 from functools import cache
 
 from factory.errors import ConfigError
-from factory.scenes.task_words import ARTICLES, PART_QUALIFIERS, PART_ROLES
+from factory.scenes.task_words import (
+    ARTICLES,
+    DRAWER_CONTAINERS,
+    PART_QUALIFIERS,
+    PART_ROLES,
+    PLACE_VERBS,
+    STOW_OBJECTS,
+)
 
 __all__ = [
     "PartSpec",
@@ -57,6 +69,9 @@ class PartSpec:
         named_category: the catalogue category those words name (``refrigerator``); ``""``
             when the catalogue has none.
         instruction: the request text.
+        item: what a "put the mug in the drawer" request puts away, its catalogue category
+            (``mug``); ``""`` for an open or close request.
+        item_named: the words naming it as written; ``""`` when none.
     """
 
     verb: str
@@ -66,6 +81,8 @@ class PartSpec:
     named: str = ""
     named_category: str = ""
     instruction: str = ""
+    item: str = ""
+    item_named: str = ""
 
 
 def _alt(words: tuple[str, ...] | list[str]) -> str:
@@ -87,6 +104,17 @@ def _pattern() -> re.Pattern[str]:
     words = r"[a-z][\w'-]*"
     return re.compile(
         rf"\b(?P<verb>{verbs})\s+(?P<pre>(?:{words}\s+){{0,4}}?)(?P<role>{roles})\b"
+        rf"(?:\s+(?:of|on|in)\s+(?P<post>{words}(?:\s+{words}){{0,4}}))?"
+    )
+
+
+@cache
+def _stow_pattern() -> re.Pattern[str]:
+    verbs = _alt(list(PLACE_VERBS))
+    words = r"[a-z][\w'-]*"
+    return re.compile(
+        rf"\b(?P<verb>{verbs})\s+(?P<pick>{words}(?:\s+{words}){{0,3}}?)\s+(?:away\s+)?"
+        rf"(?:in|into|inside)\s+(?P<pre>(?:{words}\s+){{0,4}}?)(?P<role>drawer)s?\b"
         rf"(?:\s+(?:of|on|in)\s+(?P<post>{words}(?:\s+{words}){{0,4}}))?"
     )
 
@@ -174,7 +202,8 @@ def read_part_task(text: str) -> PartSpec | None:
         the part task, or None when the text asks to open or close no door or drawer.
     """
     low = text.lower().replace("\u2019", "'")
-    m = _pattern().search(low)
+    stow = _stow_pattern().search(low)
+    m = stow or _pattern().search(low)
     if m is None:
         return None
     pre = m.group("pre") or ""
@@ -182,14 +211,20 @@ def read_part_task(text: str) -> PartSpec | None:
     qualifier = next((PART_QUALIFIERS[w] for w in pre.split() if w in PART_QUALIFIERS), "")
     named = _clean(post) or _clean(pre)
     named_category = catalogue_category(named) if named else ""
+    item_named = _clean(stow.group("pick")) if stow else ""
+    category = openable_category(named_category)
+    if stow and not named:
+        category = DRAWER_CONTAINERS[0]
     return PartSpec(
         verb=m.group("verb"),
         role=PART_ROLES[m.group("role")],
         qualifier=qualifier,
-        category=openable_category(named_category),
+        category=category,
         named=named,
         named_category=named_category,
         instruction=text,
+        item=catalogue_category(item_named) if item_named else "",
+        item_named=item_named,
     )
 
 
@@ -202,8 +237,20 @@ def check_part_request(spec: PartSpec, room_types: tuple[str, ...]) -> None:
 
     Raises:
         ConfigError: the named object is not in the catalogue, does not open, or belongs in
-            none of ``room_types`` (the message lists the valid choices).
+            none of ``room_types``; a put-away request's object is not in the catalogue, or
+            its drawer's object is none of :data:`~.task_words.DRAWER_CONTAINERS` (the
+            message lists the valid choices).
     """
+    if spec.item_named and not spec.item:
+        raise ConfigError(
+            f"request {spec.instruction!r}: the catalogue has no {spec.item_named!r}; "
+            f"objects to put away: {', '.join(sorted(STOW_OBJECTS))}"
+        )
+    if spec.item_named and spec.named and spec.category not in DRAWER_CONTAINERS:
+        raise ConfigError(
+            f"request {spec.instruction!r}: no drawer of {spec.named!r} to put things in; "
+            f"drawers: {', '.join(n.replace('_', ' ') for n in DRAWER_CONTAINERS)}"
+        )
     if spec.named and not spec.category:
         what = (
             f"the catalogue has no {spec.named!r}"

@@ -195,15 +195,24 @@ PART_QUALIFIERS: dict[str, str] = {
 """Words that say which of several parts -> the qualifier of the parts' labels (drawers by
 height, doors left or right seen from the front)."""
 
+DRAWER_CONTAINERS: tuple[str, ...] = ("base_cabinet",)
+"""The articulated categories whose drawers a "put the mug in the drawer" request may name
+(``task=place_inside`` takes a drawer under a counter top; the first is the default)."""
+
+STOW_OBJECTS: tuple[str, ...] = ("mug", "cup", "can", "apple", "orange", "jar")
+"""Small objects a put-away request names in its error message (the task's usual picks)."""
+
 __all__ = [
     "ARTICLES",
     "DESTINATION_PREPOSITIONS",
+    "DRAWER_CONTAINERS",
     "PART_QUALIFIERS",
     "PART_ROLES",
     "PICK_VERBS",
     "PLACE_ENDS",
     "PLACE_VERBS",
     "RELATIONS",
+    "STOW_OBJECTS",
     "SUPPORT_WORDS",
     "TRAVEL_VERBS",
 ]

@@ -31,11 +31,14 @@ class PlaceInsideTask(Task):
     demo_execution: ClassVar[str] = "episode"
     robot_kind: ClassVar[str] = "fixed-base"
 
+    articulated_assets: ClassVar[bool] = True
+
     def matches_request(self, spec: dict[str, Any]) -> bool:
-        """No request asks for it yet: the request parser reads pick-and-place requests only;
-        the task works in a generated kitchen with articulated furniture, or a scene whose
-        ``task.kind`` is ``place_inside``."""
-        return False
+        """A request to put an object away in a drawer ("put the mug in the drawer of the
+        base cabinet": the ``PartSpec`` fields of :mod:`factory.scenes.part_read` with an
+        ``item`` and the role ``drawer``); a place target that is no drawer ("puts it in the
+        bowl") is pick-and-place's."""
+        return bool(spec.get("item_named")) and spec.get("role") == "drawer"
 
     def dataset_meta(self) -> dict[str, Any]:
         """``layout`` (a dataset without it is the default task's)."""

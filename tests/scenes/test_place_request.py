@@ -1,0 +1,84 @@
+"""Put-away requests ("put the mug in the drawer") are read for ``task=place_inside``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from factory.errors import FactoryError
+from factory.scenes.brain_steps import task_kind
+from factory.scenes.part_read import check_part_request
+from factory.scenes.request import parse_any_task, parse_request
+
+CASES = [
+    ("put the mug in the drawer", "mug", "", "base_cabinet"),
+    (
+        "a kitchen where the robot puts the mug away in the drawer of the base cabinet",
+        "mug",
+        "",
+        "base_cabinet",
+    ),
+    ("put the cup in the top drawer", "cup", "top", "base_cabinet"),
+]
+
+
+@pytest.mark.parametrize(("text", "item", "qualifier", "category"), CASES)
+def test_put_away_requests_are_place_inside(
+    text: str, item: str, qualifier: str, category: str
+) -> None:
+    spec = parse_any_task(text)
+    assert spec is not None
+    assert task_kind(spec.__dict__) == "place_inside"
+    assert (spec.item, spec.qualifier, spec.category) == (item, qualifier, category)  # type: ignore[union-attr]
+    assert parse_request(text).room_types == ("kitchen",)
+    check_part_request(spec, ("kitchen",))  # type: ignore[arg-type]
+
+
+def test_pick_and_place_request_unchanged() -> None:
+    spec = parse_any_task("a kitchen where the robot picks up a mug and puts it in the bowl")
+    assert spec is not None
+    assert task_kind(spec.__dict__) == "pick_place"
+    assert (spec.pick, spec.target) == ("mug", "bowl")  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ("put the mug in the fridge drawer", "drawers: base cabinet"),
+        ("put the book in the nightstand drawer", "drawers: base cabinet"),
+        ("put the spaceship in the drawer", "objects to put away: apple"),
+    ],
+)
+def test_bad_put_away_requests_list_the_choices(text: str, words: str) -> None:
+    spec = parse_any_task(text)
+    assert spec is not None
+    with pytest.raises(FactoryError, match=words):
+        check_part_request(spec, parse_request(text).room_types)  # type: ignore[arg-type]
+
+
+@pytest.mark.slow
+def test_generated_scene_is_place_inside(tmp_path: Path) -> None:
+    """One kitchen for "put the mug in the drawer" (about 30 s on 2 cores)."""
+    run = tmp_path / "run"
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "factory",
+            "stage=generate",
+            f"run_dir={run}",
+            "sim.backend=cpu",
+            "generate.prompts=[put the mug in the drawer]",
+            "generate.scenes_per_prompt=1",
+        ],
+        check=True,
+        capture_output=True,
+    )
+    (scene,) = run.glob("scenes/*/scene.json")
+    data = json.loads(scene.read_text())
+    assert data["task"] == {"kind": "place_inside", "instruction": "put the mug in the drawer"}
+    assert any(o.get("task_role") == "pick" and o["category"] == "mug" for o in data["objects"])
