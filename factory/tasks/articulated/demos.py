@@ -189,14 +189,19 @@ class ArticulatedScene(SimulatingScene):
         return ArticulatedRenderer(self.setup.model, rec_cfg)
 
     def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:
-        """:func:`~factory.tasks.articulated.execute.execute_episode` (images only with a
-        renderer)."""
-        from factory.tasks.articulated.execute import execute_episode
-
+        """:meth:`execute` (images only with a renderer)."""
         if renderer is None:
             from dataclasses import replace
 
             rec_cfg = replace(rec_cfg, render=False)
+        return self.execute(plan, rec_cfg, renderer)
+
+    def execute(self, plan: Any, rec_cfg: Any, renderer: Any | None) -> Any:
+        """Runs and records one planned episode:
+        :func:`~factory.tasks.articulated.execute.execute_episode` (a task sharing this class
+        gives its own)."""
+        from factory.tasks.articulated.execute import execute_episode
+
         return execute_episode(self.setup, plan, rec_cfg, renderer)
 
     def payload(

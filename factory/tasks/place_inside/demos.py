@@ -30,7 +30,7 @@ from factory.demos.record.scene import SimulatingScene
 from factory.demos.record.slots import StageEnv
 from factory.errors import TaskError
 from factory.schema.episode import EpisodeInfo, RobotBase
-from factory.tasks.articulated.demos import ensure_assets, record_config
+from factory.tasks.articulated.demos import ArticulatedScene, ensure_assets
 from factory.tasks.place_inside.plan import PlaceInsidePlan, PlaceInsidePlanner, PlaceInsideSetup
 
 __all__ = ["PlaceInsideScene", "demo_scene", "scene_planner"]
@@ -65,17 +65,18 @@ def scene_planner(
     return setup, PlaceInsidePlanner(setup, motion, PlannerConfig(timeout=dc.plan_timeout))
 
 
-class PlaceInsideScene(SimulatingScene):
+class PlaceInsideScene(ArticulatedScene):
     """A scene of ``task=place_inside`` set up for ``stage=demos`` (episodes simulated one at a
-    time)."""
+    time): the articulated tasks' scene (its planner, renderer and recording settings) with
+    this task's episode execution, summary and payload."""
 
     plan_type: ClassVar[type[Any]] = PlaceInsidePlan
-    setup: PlaceInsideSetup
+    setup: PlaceInsideSetup  # type: ignore[assignment]  # the articulated set-up inside it
 
     def __init__(
         self, env: StageEnv, setup: PlaceInsideSetup, planner: PlaceInsidePlanner | None
     ) -> None:
-        super().__init__(env, setup, planner)
+        SimulatingScene.__init__(self, env, setup, planner)  # not the articulated instruction
         self.instruction = setup.instruction()
 
     def summary(self) -> dict[str, Any]:
@@ -90,28 +91,10 @@ class PlaceInsideScene(SimulatingScene):
             "instruction": self.instruction,
         }
 
-    def plan(self, seed: int) -> Any:
-        """:meth:`~factory.tasks.place_inside.plan.PlaceInsidePlanner.plan_episode`."""
-        assert self.planner is not None, "a scene set up without its planner"
-        return self.planner.plan_episode(seed)
-
-    def record_config(self, render: bool | None = None) -> Any:
-        return record_config(self.env.demos, render)
-
-    def renderer(self, rec_cfg: Any) -> Any:
-        from factory.tasks.articulated.record import ArticulatedRenderer
-
-        return ArticulatedRenderer(self.setup.model, rec_cfg)
-
-    def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:
-        """:func:`~factory.tasks.place_inside.execute.execute_episode` (images only with a
-        renderer)."""
+    def execute(self, plan: Any, rec_cfg: Any, renderer: Any | None) -> Any:
+        """:func:`~factory.tasks.place_inside.execute.execute_episode`."""
         from factory.tasks.place_inside.execute import execute_episode
 
-        if renderer is None:
-            from dataclasses import replace
-
-            rec_cfg = replace(rec_cfg, render=False)
         return execute_episode(self.setup, plan, rec_cfg, renderer)
 
     def payload(
