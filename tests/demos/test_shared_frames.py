@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -92,3 +93,19 @@ def test_pool_waits_for_readers_only_beyond_its_capacity() -> None:
     assert again is big
     assert pool.reserve(900_000) is None  # small is free but too small; big in use
     pool.close()
+
+
+def test_populate_allocates_the_pages_ahead_and_keeps_the_contents() -> None:
+    """``Arena.populate`` takes the memory file's pages now (what page-locking would otherwise
+    fault in while the CUDA driver waits); arrays already in the arena keep their values."""
+    arena = Arena(64 * 4096)
+    x = arena.empty((16,), np.int64)
+    x[:] = 5
+    before = os.fstat(arena.fd).st_blocks * 512
+    assert arena.populate(40 * 4096)
+    after = os.fstat(arena.fd).st_blocks * 512
+    assert before < 40 * 4096 <= after < 64 * 4096
+    assert (x == 5).all()
+    assert not arena.zeros((8,), np.int64).any()  # a fresh arena's pages read as zeros
+    arena.release()
+    assert not arena.populate(4096)  # a released arena: nothing to allocate

@@ -36,21 +36,30 @@ def lock_first_arena(pool: ArenaPool, nbytes: int, device: str) -> None:
     """Takes an arena of ``nbytes`` from ``pool``, page-locks it for ``device`` and gives it
     back: run in a thread while the stage's first plans are made (nothing else uses the GPU
     then), so the first call's image copy finds locked pages. Locking fresh memory faults every
-    page in first (about 40 s for 68 GB on an H200 node); the driver holds other CUDA calls
-    meanwhile, which is why it must not overlap a GPU call."""
+    page in first (about 40 s for 68 GB on an H200 node) while the driver holds other CUDA calls
+    (the scene's set-up, its kernels' loading), so the pages are allocated first
+    (:meth:`~factory.demos.execute.shared_frames.Arena.populate`, outside the driver) and
+    then locked. It must not overlap a GPU call."""
     import warp as wp
 
     t0 = time.perf_counter()
     arena = pool.take(nbytes)
     try:
+        populated = arena.populate(nbytes)
+        t1 = time.perf_counter()
         locked = arena.pin(nbytes, int(wp.get_device(device).context))
     finally:
         pool.give(arena)
+    t2 = time.perf_counter()
     log.info(
-        "page-locked %.1f GB of host memory for the first call's images: %s in %.1f s",
+        "page-locked %.1f GB of host memory for the first call's images: %s in %.1f s "
+        "(pages %s in %.1f s, then locked in %.1f s)",
         nbytes / 1e9,
         "done" if locked else "refused",
-        time.perf_counter() - t0,
+        t2 - t0,
+        "allocated" if populated else "not allocated ahead",
+        t1 - t0,
+        t2 - t1,
     )
 
 
