@@ -110,3 +110,55 @@ def test_a_run_without_scenes_names_the_fix(tmp_path: Path, cli) -> None:
     assert out.returncode != 0
     assert "no scenes in" in out.stderr and "stage=generate" in out.stderr
     assert "Traceback" not in out.stderr
+
+
+def test_a_scene_that_cannot_host_the_task_is_listed_and_the_rest_go_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A scene whose set-up fails (a :class:`FactoryError`) is listed with its reason; the next
+    scene is warmed up (the execution's hook stands in for Warp: no kernels compile here)."""
+    import dataclasses
+    import logging
+    from types import SimpleNamespace
+
+    import factory.demos.execution as execution
+    import factory.sim.backend as backend
+    from factory.demos.batch_execution import BATCH
+    from factory.demos.warmup import run
+    from factory.errors import TaskError
+    from factory.sim.kernel_preload import PreloadReport
+    from factory.tasks.pick_place.task import PickPlaceTask
+
+    root = tmp_path / "run"
+    for sid in ("bad", "good"):
+        (root / "scenes" / sid).mkdir(parents=True)
+        shutil.copy(EXAMPLE_SCENE, root / "scenes" / sid / "scene.json")
+
+    def demo_scene(self, env, scene_id, plan=True):  # type: ignore[no-untyped-def]
+        assert plan is False  # set up without its planner
+        if scene_id == "bad":
+            raise TaskError("no free base spot next to the table")
+        return SimpleNamespace(scene_id=scene_id)
+
+    warmed: list[tuple[str, str]] = []
+
+    def warm_up(scene, env, device):  # type: ignore[no-untyped-def]
+        warmed.append((scene.scene_id, device))
+        return PreloadReport(modules=9, compiled=0, trace_s=0.1, load_s=0.0, workers=1)
+
+    monkeypatch.setattr(PickPlaceTask, "demo_scene", demo_scene)
+    monkeypatch.setattr(
+        execution, "execution_of", lambda task: dataclasses.replace(BATCH, warm_up=warm_up)
+    )
+    monkeypatch.setattr(backend, "cuda_available", lambda: False)
+    monkeypatch.setattr(backend, "init_warp", lambda: None)
+    caplog.set_level(logging.INFO, logger="factory.demos.warmup")
+    out = run(_ctx(root))
+    assert warmed == [("good", "cpu")]
+    assert out["scenes_warmed"] == 1 and out["scenes_failed"] == 1
+    summary = json.loads((root / "warmup.json").read_text())
+    bad, good = summary["scenes"]
+    assert bad == {"scene_id": "bad", "error": "no free base spot next to the table"}
+    assert good["modules"] == 9 and good["loaded"] == 0 and good["compiled"] == 0
+    assert "warmup 1/2 bad: not warmed up: no free base spot" in caplog.text
+    assert "warmup 2/2 good: 0 of 9 modules compiled in" in caplog.text
