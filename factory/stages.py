@@ -22,6 +22,7 @@ STAGES: dict[str, str] = {
     "validate": "factory.scenes.validate_stage:run",
     "render": "factory.scenes.build:run_render",
     "export": "factory.scenes.build:run_export",
+    "warmup": "factory.demos.warmup:run",
     "demos": "factory.demos.stage:run",
     "dataset": "factory.dataset.stage:run",
     "train": "factory.policy.train_stage:run",
@@ -44,6 +45,8 @@ DESCRIPTIONS: dict[str, str] = {
     "validate.repair=true",
     "render": "render top-down and corner views: scenes/<id>/renders/*.png",
     "export": "write scenes back out (export.format=sage: layout JSON + PLY meshes)",
+    "warmup": "compile stage=demos' GPU kernels ahead into Warp's kernel cache "
+    "(sim.kernel_cache): warmup.json",
     "demos": "recorded robot demonstrations (task=pick_place): episodes/shard-<k>.zarr",
     "dataset": "LeRobot v3 dataset from every demos shard, merged: dataset/merged",
     "train": "a lerobot policy on the merged dataset (train.policy, train.inputs): policy/<name>/",

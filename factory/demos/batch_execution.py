@@ -50,8 +50,9 @@ from factory.demos.execution import (
 from factory.demos.record.scene import DemoScene
 from factory.demos.record.slots import StageEnv, episode_seed
 from factory.errors import FactoryError
+from factory.sim.kernel_preload import PreloadReport
 
-__all__ = ["BATCH", "BatchCpu", "BatchGpu", "plan_slot", "record_config"]
+__all__ = ["BATCH", "BatchCpu", "BatchGpu", "plan_slot", "record_config", "warm_up_scene"]
 
 log = logging.getLogger(__name__)
 
@@ -333,11 +334,23 @@ class BatchGpu(GpuRecorder):
             self._pin.shutdown()
 
 
+def warm_up_scene(scene: DemoScene, env: StageEnv, device: str) -> PreloadReport:
+    """Compiles the kernels :class:`BatchGpu` launches in ``scene`` (set up without its
+    planner) on Warp device ``device``: the scene's
+    :class:`~factory.demos.execute.warp.WarpExecutor` with the run's recording settings,
+    warmed up (:meth:`~factory.demos.execute.warp.WarpExecutor.warm_up`), then dropped; the
+    kernels stay loaded in this process and compiled in Warp's kernel cache."""
+    from factory.demos.execute.warp import WarpExecutor
+
+    return WarpExecutor(scene.setup, record_config(env.demos), device=device).warm_up()
+
+
 BATCH = Execution(
     round_slots=0,
     queue_per_worker=0,
     slot_worker=plan_slot,
     cpu_recorder=BatchCpu,
     gpu_recorder=BatchGpu,
+    warm_up=warm_up_scene,
 )
 """The ``batch`` execution (see the module)."""

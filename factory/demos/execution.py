@@ -31,6 +31,7 @@ from typing import Any
 from factory.demos.record.scene import DemoScene
 from factory.demos.record.slots import StageEnv
 from factory.errors import ConfigError, FactoryError
+from factory.sim.kernel_preload import PreloadReport
 
 __all__ = [
     "EXECUTIONS",
@@ -205,6 +206,11 @@ class Execution:
             scene_id, slot, attempt)`` (a module-level function: it is sent to the processes).
         cpu_recorder: ``(scene, env)`` -> the CPU recorder of a work item in the scene.
         gpu_recorder: ``(run)`` -> the GPU pipeline's recorder of one run.
+        warm_up: ``(scene, env, device)`` -> compiles (or loads from Warp's kernel cache) the
+            GPU kernels the pipeline's recorder will launch in the scene (set up without its
+            planner), on Warp device ``device``, and returns the
+            :class:`~factory.sim.kernel_preload.PreloadReport` (``stage=warmup``,
+            :mod:`factory.demos.warmup`). None: the execution compiles nothing ahead.
     """
 
     round_slots: int
@@ -212,6 +218,7 @@ class Execution:
     slot_worker: Callable[[StageEnv, str, int, int], SlotResult]
     cpu_recorder: Callable[[DemoScene, StageEnv], CpuRecorder]
     gpu_recorder: Callable[[GpuRun], GpuRecorder]
+    warm_up: Callable[[DemoScene, StageEnv, str], PreloadReport] | None = None
 
 
 def execution_of(task: Any) -> Execution:

@@ -51,6 +51,7 @@ from factory.demos.execute.cpu import (
 from factory.demos.execute.world_schedule import WorldSchedule
 from factory.errors import AppearanceError, RenderError
 from factory.robots.panda import CAMERAS
+from factory.sim.kernel_preload import PreloadReport
 from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup
 
 log = logging.getLogger(__name__)
@@ -355,7 +356,7 @@ class WarpExecutor:
         init_warp()
         self.wp, self.mjw = wp, mjw
         self._kernels_ready = False
-        self._warmed = False
+        self._warm_report: PreloadReport | None = None
         self.setup = setup
         self.cfg = cfg
         self.device = device or ("cuda:0" if cuda_available() else "cpu")
@@ -460,36 +461,43 @@ class WarpExecutor:
                 inputs.append(wp.array(tables.rows[f], dtype=getattr(m, f).dtype))
         return m, inputs + [getattr(m, f) for f in PATCH_FIELDS]
 
-    def warm_up(self) -> None:
+    def warm_up(self) -> PreloadReport:
         """Compiles (or loads from Warp's kernel cache) the kernels of this scene's calls now,
         on every core (:meth:`_preload_kernels` with the model's own initial state): call it
         while the scene's episodes are still being planned, or from another thread while the
         scene before runs on the device (the GPU pipeline's set-up thread does; see
         :data:`DEVICE_LOCK`), so that the first call finds them ready. Idempotent; the first
-        call's own preload then finds nothing left to load."""
-        if self._warmed:
-            return
+        call's own preload then finds nothing left to load.
+
+        Returns:
+            what the preload did (module variants traced, those loaded now, seconds); a later
+            call returns the first call's report.
+        """
+        if self._warm_report is not None:
+            return self._warm_report
         model = self.setup.model
         data = mujoco.MjData(model)
         nconmax, njmax = buffer_sizes(model, model.qpos0[None].copy(), 3.0)
         ncam = len(self.cfg.cameras) if self.cfg.render else 0
         t0 = time.perf_counter()
         with self.wp.ScopedDevice(self.device):
-            self._preload_kernels(self.m, data, nconmax, njmax, ncam, True)
-        self._warmed = True
+            report = self._preload_kernels(self.m, data, nconmax, njmax, ncam, True)
+        self._warm_report = report
         log.info(
             "demos %s: GPU kernels warmed up in %.1f s, ahead of the scene's calls",
             self.setup.scene.id,
             time.perf_counter() - t0,
         )
+        return report
 
     def _preload_kernels(
         self, m: Any, data: mujoco.MjData, nconmax: int, njmax: int, ncam: int, looks: bool
-    ) -> None:
+    ) -> PreloadReport:
         """Compiles the kernels of a call's launches on every core before the call
         (:func:`factory.sim.kernel_preload.preload`): a dry trace of :meth:`_execute`'s
         launches on one world (same device model, appearance and cameras), then the modules
-        in parallel. Warp would otherwise compile them one after the other at first launch."""
+        in parallel. Warp would otherwise compile them one after the other at first launch.
+        Returns the preload's report."""
         from factory.demos.execute import warp_kernels as k
         from factory.sim.kernel_preload import preload
 
@@ -521,6 +529,7 @@ class WarpExecutor:
             r.trace_s,
             f"; trace stopped early: {r.error}" if r.error else "",
         )
+        return r
 
     def _execute(
         self,
