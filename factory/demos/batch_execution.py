@@ -31,8 +31,8 @@ from factory.demos.execute.gpu_calls import (
     HOST_MEMORY_SHARE,
     device_budget,
     gpu_calls,
-    lock_first_arena,
     memory_budget,
+    populate_first_arena,
     sizing_line,
     split_tail,
 )
@@ -178,12 +178,12 @@ class BatchGpu(GpuRecorder):
         self.in_flight: list[tuple[list[Future[Any]], list[Any]]] = []
         self.reclaimed = 0.0  # seconds the arena pool waited for writers
         self.arena_pool = ArenaPool(capacity or budget or 0, self._reclaim) if self.shared else None
-        # The first call's arena is locked while the first plans are made (the GPU is idle).
+        # The first call's arena gets its pages while the first plans are made.
         self.early: Future[Any] | None = None
-        self._pin: ThreadPoolExecutor | None = None
+        self._populate: ThreadPoolExecutor | None = None
         if self.arena_pool is not None and self.keep and budget and dev.startswith("cuda"):
-            self._pin = ThreadPoolExecutor(1)
-            self.early = self._pin.submit(lock_first_arena, self.arena_pool, budget, dev)
+            self._populate = ThreadPoolExecutor(1)
+            self.early = self._populate.submit(populate_first_arena, self.arena_pool, budget)
 
     def _executor(self, scene: DemoScene) -> Any:
         from factory.demos.execute.warp import WarpExecutor
@@ -330,8 +330,8 @@ class BatchGpu(GpuRecorder):
             self._settle(writes, arenas)
         if self.arena_pool is not None:
             self.arena_pool.close()
-        if self._pin is not None:
-            self._pin.shutdown()
+        if self._populate is not None:
+            self._populate.shutdown()
 
 
 def warm_up_scene(scene: DemoScene, env: StageEnv, device: str) -> PreloadReport:

@@ -5,8 +5,8 @@ A call's recordings live in host memory (its frame buffers, in shared arenas the
 :mod:`factory.demos.execute.shared_frames`), and, while the call runs, its images on the
 device: :func:`gpu_calls` deals a scene's episodes over as few calls as fit a byte budget
 (:func:`memory_budget`, :func:`device_budget`), each packed onto its worlds back to back;
-:func:`split_tail` leaves the longest few to the CPU executor; :func:`lock_first_arena`
-page-locks the first call's arena while the GPU is idle.
+:func:`split_tail` leaves the longest few to the CPU executor; :func:`populate_first_arena`
+allocates the first call's arena while the first plans are made.
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ __all__ = [
     "device_budget",
     "episode_bytes",
     "gpu_calls",
-    "lock_first_arena",
     "memory_budget",
+    "populate_first_arena",
     "sizing_line",
     "split_tail",
 ]
@@ -32,34 +32,25 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
-def lock_first_arena(pool: ArenaPool, nbytes: int, device: str) -> None:
-    """Takes an arena of ``nbytes`` from ``pool``, page-locks it for ``device`` and gives it
-    back: run in a thread while the stage's first plans are made (nothing else uses the GPU
-    then), so the first call's image copy finds locked pages. Locking fresh memory faults every
-    page in first (about 40 s for 68 GB on an H200 node) while the driver holds other CUDA calls
-    (the scene's set-up, its kernels' loading), so the pages are allocated first
-    (:meth:`~factory.demos.execute.shared_frames.Arena.populate`, outside the driver) and
-    then locked. It must not overlap a GPU call."""
-    import warp as wp
-
+def populate_first_arena(pool: ArenaPool, nbytes: int) -> None:
+    """Takes an arena of ``nbytes`` from ``pool``, allocates its pages
+    (:meth:`~factory.demos.execute.shared_frames.Arena.populate`) and gives it back: run in a
+    thread while the stage's first plans are made, so that the first call's image copy finds
+    its pages there (about 16 s for 90 GB on an H200 node, on one core). No CUDA call: the
+    copies go through :class:`~factory.demos.execute.staged_copy.StagedCopy`'s page-locked
+    buffers, and the arena itself is never page-locked (locking 90 GB held the CUDA driver,
+    and so the first scene's kernel loading, for 51 s)."""
     t0 = time.perf_counter()
     arena = pool.take(nbytes)
     try:
         populated = arena.populate(nbytes)
-        t1 = time.perf_counter()
-        locked = arena.pin(nbytes, int(wp.get_device(device).context))
     finally:
         pool.give(arena)
-    t2 = time.perf_counter()
     log.info(
-        "page-locked %.1f GB of host memory for the first call's images: %s in %.1f s "
-        "(pages %s in %.1f s, then locked in %.1f s)",
+        "%s %.1f GB of host memory for the first call's images in %.1f s",
+        "allocated" if populated else "could not allocate ahead",
         nbytes / 1e9,
-        "done" if locked else "refused",
-        t2 - t0,
-        "allocated" if populated else "not allocated ahead",
-        t1 - t0,
-        t2 - t1,
+        time.perf_counter() - t0,
     )
 
 

@@ -83,16 +83,14 @@ class Arena:
         self._used = 0
         self.reused = False
         self.path = f"/proc/{os.getpid()}/fd/{self.fd}"
-        self._pinned = 0
-        self._pin_context = 0
 
     def populate(self, nbytes: int) -> bool:
         """Allocates the pages of the arena's first ``nbytes`` now (``posix_fallocate`` of its
         memory file: the kernel takes and zeroes them), instead of at their first touch.
 
-        Page-locking fresh memory (:meth:`pin`) faults every page in while the CUDA driver holds
-        its other calls (about 40 s for 68 GB on an H200 node); populated first, outside the
-        driver, the locking only maps pages that exist.
+        A copy into fresh pages faults each in (the kernel takes and zeroes it) as it writes;
+        populated ahead (in a thread while the stage's first plans are made), the first GPU
+        call's image copy writes at memory speed.
 
         Returns:
             whether the pages were allocated (False where the file system refuses; they are
@@ -106,37 +104,6 @@ class Arena:
         except OSError:
             return False
         return True
-
-    def pin(self, nbytes: int, context: int) -> bool:
-        """Page-locks the arena's first ``nbytes`` for the GPU's copies into it
-        (:mod:`factory.demos.execute.host_pinning`); a registration that is already large enough is
-        kept, a smaller one replaced.
-
-        Args:
-            nbytes: bytes from the arena's start that copies will write.
-            context: the CUDA context (a Warp device's ``context``).
-
-        Returns:
-            whether that range is page-locked.
-        """
-        from factory.demos.execute import host_pinning
-
-        need = min(self.size, -(-int(nbytes) // ALIGN) * ALIGN)
-        if self._pinned >= need:
-            return True
-        self.unpin()
-        if host_pinning.register(self._addr, need, context):
-            self._pinned, self._pin_context = need, context
-            return True
-        return False
-
-    def unpin(self) -> None:
-        """Ends the page-locking of :meth:`pin` (if any)."""
-        if self._pinned:
-            from factory.demos.execute import host_pinning
-
-            host_pinning.unregister(self._addr, self._pin_context)
-            self._pinned = 0
 
     @staticmethod
     def bytes_for(specs: list[tuple[tuple[int, ...], Any]]) -> int:
@@ -186,7 +153,6 @@ class Arena:
     def release(self) -> None:
         """Closes the memory file: no new reader can map it; the pages are freed once the
         views still alive (here and in readers) are gone."""
-        self.unpin()
         if self.fd is not None:
             os.close(self.fd)
             self.fd = None
@@ -200,9 +166,8 @@ class ArenaPool:
     """Arenas reused call after call, within a budget of bytes.
 
     Writing into fresh shared memory costs a page fault per 4 KiB page, four to five times the
-    copy itself (measured: 3.8 against 0.8 ms per 6 MB frame block), and page-locking it for
-    the GPU's copies (:meth:`Arena.pin`) costs as much again; an arena given back keeps its
-    pages (and its registration), so the next call writes at memory speed.
+    copy itself (measured: 3.8 against 0.8 ms per 6 MB frame block); an arena given back keeps
+    its pages, so the next call writes at memory speed.
 
     Args:
         capacity: bytes all arenas together may take (pages are taken when first written).

@@ -236,6 +236,22 @@ def quat_from_mat(mat: np.ndarray) -> np.ndarray:
     return out.reshape(*np.shape(mat)[:-2], 4)
 
 
+_STAGED: dict[str, Any] = {}
+_STAGED_LOCK = threading.Lock()
+
+
+def staged_copy(wp: Any, device: str) -> Any:
+    """The process's :class:`~factory.demos.execute.staged_copy.StagedCopy` for ``device``
+    (made at first use; its page-locked buffers serve every executor and call after)."""
+    from factory.demos.execute.staged_copy import StagedCopy
+
+    with _STAGED_LOCK:
+        copy = _STAGED.get(device)
+        if copy is None:
+            copy = _STAGED[device] = StagedCopy(wp, device)
+        return copy
+
+
 def size_class(n: int) -> int:
     """The smallest of 1, 2, 3, 4, 6, 8, 12, 16, 24, ... (``2^k`` and ``3 * 2^k``) that is at
     least ``n``: less than half as much again as asked, and few distinct sizes."""
@@ -845,9 +861,8 @@ class WarpExecutor:
     ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """Copies the device image stores of a call (one per camera, in ``cfg.cameras``
         order: ``rgb[c]`` (R, 3 H W) uint8; ``mm[c]``/``m[c]`` (R, H W) depth) into an arena
-        taken now from :attr:`arenas`,
-        page-locked for the copy where CUDA allows (:meth:`Arena.pin`; an arena given back
-        keeps its registration).
+        taken now from :attr:`arenas`: from a CUDA device through page-locked staging buffers
+        (:func:`staged_copy`; the arena itself is not page-locked), on the CPU directly.
 
         Returns:
             ``rgb[cam]`` (R, H, W, 3) and ``depth[cam]`` (R, H, W), views of the arena.
@@ -865,18 +880,19 @@ class WarpExecutor:
         arena = self.arenas.take(nbytes)
         self._arenas.append(arena)
         dev = wp.get_device(self.device)
-        if dev.is_cuda:
-            arena.pin(nbytes, int(dev.context))
         out_rgb: dict[str, np.ndarray] = {}
         out_depth: dict[str, np.ndarray] = {}
+        pairs: list[tuple[np.ndarray, Any]] = []
         for k, cam in enumerate(cfg.cameras):
             for out, key, src in ((out_rgb, f"rgb/{cam}", rgb), (out_depth, f"depth/{cam}", depth)):
                 out[cam] = arena.empty(*specs[key])
-                host = wp.array(
-                    out[cam].reshape(n_rows, -1), dtype=src[k].dtype, device="cpu", copy=False
-                )
-                wp.copy(host, src[k])
-        wp.synchronize()
+                pairs.append((out[cam], src[k]))
+        if dev.is_cuda:
+            staged_copy(wp, self.device)(pairs)
+        else:
+            for dest, src in pairs:
+                host = wp.array(dest.reshape(n_rows, -1), dtype=src.dtype, device="cpu", copy=False)
+                wp.copy(host, src)
         return out_rgb, out_depth
 
     def _record(

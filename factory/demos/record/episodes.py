@@ -135,7 +135,8 @@ class EpisodeStore:
             chunks = (min(TIME_CHUNK, max(1, len(arr))), *arr.shape[1:])
             z = group.create_array(name, shape=arr.shape, dtype=arr.dtype, chunks=chunks)
             z[...] = arr
-        group.attrs.update(episode_info_to_dict(info))
+        # One metadata write (attrs.update rewrites the group's zarr.json once per key: 31)
+        group.update_attributes(episode_info_to_dict(info))
         try:
             os.rename(tmp, self.path / eid)
         except OSError as e:
