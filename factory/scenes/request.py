@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 
 from factory.scenes.homes import find_home, home_rooms, is_open_plan
-from factory.scenes.part_read import PartSpec, part_rooms, read_part_task
+from factory.scenes.part_read import PartSpec, in_rooms, part_rooms, read_part_task
 from factory.scenes.room_meaning import RoomGuess, nearest_room_type
 from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
 from factory.scenes.style_words import COLOURS, CONDITIONS, STYLE_WORDS, read_style
@@ -122,8 +122,10 @@ class ParsedRequest:
 
     @property
     def task(self) -> TaskSpec | PartSpec | None:
-        """The task of the request (:func:`parse_any_task`), read from its English reading."""
-        return parse_any_task(self.english)
+        """The task of the request (:func:`parse_any_task`), read from its English reading;
+        a put-away request's drawer in the request's rooms (:func:`~.part_read.in_rooms`)."""
+        spec = parse_any_task(self.english)
+        return in_rooms(spec, self.room_types) if isinstance(spec, PartSpec) else spec
 
     def summary(self) -> dict[str, object]:
         """A JSON-ready digest for tool results and reports (empty fields left out)."""

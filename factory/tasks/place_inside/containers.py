@@ -3,9 +3,11 @@
 The container part is a part (:func:`~factory.tasks.articulated.parts.scene_parts`) whose moving
 link carries an interior support and volume (``meta.json``'s ``supports`` and ``containers``
 with ``link``: a drawer's floor and tray; docs/ASSETS.md, "Articulated categories"), of an
-object with a top (``case_top``) to stand the object on; it must be empty (nothing stands on
-the drawer's floor in the scene) and big enough for the object. The object is the scene's
-``task_role`` ``pick`` object, else the first movable object of :data:`PICK_CATEGORIES`.
+object with a top (``case_top``) to stand the object on, big enough for the object. Empty
+drawers come first; a drawer with something stored on its floor (a plate in a kitchen drawer,
+a book in a dresser's) comes after them, what is stored in it taken out of the scene when it
+is chosen (:attr:`Container.stored`). The object is the scene's ``task_role`` ``pick`` object,
+else the first movable object of :data:`PICK_CATEGORIES`.
 """
 
 from __future__ import annotations
@@ -23,11 +25,13 @@ from factory.tasks.articulated.parts import Part, names_part, scene_parts
 __all__ = [
     "MARGIN",
     "PICK_CATEGORIES",
+    "Container",
     "Interior",
     "container_parts",
     "container_top",
     "on_top",
     "pick_object",
+    "without",
 ]
 
 PICK_CATEGORIES = ("mug", "cup", "can", "apple", "orange", "jar")
@@ -49,6 +53,22 @@ class Interior:
     floor_z: float
     lo: np.ndarray
     hi: np.ndarray
+
+
+@dataclass(frozen=True)
+class Container:
+    """A drawer the object may be put in.
+
+    Attributes:
+        part: the drawer.
+        interior: its interior support and volume.
+        stored: the objects standing on its floor in the scene (taken out of the scene, with
+            what stands on them, when the drawer is chosen); empty for an empty drawer.
+    """
+
+    part: Part
+    interior: Interior
+    stored: tuple[str, ...] = ()
 
 
 def _interior(part: Part, assets_root: str | Path) -> Interior | None:
@@ -107,13 +127,13 @@ def pick_object(scene: Scene) -> SceneObject:
     )
 
 
-def _stored_on(scene: Scene, link_part: Part, interior: Interior) -> list[str]:
-    """Objects standing on the part's interior support (by height, in the scene's closed
-    pose)."""
+def _stored_on(scene: Scene, link_part: Part, interior: Interior, pick: str) -> list[str]:
+    """Objects but ``pick`` standing on the part's interior support (by height, in the
+    scene's closed pose)."""
     obj = link_part.obj
     out = []
     for o in scene.objects:
-        if o.placement.support_id != obj.id:
+        if o.placement.support_id != obj.id or o.id == pick:
             continue
         if abs((o.position.z - obj.position.z) - interior.floor_z) < 0.02:
             out.append(o.id)
@@ -122,16 +142,19 @@ def _stored_on(scene: Scene, link_part: Part, interior: Interior) -> list[str]:
 
 def container_parts(
     scene: Scene, assets_root: str | Path, pick: SceneObject, why: Counter[str]
-) -> list[tuple[Part, Interior]]:
-    """The parts the object can be put behind, in scene order: parts whose link carries an
-    interior support and volume (drawers), whose object has a top to stand the object on,
-    empty, with room for the object (its height + :data:`MARGIN` under the volume's top, its
-    footprint + 2 :data:`MARGIN` across). A scene made for the task (``task.kind``
-    ``place_inside``) whose instruction names parts (role word and category, as
-    :func:`~factory.tasks.articulated.parts.names_part` reads them: "put the mug in the drawer of
-    the base cabinet") offers only those. Refusals are counted into ``why`` (``not_named``,
-    ``no_interior``, ``occupied``, ``too_small``)."""
-    out = []
+) -> list[Container]:
+    """The drawers the object can be put in: parts whose link carries an interior support
+    and volume, whose object has a top to stand the object on, with room for the object (its
+    height + :data:`MARGIN` under the volume's top, its footprint + 2 :data:`MARGIN`
+    across); the empty ones in scene order, then those with something stored on their floor
+    (:attr:`Container.stored`). A scene made for the task (``task.kind`` ``place_inside``)
+    whose instruction names parts (role word and category, as
+    :func:`~factory.tasks.articulated.parts.names_part` reads them: "put the mug in the drawer
+    of the base cabinet") offers only those. Counted into ``why``: ``not_named``,
+    ``no_interior`` and ``too_small`` (refused), ``occupied`` (offered after the empty
+    ones)."""
+    empty: list[Container] = []
+    full: list[Container] = []
     d = pick.dimensions
     foot = max(d.width, d.length)
     parts = scene_parts(scene, assets_root)
@@ -145,15 +168,25 @@ def container_parts(
         if inner is None or container_top(part.obj, assets_root) is None:
             why["no_interior"] += 1
             continue
-        if _stored_on(scene, part, inner):
-            why["occupied"] += 1
-            continue
         size = inner.hi - inner.lo
         if size[2] < d.height + MARGIN or min(size[0], size[1]) < foot + 2 * MARGIN:
             why["too_small"] += 1
             continue
-        out.append((part, inner))
-    return out
+        stored = _stored_on(scene, part, inner, pick.id)
+        if stored:
+            why["occupied"] += 1
+            full.append(Container(part, inner, tuple(stored)))
+        else:
+            empty.append(Container(part, inner))
+    return empty + full
+
+
+def without(scene: Scene, ids: tuple[str, ...]) -> Scene:
+    """``scene`` without the objects ``ids`` and what stands on them."""
+    if not ids:
+        return scene
+    gone = scene.with_dependents(set(ids))
+    return replace(scene, objects=[o for o in scene.objects if o.id not in gone])
 
 
 def on_top(scene: Scene, container: SceneObject, top_z: float, pick: SceneObject) -> Scene:
