@@ -216,3 +216,23 @@ def test_a_bedroom_request_puts_the_object_in_the_nightstand_drawer(
     assert summary["new_successes"] == 1, summary
     log = (tmp_path / "logs" / "demos-0-of-1.log").read_text()
     assert re.search(r"put pill_bottle_\d+ in bedside_cabinet_\d+:drawer", log), log[-3000:]
+
+
+def test_the_object_is_stood_up_on_the_top() -> None:
+    """An object the generated scene left lying on its side (fallen off its support) stands
+    upright on the container's top, its yaw kept."""
+    from dataclasses import replace
+
+    from factory.schema import load_scene
+    from factory.tasks.place_inside.containers import on_top, pick_object
+
+    src = get_task("place_inside").example_scene_path()
+    assert src is not None
+    scene = load_scene(src)
+    pick = pick_object(scene)
+    fallen = replace(pick, rotation=replace(pick.rotation, x=90.0, y=9.0, z=-90.5))
+    scene = replace(scene, objects=[fallen if o.id == pick.id else o for o in scene.objects])
+    cabinet = next(o for o in scene.objects if o.id == "base_cabinet_0")
+    moved = next(o for o in on_top(scene, cabinet, 0.87, fallen).objects if o.id == pick.id)
+    assert (moved.rotation.x, moved.rotation.y, moved.rotation.z) == (0.0, 0.0, -90.5)
+    assert moved.position.z == pytest.approx(cabinet.position.z + 0.87)
