@@ -30,6 +30,7 @@ import fnmatch
 import json
 import os
 import platform
+import shlex
 import subprocess
 import sys
 import time
@@ -190,7 +191,7 @@ def main() -> None:
             "python": platform.python_version(),
         },
         "command": "python scripts/bench_articulated_requests.py "
-        + " ".join(sys.argv[1:]).replace(str(args.run_root), "<runs>"),
+        + shlex.join(sys.argv[1:]).replace(str(args.run_root), "<runs>"),
         "runs": results,
     }
     text = json.dumps(out, indent=2)
