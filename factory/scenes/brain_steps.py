@@ -24,7 +24,7 @@ from factory.scenes.part_read import (
     check_part_request,
     openable_category,
 )
-from factory.scenes.request import TaskSpec, parse_any_task, parse_request
+from factory.scenes.request import TaskSpec, parse_request, request_task
 from factory.scenes.rooms import ROOM_TYPES, Item
 
 log = logging.getLogger(__name__)
@@ -179,7 +179,7 @@ class Brain:
         """
         spec: TaskSpec | PartSpec | None = None
         if self.cfg.task_objects:  # the request's own task is read from its English reading
-            spec = parse_any_task(task) if task else parse_request(request).task
+            spec = request_task(request, task)
         if spec is None:
             return None
         if isinstance(spec, PartSpec):

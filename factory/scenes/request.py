@@ -42,6 +42,7 @@ __all__ = [
     "parse_request",
     "parse_task",
     "primary_room_type",
+    "request_task",
     "room_types_in",
     "style_of",
 ]
@@ -63,6 +64,18 @@ def parse_any_task(text: str) -> TaskSpec | PartSpec | None:
     """The task an instruction asks for: pick-and-place (:func:`parse_task`) first, else
     opening or closing a part (:func:`parse_part_task`); None if neither."""
     return parse_task(text) or parse_part_task(text)
+
+
+def request_task(request: str, task: str | None = None) -> TaskSpec | PartSpec | None:
+    """The task a scene of ``request`` is made for: ``task`` (``generate.task``, a separate
+    instruction) when given, else the request's own (:attr:`ParsedRequest.task`); a put-away
+    task's drawer read in the request's rooms either way (:func:`~.part_read.in_rooms`)."""
+    if not task:
+        return parse_request(request).task
+    spec = parse_any_task(task)
+    if isinstance(spec, PartSpec):
+        return in_rooms(spec, parse_request(request).room_types)
+    return spec
 
 
 @dataclass(frozen=True)

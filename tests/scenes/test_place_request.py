@@ -12,7 +12,7 @@ import pytest
 from factory.errors import FactoryError
 from factory.scenes.brain_steps import task_kind
 from factory.scenes.part_read import check_part_request
-from factory.scenes.request import parse_any_task, parse_request
+from factory.scenes.request import parse_any_task, parse_request, request_task
 
 CASES = [
     ("put the mug in the drawer", "mug", "", "base_cabinet", "kitchen"),
@@ -116,3 +116,17 @@ def test_generated_scene_is_place_inside(tmp_path: Path) -> None:
     data = json.loads(scene.read_text())
     assert data["task"] == {"kind": "place_inside", "instruction": "put the mug in the drawer"}
     assert any(o.get("task_role") == "pick" and o["category"] == "mug" for o in data["objects"])
+
+
+@pytest.mark.parametrize(
+    ("request_text", "category"),
+    [("a cosy bedroom", "bedside_cabinet"), ("a small kitchen", "base_cabinet")],
+)
+def test_a_separate_task_takes_the_drawer_of_the_requests_room(
+    request_text: str, category: str
+) -> None:
+    """``generate.task`` "put the mug in the drawer" with a room request: the drawer's object
+    is the first drawer container that room holds."""
+    spec = request_task(request_text, "put the mug in the drawer")
+    assert spec is not None and spec.category == category  # type: ignore[union-attr]
+    check_part_request(spec, parse_request(request_text).room_types)  # type: ignore[arg-type]
