@@ -1,27 +1,36 @@
-"""Open and close requests through generation and demonstrations: usable scenes, stored
-episodes, wall time and the moving joints of each generated model.
+"""Open, close and put-away requests through generation and demonstrations: usable scenes,
+stored episodes, wall time and the moving joints of each generated model.
 
     python scripts/bench_articulated_requests.py
         [--runs fridge,microwave,kitchen_drawer,wardrobe,nightstand]
         [--run-root runs/articulated-requests] [--episodes 5] [--reuse]
         [--out benchmarks/results/articulated-requests-cpu2.json]
+        [--machine "2-core VM, shared"] [--date 2026-11-29]
+
+    # task=place_inside in generated bedrooms (the ``put_*`` runs)
+    python scripts/bench_articulated_requests.py --runs 'put_*' \
+        --out benchmarks/results/place-inside-bedroom-requests-cpu2.json
 
 For each run (a request and a scene count, :data:`RUNS`) it calls ``stage=generate`` with the
 request alone (no ``assets.articulated``: the request's task turns it on) and then
 ``stage=demos`` with no ``task=`` (the task is the scenes' ``task.kind``, read by
 ``task_for_scene``), the CPU executor, no images, through the command line; then reads each
 scene's ``task``, its compiled ``model.xml``'s hinge and slide joints of articulated links
-(MuJoCo joint group 3), and the demos' summary (stored / tried, unusable scenes and why).
-``--reuse`` reads runs made before. Prints and saves JSON; runs of an earlier ``--out`` that
+(MuJoCo joint group 3), and the demos' summary (stored / tried, failures by reason, each
+unusable scene's reason).
+``--runs`` takes names of :data:`RUNS` and shell patterns of them (``put_*``). ``--reuse``
+reads runs made before. Prints and saves JSON; runs of an earlier ``--out`` that
 are not named in ``--runs`` keep their results (each run records its ``git_sha``).
 """
 
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import os
 import platform
+import shlex
 import subprocess
 import sys
 import time
@@ -35,6 +44,13 @@ RUNS: dict[str, tuple[str, int]] = {
     "kitchen_drawer": ("a kitchen where the robot closes the top drawer", 2),
     "wardrobe": ("open the wardrobe door", 2),
     "nightstand": ("open the top drawer of the nightstand", 2),
+    # task=place_inside in bedrooms: a nightstand's drawer, a dresser's (drawer chest's)
+    "put_pill_nightstand": ("put the pill bottle in the drawer of the nightstand", 3),
+    "put_book_nightstand": ("a bedroom where the robot puts the book in the nightstand drawer", 2),
+    "put_phone_nightstand": ("put the phone in the drawer of the nightstand", 2),
+    "put_mug_dresser": ("put the mug in the top drawer of the dresser", 3),
+    "put_candle_chest": ("put the candle in the drawer of the chest of drawers", 2),
+    "put_mug_bedroom": ("a bedroom where the robot puts the mug in the drawer", 2),
 }
 """Run name -> (request, scenes)."""
 
@@ -108,10 +124,16 @@ def _cpu_model() -> str:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--runs", default=",".join(RUNS), help="comma-separated names of RUNS")
+    p.add_argument(
+        "--runs",
+        default="fridge,microwave,kitchen_drawer,wardrobe,nightstand",
+        help="comma-separated names of RUNS or patterns of them ('put_*')",
+    )
     p.add_argument("--run-root", type=Path, default=ROOT / "runs" / "articulated-requests")
     p.add_argument("--episodes", type=int, default=5)
     p.add_argument("--reuse", action="store_true", help="read runs made before")
+    p.add_argument("--machine", default="", help='what the machine is ("2-core VM, shared")')
+    p.add_argument("--date", default=time.strftime("%Y-%m-%d"), help="the measurement's date")
     p.add_argument(
         "--out",
         type=Path,
@@ -127,7 +149,8 @@ def main() -> None:
     sha = subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
     ).stdout.strip()
-    for name in args.runs.split(","):
+    names = [n for pat in args.runs.split(",") for n in RUNS if fnmatch.fnmatchcase(n, pat)]
+    for name in dict.fromkeys(names):
         request, n = RUNS[name]
         run = args.run_root / name
         gen_cmd, demos_cmd = _commands(run, request, n, args.episodes)
@@ -153,19 +176,22 @@ def main() -> None:
             "tried": summary["new_successes"]
             + sum(v for k, v in summary["failures"].items() if k != "scene_unusable"),
             "failures": summary.get("failures"),
+            "unusable": {s: v["error"] for s, v in per_scene.items() if v.get("error")},
             "scenes": {s: {**facts, "demos": per_scene.get(s)} for s, facts in scenes.items()},
         }
     out = {
         "schema_version": 1,
         "benchmark": "articulated-requests",
+        "date": args.date,
         "machine": {
+            "label": args.machine,
             "cpus": os.cpu_count(),
             "cpu": _cpu_model(),
             "gpu": None,
             "python": platform.python_version(),
         },
         "command": "python scripts/bench_articulated_requests.py "
-        + " ".join(sys.argv[1:]).replace(str(args.run_root), "<runs>"),
+        + shlex.join(sys.argv[1:]).replace(str(args.run_root), "<runs>"),
         "runs": results,
     }
     text = json.dumps(out, indent=2)

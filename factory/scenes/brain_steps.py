@@ -24,7 +24,7 @@ from factory.scenes.part_read import (
     check_part_request,
     openable_category,
 )
-from factory.scenes.request import TaskSpec, parse_any_task, parse_request
+from factory.scenes.request import TaskSpec, parse_request, request_task
 from factory.scenes.rooms import ROOM_TYPES, Item
 
 log = logging.getLogger(__name__)
@@ -179,7 +179,7 @@ class Brain:
         """
         spec: TaskSpec | PartSpec | None = None
         if self.cfg.task_objects:  # the request's own task is read from its English reading
-            spec = parse_any_task(task) if task else parse_request(request).task
+            spec = request_task(request, task)
         if spec is None:
             return None
         if isinstance(spec, PartSpec):
@@ -235,14 +235,18 @@ class Brain:
 
     def put_away_item(self, spec: PartSpec) -> None:
         """The object a "put the mug in the drawer" request puts away (``PartSpec.item``), on
-        the largest table-like support, marked ``pick`` (the task's set-up moves it onto the
-        drawer's counter top)."""
+        the largest table-like support, else (a bedroom without a desk) on the largest object
+        holding the drawer (``PartSpec.category``: the nightstand), marked ``pick`` (the
+        task's set-up moves it onto the drawer's top)."""
         if not spec.item_named:
             return
         objects = self.call("get_scene_info")["objects"]
         tables = [o for o in objects if o["category"] in TABLES]
-        if tables:
-            best = max(tables, key=lambda o: o["size"][0] * o["size"][1])
+        holders = [o for o in objects if o["category"] == spec.category]
+        for group in (tables, holders):
+            if not group:
+                continue
+            best = max(group, key=lambda o: o["size"][0] * o["size"][1])
             res = self.place(
                 text=spec.item_named, placement="on_top", target=best["id"], task_role="pick"
             )

@@ -12,7 +12,7 @@ from factory.assets import AssetLibrary
 from factory.scenes.brain import AgentConfig, generate_scene
 from factory.scenes.mcp_client import SyncMCPCaller
 from factory.scenes.part_read import PartSpec, check_part_request
-from factory.scenes.request import parse_any_task, parse_request, primary_room_type
+from factory.scenes.request import parse_request, primary_room_type, request_task
 from factory.schema import Scene, check_id
 
 log = logging.getLogger(__name__)
@@ -54,7 +54,7 @@ def _library_for(prompt: str, task: str, library: AssetLibrary) -> AssetLibrary:
     from factory.scenes.brain import task_kind
     from factory.tasks import get_task
 
-    spec = parse_any_task(task) if task else parse_request(prompt).task
+    spec = request_task(prompt, task)
     if spec is None:
         return library
     if isinstance(spec, PartSpec):

@@ -18,9 +18,10 @@ The rules, with the word tables of :mod:`.task_words` and the asset catalogue's 
    in the room will do (:mod:`factory.tasks.articulated.parts`).
 4. "<place verb> the P [away] in the [Q] drawer [of the X]" or "... in the [Q] X drawer": put
    P away in a drawer (``item`` is P's catalogue category); the drawer's object is one of
-   :data:`~.task_words.DRAWER_CONTAINERS` (a base cabinet when none is named), checked by
-   :func:`check_part_request`. A place target that is no drawer ("puts it in the bowl") is
-   pick-and-place (:mod:`.task_read`).
+   :data:`~.task_words.DRAWER_CONTAINERS` (when none is named, the first of them that the
+   request's rooms hold, :func:`in_rooms`: a base cabinet in a kitchen, a bedside cabinet in
+   a bedroom), checked by :func:`check_part_request`. A place target that is no drawer ("puts
+   it in the bowl") is pick-and-place (:mod:`.task_read`).
 
 The reading is deterministic and English (a foreign request is read through its English
 reading, :mod:`.translate`).
@@ -29,7 +30,7 @@ reading, :mod:`.translate`).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cache
 
 from factory.errors import ConfigError
@@ -46,6 +47,7 @@ __all__ = [
     "PartSpec",
     "catalogue_category",
     "check_part_request",
+    "in_rooms",
     "openable_category",
     "openable_names",
     "part_rooms",
@@ -228,6 +230,24 @@ def read_part_task(text: str) -> PartSpec | None:
     )
 
 
+def in_rooms(spec: PartSpec, room_types: tuple[str, ...]) -> PartSpec:
+    """A put-away request that names no drawer's object read in its rooms: its ``category``
+    is the first of :data:`~.task_words.DRAWER_CONTAINERS` that one of ``room_types`` holds
+    (:func:`part_rooms`: "a bedroom where the robot puts the mug in the drawer" takes a
+    ``bedside_cabinet``'s); any other spec, or rooms that hold none of them, unchanged.
+
+    Args:
+        spec: the request's part task (:func:`read_part_task`).
+        room_types: the rooms the request builds.
+    """
+    if not spec.item_named or spec.named:
+        return spec
+    for category in DRAWER_CONTAINERS:
+        if set(part_rooms(category)) & set(room_types):
+            return replace(spec, category=category)
+    return spec
+
+
 def check_part_request(spec: PartSpec, room_types: tuple[str, ...]) -> None:
     """Refuses a part task that no generated scene can hold.
 
@@ -244,7 +264,7 @@ def check_part_request(spec: PartSpec, room_types: tuple[str, ...]) -> None:
     if spec.item_named and not spec.item:
         raise ConfigError(
             f"request {spec.instruction!r}: the catalogue has no {spec.item_named!r}; "
-            f"objects to put away: {', '.join(sorted(STOW_OBJECTS))}"
+            f"objects to put away: {', '.join(sorted(o.replace('_', ' ') for o in STOW_OBJECTS))}"
         )
     if spec.item_named and spec.named and spec.category not in DRAWER_CONTAINERS:
         raise ConfigError(

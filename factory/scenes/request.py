@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 
 from factory.scenes.homes import find_home, home_rooms, is_open_plan
-from factory.scenes.part_read import PartSpec, part_rooms, read_part_task
+from factory.scenes.part_read import PartSpec, in_rooms, part_rooms, read_part_task
 from factory.scenes.room_meaning import RoomGuess, nearest_room_type
 from factory.scenes.room_mentions import PHRASES, RoomMention, find_rooms
 from factory.scenes.style_words import COLOURS, CONDITIONS, STYLE_WORDS, read_style
@@ -42,6 +42,7 @@ __all__ = [
     "parse_request",
     "parse_task",
     "primary_room_type",
+    "request_task",
     "room_types_in",
     "style_of",
 ]
@@ -63,6 +64,18 @@ def parse_any_task(text: str) -> TaskSpec | PartSpec | None:
     """The task an instruction asks for: pick-and-place (:func:`parse_task`) first, else
     opening or closing a part (:func:`parse_part_task`); None if neither."""
     return parse_task(text) or parse_part_task(text)
+
+
+def request_task(request: str, task: str | None = None) -> TaskSpec | PartSpec | None:
+    """The task a scene of ``request`` is made for: ``task`` (``generate.task``, a separate
+    instruction) when given, else the request's own (:attr:`ParsedRequest.task`); a put-away
+    task's drawer read in the request's rooms either way (:func:`~.part_read.in_rooms`)."""
+    if not task:
+        return parse_request(request).task
+    spec = parse_any_task(task)
+    if isinstance(spec, PartSpec):
+        return in_rooms(spec, parse_request(request).room_types)
+    return spec
 
 
 @dataclass(frozen=True)
@@ -122,8 +135,10 @@ class ParsedRequest:
 
     @property
     def task(self) -> TaskSpec | PartSpec | None:
-        """The task of the request (:func:`parse_any_task`), read from its English reading."""
-        return parse_any_task(self.english)
+        """The task of the request (:func:`parse_any_task`), read from its English reading;
+        a put-away request's drawer in the request's rooms (:func:`~.part_read.in_rooms`)."""
+        spec = parse_any_task(self.english)
+        return in_rooms(spec, self.room_types) if isinstance(spec, PartSpec) else spec
 
     def summary(self) -> dict[str, object]:
         """A JSON-ready digest for tool results and reports (empty fields left out)."""

@@ -195,12 +195,25 @@ PART_QUALIFIERS: dict[str, str] = {
 """Words that say which of several parts -> the qualifier of the parts' labels (drawers by
 height, doors left or right seen from the front)."""
 
-DRAWER_CONTAINERS: tuple[str, ...] = ("base_cabinet",)
+DRAWER_CONTAINERS: tuple[str, ...] = ("base_cabinet", "bedside_cabinet", "drawer_chest")
 """The articulated categories whose drawers a "put the mug in the drawer" request may name
-(``task=place_inside`` takes a drawer under a counter top; the first is the default)."""
+(``task=place_inside`` takes a drawer under a top to stand the object on: a kitchen's base
+cabinet, a bedroom's nightstand and dresser); a request naming none takes the first that its
+room holds (:func:`~.part_read.in_rooms`)."""
 
-STOW_OBJECTS: tuple[str, ...] = ("mug", "cup", "can", "apple", "orange", "jar")
-"""Small objects a put-away request names in its error message (the task's usual picks)."""
+STOW_OBJECTS: tuple[str, ...] = (
+    "mug",
+    "cup",
+    "can",
+    "apple",
+    "orange",
+    "jar",
+    "pill_bottle",
+    "candle",
+)
+"""Small objects the put-away messages suggest (catalogue categories the gripper takes from a
+counter or a nightstand's top: the task's usual kitchen picks; in a bedroom a pill bottle fits
+a nightstand's drawer, a candle a dresser's)."""
 
 __all__ = [
     "ARTICLES",

@@ -12,30 +12,63 @@ import pytest
 from factory.errors import FactoryError
 from factory.scenes.brain_steps import task_kind
 from factory.scenes.part_read import check_part_request
-from factory.scenes.request import parse_any_task, parse_request
+from factory.scenes.request import parse_any_task, parse_request, request_task
 
 CASES = [
-    ("put the mug in the drawer", "mug", "", "base_cabinet"),
+    ("put the mug in the drawer", "mug", "", "base_cabinet", "kitchen"),
     (
         "a kitchen where the robot puts the mug away in the drawer of the base cabinet",
         "mug",
         "",
         "base_cabinet",
+        "kitchen",
     ),
-    ("put the cup in the top drawer", "cup", "top", "base_cabinet"),
+    ("put the cup in the top drawer", "cup", "top", "base_cabinet", "kitchen"),
+    (
+        "a bedroom where the robot puts the book in the nightstand drawer",
+        "book",
+        "",
+        "bedside_cabinet",
+        "bedroom",
+    ),
+    ("put the phone in the drawer of the nightstand", "phone", "", "bedside_cabinet", "bedroom"),
+    (
+        "put the pill bottle in the drawer of the bedside table",
+        "pill_bottle",
+        "",
+        "bedside_cabinet",
+        "bedroom",
+    ),
+    ("put the mug in the top drawer of the dresser", "mug", "top", "drawer_chest", "bedroom"),
+    (
+        "put the candle in the drawer of the chest of drawers",
+        "candle",
+        "",
+        "drawer_chest",
+        "bedroom",
+    ),
+    # no drawer's object named: the first drawer container the request's room holds
+    (
+        "a bedroom where the robot puts the mug in the drawer",
+        "mug",
+        "",
+        "bedside_cabinet",
+        "bedroom",
+    ),
 ]
 
 
-@pytest.mark.parametrize(("text", "item", "qualifier", "category"), CASES)
+@pytest.mark.parametrize(("text", "item", "qualifier", "category", "room"), CASES)
 def test_put_away_requests_are_place_inside(
-    text: str, item: str, qualifier: str, category: str
+    text: str, item: str, qualifier: str, category: str, room: str
 ) -> None:
-    spec = parse_any_task(text)
+    request = parse_request(text)
+    spec = request.task
     assert spec is not None
     assert task_kind(spec.__dict__) == "place_inside"
     assert (spec.item, spec.qualifier, spec.category) == (item, qualifier, category)  # type: ignore[union-attr]
-    assert parse_request(text).room_types == ("kitchen",)
-    check_part_request(spec, ("kitchen",))  # type: ignore[arg-type]
+    assert request.room_types == (room,)
+    check_part_request(spec, request.room_types)  # type: ignore[arg-type]
 
 
 def test_pick_and_place_request_unchanged() -> None:
@@ -48,8 +81,9 @@ def test_pick_and_place_request_unchanged() -> None:
 @pytest.mark.parametrize(
     ("text", "words"),
     [
-        ("put the mug in the fridge drawer", "drawers: base cabinet"),
-        ("put the book in the nightstand drawer", "drawers: base cabinet"),
+        ("put the mug in the fridge drawer", "drawers: base cabinet, bedside cabinet"),
+        ("put the book in the wardrobe drawer", "drawers: base cabinet, bedside cabinet"),
+        ("a kitchen where the robot puts the mug in the dresser drawer", "ask for it in a bedroom"),
         ("put the spaceship in the drawer", "objects to put away: apple"),
     ],
 )
@@ -82,3 +116,17 @@ def test_generated_scene_is_place_inside(tmp_path: Path) -> None:
     data = json.loads(scene.read_text())
     assert data["task"] == {"kind": "place_inside", "instruction": "put the mug in the drawer"}
     assert any(o.get("task_role") == "pick" and o["category"] == "mug" for o in data["objects"])
+
+
+@pytest.mark.parametrize(
+    ("request_text", "category"),
+    [("a cosy bedroom", "bedside_cabinet"), ("a small kitchen", "base_cabinet")],
+)
+def test_a_separate_task_takes_the_drawer_of_the_requests_room(
+    request_text: str, category: str
+) -> None:
+    """``generate.task`` "put the mug in the drawer" with a room request: the drawer's object
+    is the first drawer container that room holds."""
+    spec = request_task(request_text, "put the mug in the drawer")
+    assert spec is not None and spec.category == category  # type: ignore[union-attr]
+    check_part_request(spec, parse_request(request_text).room_types)  # type: ignore[arg-type]

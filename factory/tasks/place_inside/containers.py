@@ -3,9 +3,11 @@
 The container part is a part (:func:`~factory.tasks.articulated.parts.scene_parts`) whose moving
 link carries an interior support and volume (``meta.json``'s ``supports`` and ``containers``
 with ``link``: a drawer's floor and tray; docs/ASSETS.md, "Articulated categories"), of an
-object with a top (``case_top``) to stand the object on; it must be empty (nothing stands on
-the drawer's floor in the scene) and big enough for the object. The object is the scene's
-``task_role`` ``pick`` object, else the first movable object of :data:`PICK_CATEGORIES`.
+object with a top (``case_top``) to stand the object on, big enough for the object. Empty
+drawers come first; a drawer with something stored on its floor (a plate in a kitchen drawer,
+a book in a dresser's) comes after them, what is stored in it taken out of the scene when it
+is chosen (:attr:`Container.stored`). The object is the scene's ``task_role`` ``pick`` object,
+else the first movable object of :data:`PICK_CATEGORIES`.
 """
 
 from __future__ import annotations
@@ -21,19 +23,29 @@ from factory.schema import Scene, SceneObject
 from factory.tasks.articulated.parts import Part, names_part, scene_parts
 
 __all__ = [
+    "LOW_DROP",
     "MARGIN",
     "PICK_CATEGORIES",
+    "Container",
     "Interior",
     "container_parts",
     "container_top",
     "on_top",
     "pick_object",
+    "without",
 ]
 
 PICK_CATEGORIES = ("mug", "cup", "can", "apple", "orange", "jar")
 """Small objects the task puts away when the scene names no pick object (``task_role``)."""
 MARGIN = 0.03
 """Clearance (m) between the object and the interior's walls, and from the top's edges."""
+LOW_DROP = 0.35
+"""A drawer whose floor lies more than this (m) below its object's top is *low*: offered after
+the others. The base spot stands at the handle's height minus 0.1 m, and from one in front of
+a dresser's middle drawer (floor 0.51 m under the 0.8 m top) the arm reached the object on the
+top and the drawer's floor in 1 of 15 attempts (``ik_failed``); a kitchen base cabinet's
+drawer (0.20 m under its top), a nightstand's (0.16 m) and a dresser's top drawer (0.25 m)
+are not low."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +61,22 @@ class Interior:
     floor_z: float
     lo: np.ndarray
     hi: np.ndarray
+
+
+@dataclass(frozen=True)
+class Container:
+    """A drawer the object may be put in.
+
+    Attributes:
+        part: the drawer.
+        interior: its interior support and volume.
+        stored: the objects standing on its floor in the scene (taken out of the scene, with
+            what stands on them, when the drawer is chosen); empty for an empty drawer.
+    """
+
+    part: Part
+    interior: Interior
+    stored: tuple[str, ...] = ()
 
 
 def _interior(part: Part, assets_root: str | Path) -> Interior | None:
@@ -107,13 +135,13 @@ def pick_object(scene: Scene) -> SceneObject:
     )
 
 
-def _stored_on(scene: Scene, link_part: Part, interior: Interior) -> list[str]:
-    """Objects standing on the part's interior support (by height, in the scene's closed
-    pose)."""
+def _stored_on(scene: Scene, link_part: Part, interior: Interior, pick: str) -> list[str]:
+    """Objects but ``pick`` standing on the part's interior support (by height, in the
+    scene's closed pose)."""
     obj = link_part.obj
     out = []
     for o in scene.objects:
-        if o.placement.support_id != obj.id:
+        if o.placement.support_id != obj.id or o.id == pick:
             continue
         if abs((o.position.z - obj.position.z) - interior.floor_z) < 0.02:
             out.append(o.id)
@@ -122,16 +150,18 @@ def _stored_on(scene: Scene, link_part: Part, interior: Interior) -> list[str]:
 
 def container_parts(
     scene: Scene, assets_root: str | Path, pick: SceneObject, why: Counter[str]
-) -> list[tuple[Part, Interior]]:
-    """The parts the object can be put behind, in scene order: parts whose link carries an
-    interior support and volume (drawers), whose object has a top to stand the object on,
-    empty, with room for the object (its height + :data:`MARGIN` under the volume's top, its
-    footprint + 2 :data:`MARGIN` across). A scene made for the task (``task.kind``
-    ``place_inside``) whose instruction names parts (role word and category, as
-    :func:`~factory.tasks.articulated.parts.names_part` reads them: "put the mug in the drawer of
-    the base cabinet") offers only those. Refusals are counted into ``why`` (``not_named``,
-    ``no_interior``, ``occupied``, ``too_small``)."""
-    out = []
+) -> list[Container]:
+    """The drawers the object can be put in: parts whose link carries an interior support
+    and volume, whose object has a top to stand the object on, with room for the object (its
+    height + :data:`MARGIN` under the volume's top, its footprint + 2 :data:`MARGIN`
+    across); in scene order the empty ones, then those with something stored on their floor
+    (:attr:`Container.stored`), then the low ones (:data:`LOW_DROP`) in the same order. A
+    scene made for the task (``task.kind`` ``place_inside``) whose instruction names parts
+    (role word and category, as :func:`~factory.tasks.articulated.parts.names_part` reads
+    them: "put the mug in the drawer of the base cabinet") offers only those. Counted into
+    ``why``: ``not_named``, ``no_interior`` and ``too_small`` (refused), ``occupied`` and
+    ``low`` (offered later)."""
+    ranked: list[tuple[bool, bool, Container]] = []
     d = pick.dimensions
     foot = max(d.width, d.length)
     parts = scene_parts(scene, assets_root)
@@ -145,20 +175,34 @@ def container_parts(
         if inner is None or container_top(part.obj, assets_root) is None:
             why["no_interior"] += 1
             continue
-        if _stored_on(scene, part, inner):
-            why["occupied"] += 1
-            continue
         size = inner.hi - inner.lo
         if size[2] < d.height + MARGIN or min(size[0], size[1]) < foot + 2 * MARGIN:
             why["too_small"] += 1
             continue
-        out.append((part, inner))
-    return out
+        stored = _stored_on(scene, part, inner, pick.id)
+        top = container_top(part.obj, assets_root)
+        low = top is not None and top[0] - inner.floor_z > LOW_DROP
+        if stored:
+            why["occupied"] += 1
+        if low:
+            why["low"] += 1
+        ranked.append((low, bool(stored), Container(part, inner, tuple(stored))))
+    ranked.sort(key=lambda r: (r[0], r[1]))  # stable: scene order within a rank
+    return [r[2] for r in ranked]
+
+
+def without(scene: Scene, ids: tuple[str, ...]) -> Scene:
+    """``scene`` without the objects ``ids`` and what stands on them."""
+    if not ids:
+        return scene
+    gone = scene.with_dependents(set(ids))
+    return replace(scene, objects=[o for o in scene.objects if o.id not in gone])
 
 
 def on_top(scene: Scene, container: SceneObject, top_z: float, pick: SceneObject) -> Scene:
-    """``scene`` with ``pick`` standing on the container's top (its centre, turned as the
-    container) and everything else on the top taken out (with what stands on it)."""
+    """``scene`` with ``pick`` standing upright on the container's top (its centre, its yaw
+    kept; an object the generated scene left lying on its side, fallen off its support, is
+    stood up) and everything else on the top taken out (with what stands on it)."""
     on = {
         o.id
         for o in scene.objects
@@ -176,6 +220,7 @@ def on_top(scene: Scene, container: SceneObject, top_z: float, pick: SceneObject
             y=container.position.y,
             z=container.position.z + top_z,
         ),
+        rotation=replace(pick.rotation, x=0.0, y=0.0),  # upright (it may have toppled)
         placement=replace(pick.placement, kind="on_top", support_id=container.id),
     )
     objects = [moved if o.id == pick.id else o for o in scene.objects if o.id not in gone]

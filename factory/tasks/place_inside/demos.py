@@ -47,7 +47,9 @@ def scene_planner(
     ``demos.*``).
 
     Raises:
-        TaskError: no object to put away, or no container part the robot can work.
+        TaskError: no object to put away, no container part the robot can work, or an object
+            the gripper cannot take from the container's top
+            (:meth:`~factory.tasks.place_inside.plan.PlaceInsidePlanner.check_graspable`).
     """
     import mujoco
 
@@ -62,7 +64,9 @@ def scene_planner(
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     motion = ArticulatedMotion(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
-    return setup, PlaceInsidePlanner(setup, motion, PlannerConfig(timeout=dc.plan_timeout))
+    planner = PlaceInsidePlanner(setup, motion, PlannerConfig(timeout=dc.plan_timeout))
+    planner.check_graspable()
+    return setup, planner
 
 
 class PlaceInsideScene(ArticulatedScene):

@@ -2,12 +2,13 @@
 it on the interior support behind the part, release, retreat, close the part.
 
 Per scene, :func:`setup_scene` chooses the container part (a drawer whose link carries an
-interior support and volume, empty and tall enough for the object), the pick object
+interior support and volume, tall enough for the object; empty ones first, then one with
+something stored on its floor, which is taken out), the pick object
 (:mod:`~factory.tasks.place_inside.containers`) and, through the articulated tasks' set-up
 (:func:`factory.tasks.articulated.plan.setup_scene` for that part, direction ``open``), the
 robot's base spot in front of the part. The pick object stands on the container's top (the
-counter above the drawer): it is moved there, and what else stands on that top is taken out
-of the scene (``cleared``).
+counter above the drawer, a nightstand's or a dresser's top): it is moved there, and what
+else stands on that top is taken out of the scene (``cleared``).
 
 Per episode (:meth:`PlaceInsidePlanner.plan_episode`):
 
@@ -85,6 +86,7 @@ from factory.tasks.place_inside.containers import (
     container_top,
     on_top,
     pick_object,
+    without,
 )
 
 __all__ = ["PlaceInsidePlan", "PlaceInsidePlanner", "PlaceInsideSetup", "setup_scene"]
@@ -104,6 +106,9 @@ PLACE_DROP = 0.01
 """The object is released this far above the drawer's floor (m)."""
 MAX_GRASPS = 8
 """Object grasps tried per episode."""
+GRASP_CHECK_SEEDS = 3
+"""Starts of the object (seeds 0, 1, ...) at which :meth:`PlaceInsidePlanner.check_graspable`
+looks for a grasp before the scene's episodes are planned."""
 
 
 @dataclass
@@ -190,18 +195,19 @@ def setup_scene(
     docstring), and composes the scene with the robot there.
 
     Raises:
-        TaskError: no pick object, no container part (none with an interior, occupied, too
-            small) or none the robot can open from a free base spot (with the reasons).
+        TaskError: no pick object, no container part (none with an interior, too small) or
+            none the robot can open from a free base spot (with the reasons).
     """
     from factory.tasks.articulated.plan import setup_scene as setup_part
 
     pick = pick_object(scene)
     why: Counter[str] = Counter()
     parts = container_parts(scene, assets_root, pick, why)
-    for part, inner in parts[:MAX_CONTAINERS]:
+    for box in parts[:MAX_CONTAINERS]:
+        part, inner = box.part, box.interior
         top = container_top(part.obj, assets_root)
         assert top is not None
-        sc = on_top(scene, part.obj, top[0], pick)
+        sc = on_top(without(scene, box.stored), part.obj, top[0], pick)
         cleared = sorted({o.id for o in scene.objects} - {o.id for o in sc.objects})
         sc = replace(
             sc,
@@ -387,6 +393,35 @@ class PlaceInsidePlanner:
             quat, yaw_quat(float(rng.uniform(-math.pi, math.pi))), self.home_pose[3:]
         )
         return np.array([xy[0], xy[1], s.top_z, *quat])
+
+    def check_graspable(self) -> None:
+        """Refuses a scene whose object no open gripper can take from the container's top (a
+        phone or a book lying flat: the fingers would go into the top), so that the run goes
+        on with the next scene instead of failing every episode with ``no_grasp``. Looks at
+        the object's starts of the first :data:`GRASP_CHECK_SEEDS` seeds, the part closed.
+
+        Raises:
+            TaskError: no collision-free grasp at any of them (names the object, its size
+                and what to ask for instead).
+        """
+        from factory.scenes.task_words import STOW_OBJECTS
+
+        for seed in range(GRASP_CHECK_SEEDS):
+            try:
+                qpos = self.initial_qpos(seed)
+            except TaskError:
+                continue
+            if self._grasps(qpos, np.random.default_rng(seed)):
+                return
+        s = self.setup
+        d = s.pick.dimensions
+        choices = ", ".join(o.replace("_", " ") for o in STOW_OBJECTS)
+        raise TaskError(
+            f"scene {s.scene.id!r}: no collision-free grasp on {s.pick.id!r} "
+            f"({d.width:.3f} x {d.length:.3f} x {d.height:.3f} m) standing on the top of "
+            f"{s.container.id!r}: too flat or too wide for the open gripper to take from a "
+            f"surface; ask for an object such as {choices}"
+        )
 
     def initial_qpos(self, seed: int) -> np.ndarray:
         """The initial qpos (nq,) of seed ``seed`` (the demos' and the env's): the part closed,
