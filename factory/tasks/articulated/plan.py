@@ -60,6 +60,7 @@ from factory.robots.panda import (
 )
 from factory.schema import Scene
 from factory.tasks.articulated.parts import Part, choose_parts
+from factory.tasks.pick_place.plan import PlanFailure
 
 __all__ = [
     "CLOSED_AT",
@@ -253,16 +254,6 @@ class ArticulatedPlan:
     q_start: float = 0.0
     q_goal: float = 0.0
     pose_tool_in_link: np.ndarray = field(default_factory=lambda: np.eye(4))
-
-
-@dataclass
-class PlanFailure:
-    """Why an episode could not be planned: reason key and detail."""
-
-    reason: str
-    detail: str
-    seconds: float
-    counts: dict[str, int] = field(default_factory=dict)
 
 
 def initial_state(setup: ArticulatedSetup, q_joint: float) -> np.ndarray:
@@ -907,13 +898,8 @@ class ArticulatedPlanner:
             out.attempts = attempt + 1
             out.seconds = time.perf_counter() - t0
             return out
-        reason = counts.most_common(1)[0][0] if counts else "no_grasp"
-        return PlanFailure(
-            reason,
-            f"{setup.part.key} ({setup.part.label}): {len(grasps)} grasps tried: {dict(counts)}",
-            time.perf_counter() - t0,
-            dict(counts),
-        )
+        tried = f"{setup.part.key} ({setup.part.label}): {len(grasps)} grasps tried"
+        return PlanFailure.of_counts(counts, "no_grasp", tried, t0)
 
     def _timeline(
         self,

@@ -137,12 +137,21 @@ class EpisodePlan:
 
 @dataclass
 class PlanFailure:
-    """Why an episode could not be planned: reason key and detail."""
+    """Why an episode could not be planned: reason key and detail (every fixed-base task's
+    planner reports it)."""
 
     reason: str
     detail: str
     seconds: float
     counts: dict[str, int] = field(default_factory=dict)
+
+    @classmethod
+    def of_counts(cls, counts: Counter[str], default: str, detail: str, t0: float) -> PlanFailure:
+        """The failure of a planner whose candidates (grasps) all failed: the most common
+        reason in ``counts`` (``default`` when none was counted), ``detail`` followed by the
+        counts, the seconds since ``t0`` (``time.perf_counter``)."""
+        reason = counts.most_common(1)[0][0] if counts else default
+        return cls(reason, f"{detail}: {dict(counts)}", time.perf_counter() - t0, dict(counts))
 
 
 FREEZE_BEYOND = 1.0
@@ -697,13 +706,8 @@ class EpisodePlanner:
                 result.seconds = time.perf_counter() - t0
                 result.attempts = attempt + 1
                 return result
-        reason = counts.most_common(1)[0][0] if counts else "plan_failed"
-        return PlanFailure(
-            reason,
-            f"{len(grasps[: self.max_grasps])} grasps tried: {dict(counts)}",
-            time.perf_counter() - t0,
-            dict(counts),
-        )
+        tried = f"{len(grasps[: self.max_grasps])} grasps tried"
+        return PlanFailure.of_counts(counts, "plan_failed", tried, t0)
 
     def _try_grasp(
         self,

@@ -642,13 +642,8 @@ class PlaceInsidePlanner:
             out.pose_tool_in_link_close = closing[0].grasp
             out.seconds = time.perf_counter() - t0
             return out
-        reason = counts.most_common(1)[0][0] if counts else "no_grasp"
-        return PlanFailure(
-            reason,
-            f"{s.pick.id} into {s.art.part.key}: {len(grasps)} grasps tried: {dict(counts)}",
-            time.perf_counter() - t0,
-            dict(counts),
-        )
+        tried = f"{s.pick.id} into {s.art.part.key}: {len(grasps)} grasps tried"
+        return PlanFailure.of_counts(counts, "no_grasp", tried, t0)
 
     def _close(
         self,
