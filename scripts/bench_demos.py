@@ -62,10 +62,15 @@ GENERATE_ARGS = {"open": ["assets.articulated=true"], "close": ["assets.articula
 
 
 def _cli(
-    args: list[str], cores: int, env: dict[str, str], episodes: Path | None = None
+    args: list[str],
+    cores: int,
+    env: dict[str, str],
+    episodes: Path | None = None,
+    failed: list[str] | None = None,
 ) -> tuple[float, float | None]:
     """Runs the CLI; returns its wall time (s) and, with ``episodes`` (the run's episode
-    store), the time from its start to the first stored episode (s; None if none was)."""
+    store), the time from its start to the first stored episode (s; None if none was).
+    A failed command exits, or with ``failed`` has its error's last lines appended there."""
     cmd = [sys.executable, "-m", "factory", *args]
     if shutil.which("taskset") and cores < (os.cpu_count() or 1):
         cmd = ["taskset", "-c", f"0-{cores - 1}", *cmd]
@@ -84,7 +89,11 @@ def _cli(
             time.sleep(0.5)
         if proc.returncode != 0:
             err.seek(0)
-            raise SystemExit(f"{' '.join(cmd)} failed:\n{err.read()[-4000:]}")
+            tail = err.read()[-4000:]
+            if failed is None:
+                raise SystemExit(f"{' '.join(cmd)} failed:\n{tail}")
+            failed.append(tail.strip().splitlines()[-1] if tail.strip() else "no message")
+            print(f"{' '.join(cmd)} failed:\n{tail}", file=sys.stderr, flush=True)
     return time.perf_counter() - t0, first
 
 
@@ -229,7 +238,8 @@ def main() -> None:
         extra.append(f"sim.kernel_cache={args.kernel_cache}")
     cache = _kernel_cache(args.kernel_cache) if gpu else None
     workers = args.workers or (max(1, args.cores - 1) if args.executor == "warp" else args.cores)
-    results = {}
+    results: dict[str, dict[str, object]] = {}
+    failed: list[str] = []
     for label in args.runs:
         shutil.rmtree(run / "episodes", ignore_errors=True)
         shutil.rmtree(run / "logs", ignore_errors=True)
@@ -247,7 +257,17 @@ def main() -> None:
             args.cores,
             env,
             run / "episodes",
+            failed,
         )
+        if failed:  # what the stage did before it failed, from its log
+            results[label] = {
+                "error": failed[-1],
+                "wall_s": wall,
+                "first_episode_s": first,
+                "per_scene": _per_scene(run),
+                "kernels_ready_s": _kernels_ready(run),
+            }
+            break
         summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
         sec = summary["seconds"]
         ok = summary["new_successes"]
@@ -315,6 +335,8 @@ def main() -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {path}")
+    if failed:
+        raise SystemExit(f"the demos stage failed: {failed[-1]}")
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any
 
 from factory.demos.execution import GpuRun, SlotResult, execution_of
+from factory.demos.record.disk_room import DiskFull, DiskRoom
 from factory.demos.record.slots import (
     StageEnv,
     WorkItem,
@@ -111,11 +112,22 @@ def _merge_cpu_runs(cpu_runs: list[tuple[dict[str, Any], int, Future[Any]]], bar
 
 
 def run_gpu(
-    env: StageEnv, items: list[WorkItem], workers: int, bar: Any = None, device: str | None = None
+    env: StageEnv,
+    items: list[WorkItem],
+    workers: int,
+    bar: Any = None,
+    device: str | None = None,
+    room: DiskRoom | None = None,
 ) -> list[dict[str, Any]]:
     """Fills the slots of ``items`` with the GPU executor: ``workers`` planner processes, the
     GPU of ``device`` (Warp's; default CUDA when present), writer processes. One statistics
-    dict per scene (the keys of :func:`factory.demos.cpu_items.run_item`'s)."""
+    dict per scene (the keys of :func:`factory.demos.cpu_items.run_item`'s).
+
+    Raises:
+        DiskFull: before a scene, ``room`` finds that the episodes left would not fit on the
+            store's disk (the planner processes' queued slots are cancelled; the writers finish
+            the episodes already recorded).
+    """
     from factory.demos.cpu_items import run_item_logged
     from factory.demos.record.episodes import EpisodeStore
     from factory.tasks import get_task
@@ -181,6 +193,15 @@ def run_gpu(
             GpuRun(env, pool, writers, nwriters, bar, device, submit, to_cpu)
         )
         for idx, sid in enumerate(scenes):
+            if room is not None:
+                try:
+                    room.check(len(store), sum(len(by_scene[s]) for s in scenes[:idx]))
+                except DiskFull:
+                    for fs in pending.values():
+                        for f in fs:
+                            f.cancel()
+                    gpu.close()  # the episodes recorded are written
+                    raise
             out: dict[str, Any] = item_stats(sid, executor="warp")
             results.append(out)
             submit_ahead(idx)

@@ -29,6 +29,7 @@ import numpy as np
 from factory.config import DemosConfig
 from factory.context import StageContext
 from factory.demos.cpu_items import run_item, run_item_logged
+from factory.demos.record.disk_room import DiskFull, DiskRoom
 from factory.demos.record.slots import StageEnv, WorkItem, episode_id
 from factory.errors import ConfigError, StoreError
 from factory.store import atomic_write_json
@@ -157,22 +158,32 @@ def run(ctx: StageContext) -> dict[str, Any]:
     results: list[dict[str, Any]] = []
     total = sum(len(i.slots) for i in items)
     desc = "demos (gpu)" if executor == "warp" else "demos"
+    room = DiskRoom(episodes.path, len(stored), total)
+    closed = 0  # slots closed (stored or given up), for the disk's projection
     with tqdm(total=total, desc=desc, unit="episode", disable=None, file=terminal()) as bar:
         try:
             if executor == "warp" and items:
                 from factory.demos.gpu_pipeline import run_gpu
 
-                results = run_gpu(env, items, workers, bar)
+                results = run_gpu(env, items, workers, bar, room=room)
             elif workers > 1:
                 with ProcessPoolExecutor(workers) as pool:
                     futures = {pool.submit(run_item_logged, env, it): it for it in items}
                     for fut in as_completed(futures):
                         results.append(fut.result())
                         bar.update(len(futures[fut].slots))
+                        closed += len(futures[fut].slots)
+                        try:
+                            room.check(len(episodes), closed)
+                        except DiskFull:
+                            pool.shutdown(cancel_futures=True)
+                            raise
             else:
                 for it in items:
                     results.append(run_item(env, it))
                     bar.update(len(it.slots))
+                    closed += len(it.slots)
+                    room.check(len(episodes), closed)
         finally:
             episodes.clean_staging()
     wall = time.perf_counter() - t_start
