@@ -9,12 +9,14 @@ and failure reasons, planning time per segment, rendering frames/s.
 
 ``--executor warp`` runs the episodes on the GPU (MuJoCo Warp worlds and batch renderer) with
 ``--workers`` planning processes (default: cores - 1), and changes the defaults to the GPU
-production size: 10 scenes x 1,536 episodes on every core, one cold run, the stage's own
+production size: 8 scenes x 1,536 episodes on every core, one cold run, the stage's own
 ``demos.gpu_batch`` (``python scripts/bench_demos.py --executor warp`` is the GPU benchmark).
-Ten scenes, because a run's first scene pays the kernel compilation and its last the writers'
-last writes (about 2 minutes and 50 s on a bare H200), fixed costs that a production job
-spreads over its scenes; the JSON's ``per_scene`` shows the first scene's cost apart, and
-``--scenes 3`` gives the earlier, shorter figure.
+Eight scenes, because a run's first scene pays the kernel compilation and its last the writers'
+last writes (about 1 minute and 50 s on a bare H200), fixed costs that a production job
+spreads over its scenes, and because their episodes (about 4.5 MB each, 55 GB) fit on a 64 GiB
+disk, where ten kitchens' did not; the JSON's ``per_scene`` shows the first scene's cost apart,
+and ``--scenes 3`` gives the earlier, shorter figure. A run folder holding more scenes than
+``--scenes`` is recorded whole (``stage=demos`` takes every scene of its run).
 ``--kernel-cache DIR`` sets ``sim.kernel_cache``; the JSON says how many compiled modules the
 cache held at the start (``bare_machine``: none) and each run's time to its first stored
 episode (from the command's start, kernel compilation included).
@@ -204,7 +206,7 @@ def main() -> None:
     args = p.parse_args()
     gpu = args.executor == "warp"
     for name, cpu_default, gpu_default in (
-        ("scenes", 2, 10),
+        ("scenes", 2, 8),
         ("episodes", 4, 1536),
         ("cores", 1, os.cpu_count() or 1),
         ("runs", ["cold", "warm"], ["cold"]),

@@ -2,11 +2,11 @@
 # The GPU factory's checks on one GPU machine, after scripts/gpu_install.sh, in order of worth
 # (a session's device time may end before the last):
 #
-#   1. scripts/bench_demos.py at its GPU defaults (10 generated kitchens x 1,536 episodes) with an
+#   1. scripts/bench_demos.py at its GPU defaults (8 generated kitchens x 1,536 episodes) with an
 #      empty kernel cache: the bare-machine rate, time to the first stored episode (the kitchens
 #      are generated first unless BENCH_RUN holds them: carry a run folder made beforehand with
-#      `python -m factory stage=generate run_dir=runs/bench_demos10 "generate.prompts=[a kitchen
-#      where the robot picks up a mug and puts it in the bowl]" generate.scenes_per_prompt=10
+#      `python -m factory stage=generate run_dir=runs/bench_demos8 "generate.prompts=[a kitchen
+#      where the robot picks up a mug and puts it in the bowl]" generate.scenes_per_prompt=8
 #      generate.render=false`, the same kitchens bench_demos.py generates);
 #   2. pytest -m gpu (the cache of step 1 is kept: kernels it compiled are not compiled again);
 #   3. scripts/experiments/gpu_soak.py on the kitchens of step 1 (kill -9 after the first GPU
