@@ -173,14 +173,19 @@ def randomize(
     ws: Workspace,
     rng: np.random.Generator,
     tries: int = 400,
+    rounds: int = 8,
 ) -> np.ndarray:
     """Re-places the pick object and the target on the support within reach (new qpos).
 
     Other objects on the support stay; the two task objects keep clear of them and of each
-    other, and turn by a random yaw.
+    other, and turn by a random yaw. The target is placed first, then the pick object; where
+    the target's spot leaves the pick object none (a support with little free room within
+    reach), both are drawn again, up to ``rounds`` times (a seed that succeeds at once draws
+    the same numbers as with one round).
 
     Raises:
-        TaskError: no free spot within reach after ``tries`` samples.
+        TaskError: no free spot within reach after ``tries`` samples per object in each of
+            ``rounds`` rounds.
     """
     c, yaw, hw, hl = _support_frame(objects.support)
     rot = rot_z(yaw)[:2, :2]
@@ -190,11 +195,9 @@ def randomize(
         if o.placement.support_id == objects.support.id
         and o.id not in (objects.pick.id, objects.target.id)
     ]
-    q = np.array(qpos)
-    placed: list[tuple[np.ndarray, float]] = []
-    for obj in (objects.target, objects.pick):
-        r = _footprint_radius(obj)
-        adr = _free_joint(model, obj.id)
+
+    def spot(r: float, taken: list[tuple[np.ndarray, float]]) -> np.ndarray | None:
+        """A free spot (x, y) in the world frame for a footprint of radius ``r`` (m)."""
         for _ in range(tries):
             dist = rng.uniform(ws.reach_min, ws.reach_max)
             ang = math.radians(rng.uniform(-ws.max_angle_deg, ws.max_angle_deg)) + placement.yaw
@@ -202,15 +205,32 @@ def randomize(
             local = rot.T @ (xy - c)
             if abs(local[0]) > hw - r - ws.margin or abs(local[1]) > hl - r - ws.margin:
                 continue
-            if any(np.linalg.norm(xy - p) < r + pr + ws.margin for p, pr in others + placed):
+            if any(np.linalg.norm(xy - p) < r + pr + ws.margin for p, pr in taken):
                 continue
-            break
+            return xy
+        return None
+
+    blocked = objects.target
+    for _ in range(rounds):
+        placed: list[tuple[np.ndarray, float]] = []  # (x, y) in the world frame, radius (m)
+        turns: list[float] = []  # yaw turn of each placed object (rad)
+        for obj in (objects.target, objects.pick):
+            r = _footprint_radius(obj)
+            xy = spot(r, others + placed)
+            if xy is None:
+                blocked = obj
+                break
+            placed.append((xy, r))
+            turns.append(rng.uniform(-math.pi, math.pi))
         else:
-            raise TaskError(
-                f"no free spot for {obj.id!r} on {objects.support.id!r} within the arm's reach"
-            )
-        placed.append((xy, r))
-        turn = rng.uniform(-math.pi, math.pi)
+            break
+    else:
+        raise TaskError(
+            f"no free spot for {blocked.id!r} on {objects.support.id!r} within the arm's reach"
+        )
+    q = np.array(qpos)
+    for obj, (xy, _), turn in zip((objects.target, objects.pick), placed, turns, strict=True):
+        adr = _free_joint(model, obj.id)
         q[adr : adr + 2] = xy
         q[adr + 2] = obj.position.z
         quat = np.zeros(4)
