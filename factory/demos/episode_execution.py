@@ -1,21 +1,24 @@
 """The ``episode`` execution of ``stage=demos``: the task simulates each episode itself, one at
 a time on one ``MjData`` (a :class:`~factory.demos.record.scene.SimulatingScene`: the mobile
-task, whose base drives between supports).
+task, whose base drives between supports; the articulated tasks ``open``, ``close`` and
+``place_inside``, whose fingers move a part of the scene).
 
 * CPU (:class:`EpisodeCpu`): a slot at a time, its attempts one after another; each episode is
   simulated, checked and drawn by the task
   (:meth:`~factory.demos.record.scene.SimulatingScene.simulate`) and logs one INFO line (slot,
   attempt, outcome, seconds of planning, simulation and rendering).
-* GPU pipeline: a mobile episode's cost on a CPU is its cameras (about 34 of its 40 s at 128 px), so
-  the images alone move to the GPU. The planner processes plan and simulate a slot without images,
-  trying its seeds until an episode succeeds (:func:`plan_and_simulate`, the CPU path's seeds and
-  attempts), and return the recording's states and signals; the main process (:class:`EpisodeGpu`)
-  renders the successful recordings of a scene on MuJoCo Warp
-  (:class:`~factory.demos.execute.mobile_render_warp.WarpMobileRenderer`): their frames fill the
-  worlds of each render call back to back
-  (:class:`~factory.demos.execute.mobile_render_warp.RecordingStream`), and each episode, once its
-  last frame is drawn, goes to a writer process (images as numpy arrays). The scene's ``render``
-  seconds are the GPU's, ``warp_seconds`` its upload, draw, copy, frames and calls.
+* GPU pipeline: such an episode's cost on a CPU is mostly its cameras (a mobile episode's about
+  34 of its 40 s at 128 px), so the images alone move to the GPU. The planner processes plan and
+  simulate a slot without images, trying its seeds until an episode succeeds
+  (:func:`plan_and_simulate`, the CPU path's seeds and attempts), and return the recording's
+  states and signals; the main process (:class:`EpisodeGpu`) renders the successful recordings
+  of a scene on MuJoCo Warp with the scene's own cameras
+  (:meth:`~factory.demos.record.scene.SimulatingScene.camera_rig`,
+  :class:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer`): their frames
+  fill the worlds of each render call back to back
+  (:class:`~factory.demos.execute.recording_render_warp.RecordingStream`), and each episode,
+  once its last frame is drawn, goes to a writer process (images as numpy arrays). The scene's
+  ``render`` seconds are the GPU's, ``warp_seconds`` its upload, draw, copy, frames and calls.
 """
 
 from __future__ import annotations
@@ -162,12 +165,15 @@ class EpisodeGpu(GpuRecorder):
     ) -> float:
         """Renders the scene's successful recordings as the planner processes return them;
         returns the GPU seconds (``render``)."""
-        from factory.demos.execute.mobile_render_warp import RecordingStream, WarpMobileRenderer
+        from factory.demos.execute.recording_render_warp import (
+            RecordingStream,
+            WarpRecordingRenderer,
+        )
 
         sim = simulating(scene)
         cfg = sim.record_config()
         bar = self.run.bar
-        renderer: WarpMobileRenderer | None = None
+        renderer: WarpRecordingRenderer | None = None
         stream: RecordingStream | None = None
         slots: dict[int, tuple[int, int, Any]] = {}
         left = set(futures)
@@ -190,7 +196,9 @@ class EpisodeGpu(GpuRecorder):
                     waited["writes"] += self._write(sim, res.rec, slots, cfg)
                     continue
                 if renderer is None:
-                    renderer = WarpMobileRenderer(sim.setup.model, cfg, device=self.run.device)
+                    renderer = WarpRecordingRenderer(
+                        sim.setup.model, sim.camera_rig(cfg), device=self.run.device
+                    )
                     stream = RecordingStream(renderer)
                 assert stream is not None
                 for rec in stream.push(res.rec):

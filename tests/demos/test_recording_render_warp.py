@@ -1,4 +1,6 @@
-"""The mobile task's GPU renderer (MuJoCo Warp) and its pipeline.
+"""The GPU renderer of recorded states (MuJoCo Warp) with each task's own cameras, and the
+pipeline of the tasks that simulate their episodes themselves: the mobile task (five cameras,
+two of them fisheyes) and the articulated tasks (the fixed-base Panda's three).
 
 CI runs everything on Warp's CPU device (the same kernels, slowly); each renderer test has a
 ``gpu``-marked twin on CUDA. The pipeline through the CLI picks CUDA where it exists, so the
@@ -32,6 +34,7 @@ from factory.tasks.mobile_pick_place import (
     MobilePlanner,
     MobileRecordConfig,
     MobileRecording,
+    camera_rig,
     execute_mobile,
     mobile_setup,
     render_frames,
@@ -105,13 +108,13 @@ def test_warp_renderer_agrees_with_opengl(episode: dict[str, Any], device: str) 
     images alike within the stated tolerances; the frames of two recordings filling calls of
     3 worlds (one episode split over two calls, the last call padded) are drawn as one
     ``render`` of all their states draws them."""
-    from factory.demos.execute.mobile_render_warp import WarpMobileRenderer
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
 
     setup, states = episode["setup"], episode["states"]
     cfg = MobileRecordConfig(fps=5.0, width=64, height=64)
     cpu = _frames(states)
     render_frames(setup, cpu, cfg)
-    renderer = WarpMobileRenderer(setup.model, cfg, device=device, max_worlds=3)
+    renderer = WarpRecordingRenderer(setup.model, camera_rig(cfg), device=device, max_worlds=3)
     assert renderer.worlds == 3
     first, second = _frames(states[:5]), _frames(states[5:])
     renderer.render_recordings([first, second])
@@ -140,7 +143,9 @@ def test_warp_renderer_agrees_with_opengl(episode: dict[str, Any], device: str) 
             assert (depth[c] > 0).all()
     # float32 metres: the same depths
     metres = MobileRecordConfig(fps=5.0, width=64, height=64, depth="float32")
-    _, depth_m = WarpMobileRenderer(setup.model, metres, device=device).render(states[:2])
+    _, depth_m = WarpRecordingRenderer(setup.model, camera_rig(metres), device=device).render(
+        states[:2]
+    )
     for c in ALL_CAMERAS:
         assert depth_m[c].dtype == np.float32
         np.testing.assert_allclose(depth_m[c] * 1000.0, depth[c][:2], atol=0.51)
@@ -196,7 +201,7 @@ def test_fisheye_markers_land_on_their_predicted_pixels_on_warp(device: str) -> 
     each pixel's ray length."""
     import mujoco
 
-    from factory.demos.execute.mobile_render_warp import WarpMobileRenderer
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
 
     model = _marker_model()
     data = mujoco.MjData(model)
@@ -204,7 +209,7 @@ def test_fisheye_markers_land_on_their_predicted_pixels_on_warp(device: str) -> 
     np.testing.assert_allclose(data.cam_xmat[0].reshape(3, 3), LEVEL, atol=1e-9)
     state = _state(model, data)[None]
     cfg = MobileRecordConfig(width=128, height=96, cameras=("fisheye_front",), depth="float32")
-    rgb, depth = WarpMobileRenderer(model, cfg, device=device).render(state)
+    rgb, depth = WarpRecordingRenderer(model, camera_rig(cfg), device=device).render(state)
     im, dp = rgb["fisheye_front"][0], depth["fisheye_front"][0]
     assert im.shape == (128, 128, 3) and dp.shape == (128, 128)  # fisheyes are square
     spec = FisheyeSpec(resolution=128, fov_deg=180.0)
@@ -233,7 +238,7 @@ def test_fisheye_markers_land_on_their_predicted_pixels_on_warp(device: str) -> 
     wide = MobileRecordConfig(
         width=128, cameras=("fisheye_front",), depth="float32", fisheye_fov_deg=260.0
     )
-    rgb, depth = WarpMobileRenderer(model, wide, device=device).render(state)
+    rgb, depth = WarpRecordingRenderer(model, camera_rig(wide), device=device).render(state)
     im, dp = rgb["fisheye_front"][0], depth["fisheye_front"][0]
     theta, phi, dist = MARKERS[3]
     uv = FisheyeSpec(resolution=128, fov_deg=260.0).project(
