@@ -13,6 +13,7 @@ import importlib.util
 import json
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -311,3 +312,252 @@ def test_mobile_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
         assert g[f"rgb/{cam}"].shape == (n, 64, 64, 3)
         assert g[f"depth/{cam}"].shape == (n, 64, 64) and g[f"depth/{cam}"].dtype == np.uint16
         assert np.asarray(g[f"rgb/{cam}"][n // 2]).std() > 5
+
+
+# ------------------------------------------------------------------ the articulated tasks' rig
+
+ARTICULATED_RGB_TOLERANCE = {"left": 12.0, "right": 12.0, "wrist": 30.0}
+"""Largest mean absolute RGB difference (0-255) per camera between the CPU executor's recording
+of a ``task=open`` episode (OpenGL, :class:`~factory.tasks.articulated.record.
+ArticulatedRenderer`) and MuJoCo Warp's drawing of its states, 64 px, eight frames of the
+bundled one-cabinet kitchen's episode: the mobile task's pinhole tolerances
+(:data:`RGB_TOLERANCE`). Measured on Warp's CPU device over all 43 frames of the episode (seed
+0): left 8.3, right 6.0, wrist 17.6 (29.0 on its worst frame, the hand close to the handle);
+depth: median difference 0 mm on every frame. ``task=place_inside``'s bundled episode (161
+frames, the same rig): left 7.2, right 6.7, wrist 19.7 (42.4 on its worst frame), depth 0 mm,
+and the same 668 far-plane pixels in both."""
+
+
+def _copy_example(task: str, run: Path) -> str:
+    """Copies task ``task``'s bundled example scene into ``run``; returns its id."""
+    from factory.tasks import get_task
+
+    src = get_task(task).example_scene_path()
+    assert src is not None
+    sid = json.loads(src.read_text())["id"]
+    (run / "scenes" / sid).mkdir(parents=True)
+    (run / "scenes" / sid / "scene.json").write_text(src.read_text())
+    return str(sid)
+
+
+@pytest.fixture(scope="module")
+def open_episode(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The bundled one-cabinet kitchen set up for ``task=open`` as ``stage=demos`` sets it up,
+    and one episode recorded by the CPU executor (images by OpenGL, 64 px, 5 fps); eight of
+    its frames (reaching, pulling, letting go)."""
+    from factory.config import DemosConfig
+    from factory.demos.record.slots import StageEnv
+    from factory.tasks import get_task
+
+    run = tmp_path_factory.mktemp("open")
+    sid = _copy_example("open", run)
+    dc = DemosConfig(width=64, height=64, fps=5.0)
+    env = StageEnv(str(run), str(run / "episodes" / "shard-0.zarr"), dc, "open", 0, 1)
+    scene = get_task("open").demo_scene(env, sid)
+    cfg = scene.record_config()
+    renderer = scene.renderer(cfg)
+    try:
+        for seed in range(5):
+            plan = scene.plan(seed)
+            if isinstance(plan, scene.plan_type):
+                rec = scene.simulate(plan, cfg, renderer)
+                if rec.outcome.success:
+                    break
+        else:
+            pytest.fail("no successful open episode in 5 seeds")
+    finally:
+        renderer.close()
+    idx = np.linspace(0, len(rec.state) - 1, 8).round().astype(int)
+    return {"run": run, "sid": sid, "env": env, "scene": scene, "cfg": cfg, "rec": rec, "idx": idx}
+
+
+def _articulated_frames(states: np.ndarray) -> Any:
+    """An articulated recording holding only states (what the renderers read)."""
+    from factory.tasks.articulated.record import Recording
+
+    z = np.zeros((len(states), 1))
+    return Recording(
+        time=np.arange(len(states), dtype=float),
+        state=states,
+        joint_pos=z,
+        gripper=z,
+        ee_pose=z,
+        action=z,
+        env_state=z,
+    )
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_warp_renderer_agrees_with_the_articulated_cpu_recording(
+    open_episode: dict[str, Any], device: str
+) -> None:
+    """A ``task=open`` episode recorded by the CPU executor, and its recorded states drawn by
+    MuJoCo Warp with the scene's own camera rig (the fixed-base Panda's left, right and wrist
+    cameras, not the mobile robot's): the same cameras, shapes, dtypes and depth conventions,
+    images alike within the mobile task's tolerances, depth equal to the millimetre, no NaN;
+    two recordings filling calls of 3 worlds are drawn as one ``render`` of their states."""
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
+    from factory.robots.panda import CAMERAS
+
+    scene, cfg, rec, idx = (open_episode[k] for k in ("scene", "cfg", "rec", "idx"))
+    rig = scene.camera_rig(cfg)
+    assert rig.keys == cfg.cameras == ("left", "right", "wrist") and rig.depth == "uint16_mm"
+    assert [c.camera for c in rig.cameras] == [CAMERAS[c] for c in cfg.cameras]
+    assert all(c.fisheye is None and (c.width, c.height) == (64, 64) for c in rig.cameras)
+    states = rec.state[idx]
+    renderer = WarpRecordingRenderer(scene.setup.model, rig, device=device, max_worlds=3)
+    first, second = _articulated_frames(states[:5]), _articulated_frames(states[5:])
+    renderer.render_recordings([first, second])
+    assert renderer.times.calls == 3 and renderer.times.frames == len(states)
+    rgb, depth = renderer.render(states)
+    measured = {}
+    for c in cfg.cameras:
+        cpu_rgb, cpu_depth = rec.rgb[c][idx], rec.depth[c][idx]
+        assert rgb[c].shape == cpu_rgb.shape == (8, 64, 64, 3) and rgb[c].dtype == np.uint8
+        assert depth[c].shape == cpu_depth.shape and depth[c].dtype == cpu_depth.dtype
+        np.testing.assert_array_equal(np.concatenate([first.rgb[c], second.rgb[c]]), rgb[c])
+        np.testing.assert_array_equal(np.concatenate([first.depth[c], second.depth[c]]), depth[c])
+        diff = float(np.abs(cpu_rgb.astype(float) - rgb[c]).mean())
+        ddiff = float(np.median(np.abs(cpu_depth.astype(float) - depth[c])))
+        measured[c] = (round(diff, 1), ddiff)
+        assert rgb[c].std() > 10 and (depth[c] > 0).all()
+    for c in cfg.cameras:
+        assert measured[c][0] < ARTICULATED_RGB_TOLERANCE[c], measured
+        assert measured[c][1] <= DEPTH_TOLERANCE_MM["pinhole"], measured
+    # float32 metres: the same depths, finite
+    metres = scene.camera_rig(replace(cfg, depth="float32"))
+    _, depth_m = WarpRecordingRenderer(scene.setup.model, metres, device=device).render(states[:2])
+    for c in cfg.cameras:
+        assert depth_m[c].dtype == np.float32 and np.isfinite(depth_m[c]).all()
+        np.testing.assert_allclose(depth_m[c] * 1000.0, depth[c][:2], atol=0.51)
+
+
+def _sky_model() -> Any:
+    """A floor, a box and a camera looking level at the horizon: its upper half sees nothing."""
+    import mujoco
+
+    return mujoco.MjModel.from_xml_string(
+        """
+    <mujoco>
+      <worldbody>
+        <light pos="0 0 4" dir="0 0 -1"/>
+        <geom name="floor" type="plane" size="5 5 0.1" rgba="0.4 0.4 0.4 1"/>
+        <geom type="box" size="0.3 0.3 0.3" pos="2 0.5 0.3" rgba="0.8 0.2 0.2 1"/>
+        <camera name="level" pos="0 0 0.5" xyaxes="0 -1 0 0 0 1" fovy="60"/>
+      </worldbody>
+    </mujoco>"""
+    )
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("fmt", ["uint16_mm", "float32"])
+def test_a_pinhole_ray_that_hits_nothing_reads_the_cpu_far_value(device: str, fmt: str) -> None:
+    """Where a pinhole camera sees nothing (the sky above the horizon), the Warp renderer's
+    depth is the CPU renderer's far value (OpenGL's far plane, ``vis.map.zfar`` x
+    ``stat.extent``, as ``CameraStrip`` encodes it), never NaN; the box's depth agrees."""
+    import mujoco
+
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
+    from factory.demos.record.frame_render import CameraStrip, size_offscreen
+    from factory.demos.record.rig import CameraRig, RigCamera
+
+    model = _sky_model()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    size_offscreen(model, 48, 32)
+    strip = CameraStrip(model, [0], 48, 32, fmt)
+    try:
+        (cpu_rgb,), (cpu_depth,) = strip.render(data)
+    finally:
+        strip.close()
+    rig = CameraRig((RigCamera("left", "level", 48, 32),), fmt)
+    rgb, depth = WarpRecordingRenderer(model, rig, device=device).render(_state(model, data)[None])
+    im, dp = rgb["left"][0], depth["left"][0].astype(float)
+    assert im.shape == cpu_rgb.shape == (32, 48, 3) and dp.shape == cpu_depth.shape
+    far_m = float(model.vis.map.zfar * model.stat.extent)
+    far = min(65535.0, round(far_m * 1000.0)) if fmt == "uint16_mm" else far_m
+    cpu = cpu_depth.astype(float)
+    assert np.isfinite(dp).all() and np.isfinite(cpu).all()
+    sky = np.isclose(cpu, far, rtol=1e-4)
+    assert sky[:12].all() and not sky[-4:].any()  # the rows above the horizon, the floor below
+    np.testing.assert_allclose(dp[sky], far, rtol=1e-4)
+    box = (cpu_rgb[..., 0] > 120) & (cpu_rgb[..., 1] < 80)
+    assert box.sum() > 20
+    scale = 1000.0 if fmt == "float32" else 1.0  # mm
+    assert np.median(np.abs(dp[box] - cpu[box])) * scale <= DEPTH_TOLERANCE_MM["pinhole"]
+
+
+def test_open_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
+    """``stage=demos task=open demos.executor=warp`` on the bundled one-cabinet kitchen: planned
+    and simulated in a worker process, the main process setting the scene up without its
+    planner and drawing the recorded states on MuJoCo Warp (CUDA where present, else Warp's
+    CPU device) with the fixed-base Panda's cameras; stored as the CPU path stores it (the
+    task's arrays, the scene cameras' calibration), the recorder ``warp``."""
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.tasks.articulated.record import ArticulatedRenderer
+
+    run = tmp_path / "run"
+    sid = _copy_example("open", run)
+    out = cli(
+        "stage=demos",
+        f"run_dir={run}",
+        "task=open",
+        "demos.executor=warp",
+        "demos.episodes_per_scene=1",
+        "demos.width=32",
+        "demos.height=32",
+        "demos.fps=5",
+        "demos.workers=1",
+        env={"OMP_NUM_THREADS": "1"},
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    summary = json.loads((run / "episodes" / "summary-0-of-1.json").read_text())
+    assert summary["executor"] == "warp" and summary["new_successes"] == 1, summary
+    assert summary["seconds"]["gpu"]["frames"] > 10 and summary["seconds"]["render"] > 0
+    assert len(summary["scenes"][sid]["robot_base"]) == 3
+    store = EpisodeStore(run / "episodes" / "shard-0.zarr")
+    (eid,) = store.episode_ids()
+    info = store.info(eid)
+    assert info.task == "open" and info.success and info.recorder == "warp"
+    assert (info.pick_id, info.target_id) == ("base_cabinet_0", "drawer")
+    assert info.cameras == ["left", "right", "wrist"] and info.depth_format == "uint16_mm"
+    assert set(info.camera_poses) == {"left", "right"} and set(info.camera_fovy) == {
+        "left",
+        "right",
+    }
+    g = store.arrays(eid)
+    n = info.n_frames
+    assert g["action"].shape == (n, 8) and g["env_state"].shape == (n, 11)
+    for cam in info.cameras:
+        assert g[f"rgb/{cam}"].shape == (n, 32, 32, 3)
+        assert g[f"depth/{cam}"].shape == (n, 32, 32) and g[f"depth/{cam}"].dtype == np.uint16
+        assert np.asarray(g[f"rgb/{cam}"][n // 2]).std() > 5
+        assert (np.asarray(g[f"depth/{cam}"][:]) > 0).all()
+    # the stored images are those of the stored states, camera by camera: drawn again by the
+    # CPU renderer from the stored states, they agree within the agreement test's tolerances
+    import mujoco
+
+    from factory.config import DemosConfig
+    from factory.demos.record.payload import STATE_SPEC
+    from factory.tasks.articulated.demos import record_config, scene_setup
+
+    dc = DemosConfig(width=32, height=32, fps=5.0)
+    setup = scene_setup(run, sid, dc, "open")
+    cfg = record_config(dc)
+    renderer = ArticulatedRenderer(setup.model, cfg)
+    data = mujoco.MjData(setup.model)
+    states = np.asarray(g["state"][:])
+    diffs: dict[str, list[float]] = {c: [] for c in cfg.cameras}
+    try:
+        for f in range(0, n, max(1, n // 8)):
+            mujoco.mj_setState(setup.model, data, states[f], STATE_SPEC)
+            mujoco.mj_forward(setup.model, data)
+            rgbs, depths = renderer.render(data)
+            for c, im, dp in zip(cfg.cameras, rgbs, depths):
+                diffs[c].append(float(np.abs(im.astype(float) - g[f"rgb/{c}"][f]).mean()))
+                stored = np.asarray(g[f"depth/{c}"][f], float)
+                assert np.median(np.abs(dp - stored)) <= DEPTH_TOLERANCE_MM["pinhole"], (c, f)
+    finally:
+        renderer.close()
+    for c, d in diffs.items():
+        assert np.mean(d) < ARTICULATED_RGB_TOLERANCE[c], {k: np.mean(v) for k, v in diffs.items()}

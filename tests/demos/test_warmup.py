@@ -83,8 +83,9 @@ def test_warmup_compiles_a_scenes_kernels_once(
 def test_a_task_without_gpu_kernels_compiles_nothing(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
-    """``task=open`` records on the CPU executor only: the stage says so in one line, compiles
-    nothing (no scene set up, no Warp) and writes the summary with the reason."""
+    """``task=open``'s execution (``episode``: the GPU pipeline only draws its recorded states)
+    has no warm-up: the stage says so in one line, compiles nothing (no scene set up, no Warp)
+    and writes the summary with the reason."""
     from factory.demos.warmup import run
 
     root = tmp_path / "run"
