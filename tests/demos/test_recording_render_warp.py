@@ -433,15 +433,19 @@ def test_warp_renderer_agrees_with_the_articulated_cpu_recording(
 
 
 def _sky_model() -> Any:
-    """A floor, a box and a camera looking level at the horizon: its upper half sees nothing."""
+    """An endless floor, a box and a camera looking level at the horizon (0.5 m up): its upper
+    half sees nothing, the floor's rows next to the horizon lie beyond the far plane (20 m:
+    ``zfar`` 10 x ``extent`` 2; the first row under the horizon sees the floor 30 m away)."""
     import mujoco
 
     return mujoco.MjModel.from_xml_string(
         """
     <mujoco>
+      <statistic extent="2"/>
+      <visual><map zfar="10"/></visual>
       <worldbody>
         <light pos="0 0 4" dir="0 0 -1"/>
-        <geom name="floor" type="plane" size="5 5 0.1" rgba="0.4 0.4 0.4 1"/>
+        <geom name="floor" type="plane" size="0 0 0.1" rgba="0.4 0.4 0.4 1"/>
         <geom type="box" size="0.3 0.3 0.3" pos="2 0.5 0.3" rgba="0.8 0.2 0.2 1"/>
         <camera name="level" pos="0 0 0.5" xyaxes="0 -1 0 0 0 1" fovy="60"/>
       </worldbody>
@@ -452,9 +456,10 @@ def _sky_model() -> Any:
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("fmt", ["uint16_mm", "float32"])
 def test_a_pinhole_ray_that_hits_nothing_reads_the_cpu_far_value(device: str, fmt: str) -> None:
-    """Where a pinhole camera sees nothing (the sky above the horizon), the Warp renderer's
-    depth is the CPU renderer's far value (OpenGL's far plane, ``vis.map.zfar`` x
-    ``stat.extent``, as ``CameraStrip`` encodes it), never NaN; the box's depth agrees."""
+    """Where a pinhole camera sees nothing (the sky above the horizon) or sees beyond the far
+    plane (the floor near the horizon), the Warp renderer's depth is the CPU renderer's far
+    value (OpenGL's far plane, ``vis.map.zfar`` x ``stat.extent``, as ``CameraStrip`` encodes
+    it), never NaN; the box's and the near floor's depths agree."""
     import mujoco
 
     from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
@@ -478,12 +483,19 @@ def test_a_pinhole_ray_that_hits_nothing_reads_the_cpu_far_value(device: str, fm
     far = min(65535.0, round(far_m * 1000.0)) if fmt == "uint16_mm" else far_m
     cpu = cpu_depth.astype(float)
     assert np.isfinite(dp).all() and np.isfinite(cpu).all()
+    assert far_m == pytest.approx(20.0)
     sky = np.isclose(cpu, far, rtol=1e-4)
-    assert sky[:12].all() and not sky[-4:].any()  # the rows above the horizon, the floor below
-    np.testing.assert_allclose(dp[sky], far, rtol=1e-4)
-    box = (cpu_rgb[..., 0] > 120) & (cpu_rgb[..., 1] < 80)
+    metres = cpu / (1000.0 if fmt == "uint16_mm" else 1.0)
+    box = metres < 3.0  # the box, 1.7-2.3 m ahead; the floor under it (rows 17 on)
+    box[17:] = False
     assert box.sum() > 20
+    # beside the box: the rows above the horizon and the first floor row below it (30 m); the
+    # near floor not
+    assert (sky | box)[:17].all() and not sky[-8:].any()
+    np.testing.assert_allclose(dp[sky], far, rtol=1e-4)
+    near = ~sky
     scale = 1000.0 if fmt == "float32" else 1.0  # mm
+    assert np.median(np.abs(dp[near] - cpu[near])) * scale <= DEPTH_TOLERANCE_MM["pinhole"]
     assert np.median(np.abs(dp[box] - cpu[box])) * scale <= DEPTH_TOLERANCE_MM["pinhole"]
 
 
