@@ -573,3 +573,26 @@ def test_open_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
         renderer.close()
     for c, d in diffs.items():
         assert np.mean(d) < ARTICULATED_RGB_TOLERANCE[c], {k: np.mean(v) for k, v in diffs.items()}
+
+
+def test_a_bad_camera_rig_names_the_fix() -> None:
+    """A rig of unknown depth format, a camera twice, a fisheye that is not square, or a camera
+    the model lacks is refused with a :class:`ConfigError` saying what to give instead."""
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
+    from factory.demos.record.rig import CameraRig, RigCamera
+    from factory.errors import ConfigError
+
+    left = RigCamera("left", "level", 48, 32)
+    with pytest.raises(ConfigError, match="choose one of uint16_mm, float32"):
+        CameraRig((left,), "png")
+    with pytest.raises(ConfigError, match="names a camera twice"):
+        CameraRig((left, left))
+    with pytest.raises(ConfigError, match="a fisheye image is square"):
+        RigCamera("fisheye_front", "level", 48, 32, FisheyeSpec(resolution=48))
+    with pytest.raises(ConfigError, match="at least 1 px"):
+        RigCamera("left", "level", 0, 32)
+    model = _sky_model()
+    with pytest.raises(ConfigError, match=r"no camera\(s\) \['camera_left'\]"):
+        WarpRecordingRenderer(model, CameraRig((RigCamera("left", "camera_left", 8, 8),)))
+    with pytest.raises(ConfigError, match=r"demos\.render=false"):
+        WarpRecordingRenderer(model, CameraRig(()))

@@ -135,6 +135,9 @@ class WarpRecordingRenderer:
         worlds: frames per call (the batch size): the fewest of ``max_worlds`` and what fits
             in ``budget``.
         times: seconds spent so far (:class:`WarpRenderTimes`).
+
+    Raises:
+        ConfigError: the rig names no camera, or a camera the model lacks.
     """
 
     def __init__(
