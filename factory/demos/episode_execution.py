@@ -19,6 +19,8 @@ task, whose base drives between supports; the articulated tasks ``open``, ``clos
   (:class:`~factory.demos.execute.recording_render_warp.RecordingStream`), and each episode,
   once its last frame is drawn, goes to a writer process (images as numpy arrays). The scene's
   ``render`` seconds are the GPU's, ``warp_seconds`` its upload, draw, copy, frames and calls.
+* ``stage=warmup`` (:func:`warm_up_scene`): the renderer's kernels of a scene compiled ahead
+  into Warp's kernel cache.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from __future__ import annotations
 import logging
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, wait
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from factory.demos.execution import (
     CpuRecorder,
@@ -42,7 +44,10 @@ from factory.demos.record.scene import DemoScene, SimulatingScene
 from factory.demos.record.slots import StageEnv, episode_seed
 from factory.errors import ConfigError, FactoryError
 
-__all__ = ["EPISODE", "EpisodeCpu", "EpisodeGpu", "plan_and_simulate"]
+if TYPE_CHECKING:
+    from factory.sim.kernel_preload import PreloadReport
+
+__all__ = ["EPISODE", "EpisodeCpu", "EpisodeGpu", "plan_and_simulate", "warm_up_scene"]
 
 log = logging.getLogger(__name__)
 
@@ -219,11 +224,33 @@ class EpisodeGpu(GpuRecorder):
             w.result()
 
 
+def warm_up_scene(scene: DemoScene, env: StageEnv, device: str) -> PreloadReport:
+    """Compiles the kernels :class:`EpisodeGpu` launches in ``scene`` (set up without its
+    planner) on Warp device ``device`` (``stage=warmup``): a renderer of one world with the
+    scene's camera rig and the run's recording settings, warmed up
+    (:meth:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer.warm_up`), then
+    dropped; the kernels stay loaded in this process and compiled in Warp's kernel cache. With
+    ``demos.render=false`` the pipeline draws nothing and nothing is compiled."""
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
+    from factory.sim.kernel_preload import PreloadReport
+
+    sim = simulating(scene)
+    cfg = sim.record_config()
+    if not cfg.render:
+        return PreloadReport(0, 0, 0.0, 0.0, 0, "")
+    renderer = WarpRecordingRenderer(sim.setup.model, sim.camera_rig(cfg), device, max_worlds=1)
+    try:
+        return renderer.warm_up()
+    finally:
+        renderer.close()
+
+
 EPISODE = Execution(
     round_slots=1,
     queue_per_worker=2,
     slot_worker=plan_and_simulate,
     cpu_recorder=EpisodeCpu,
     gpu_recorder=EpisodeGpu,
+    warm_up=warm_up_scene,
 )
 """The ``episode`` execution (see the module)."""

@@ -50,6 +50,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from factory.demos.record.rig import CameraRig
+    from factory.sim.kernel_preload import PreloadReport
 
 log = logging.getLogger(__name__)
 
@@ -177,6 +178,7 @@ class WarpRecordingRenderer:
         self.cameras = list(rig.keys)
         names = [c.camera for c in rig.cameras]
         res = [(c.width, c.height) for c in rig.cameras]
+        self._names, self._res = names, res
         self.sizes = [(h, w) for w, h in res]  # (rows, columns) per camera
         npix = [w * h for w, h in res]
         self.starts = np.concatenate([[0], np.cumsum(npix)[:-1]]).astype(np.int64)
@@ -346,6 +348,48 @@ class WarpRecordingRenderer:
                 rgb[c][a:b] = im[c]
                 depth[c][a:b] = dp[c]
         return rgb, depth
+
+    def warm_up(self) -> PreloadReport:
+        """Compiles (or loads from Warp's kernel cache) the kernels a call launches, now and on
+        every core (:func:`factory.sim.kernel_preload.preload`): a dry trace of :meth:`_draw`'s
+        launches on one world of a throwaway data and render context (same model, cameras and
+        options), then the modules in parallel; Warp would otherwise compile them one after
+        the other at the first call (``stage=warmup``).
+
+        Returns:
+            what the preload did (module variants traced, those loaded now, seconds).
+        """
+        from factory.demos.execute import recording_warp_kernels as k
+        from factory.demos.execute.warp import render_context
+        from factory.sim.kernel_preload import preload
+
+        wp, mjw, model = self.wp, self.mjw, self.model
+
+        def trace() -> None:
+            wp.launch(k.to_images, dim=1)
+            d = mjw.make_data(model, nworld=1, nconmax=1, njmax=1)
+            rc = render_context(model, 1, self._res, self._names)
+            mjw.kinematics(self.m, d)
+            if self.needs_com:
+                mjw.com_pos(self.m, d)
+            mjw.camlight(self.m, d)
+            mjw.refit_bvh(self.m, d, rc)
+            mjw.render(self.m, d, rc)
+
+        t0 = time.perf_counter()
+        with wp.ScopedDevice(self.device):
+            report = preload(wp, trace)
+        log.info(
+            "warp recording renderer: kernels: %d modules to load of the %d a call launches, on "
+            "%d threads in %.1f s (%.1f s with the trace)%s",
+            report.compiled,
+            report.modules,
+            report.workers,
+            report.load_s,
+            time.perf_counter() - t0,
+            f"; trace stopped early: {report.error}" if report.error else "",
+        )
+        return report
 
     def render_recordings(self, recs: list[DrawnRecording]) -> None:
         """Draws every frame of ``recs`` (episodes of this scene) into their ``rgb``/``depth``,
