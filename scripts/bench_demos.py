@@ -3,7 +3,7 @@ and failure reasons, planning time per segment, rendering frames/s.
 
     python scripts/bench_demos.py [--scenes 2] [--episodes 4] [--cores 1] [--batch 16]
         [--executor cpu|warp] [--gpu-batch 512] [--workers N]
-        [--task pick_place|mobile_pick_place|open|close]
+        [--task pick_place|mobile_pick_place|open|close|place_inside]
         [--runs cold warm] [--set KEY=VALUE ...]
         [--run-dir runs/bench_demos] [--out benchmarks/results/demos-cpu1.json]
 
@@ -21,9 +21,17 @@ and ``--scenes 3`` gives the earlier, shorter figure. A run folder holding more 
 cache held at the start (``bare_machine``: none) and each run's time to its first stored
 episode (from the command's start, kernel compilation included).
 
+The tasks that simulate their episodes themselves (``mobile_pick_place``, ``open``, ``close``,
+``place_inside``: ``demo_execution = "episode"``) run on the GPU as
+:mod:`factory.demos.episode_execution` says: ``--workers`` processes plan and simulate each
+episode on the CPU without images and the GPU draws the recorded states with the task's own
+cameras (the mobile robot's five; the fixed-base Panda's left, right and wrist), so their demos
+per GPU-node hour are bounded by the node's CPU cores, not by the GPU; the JSON's ``task`` names
+the task, its ``per_scene`` rows the GPU and plan-waiting seconds of each scene.
+
 Scenes are generated first (kitchens with a pick-and-place task, or living rooms with a mobile
-"move the can from the coffee table to the desk" task, or for ``--task open`` / ``close`` the
-kitchens built with articulated furniture; not timed; kept in
+"move the can from the coffee table to the desk" task, or for ``--task open`` / ``close`` /
+``place_inside`` the same kitchens built with articulated furniture; not timed; kept in
 ``--run-dir`` and reused). ``stage=demos`` then runs through the real CLI on ``--cores`` cores
 (``taskset``; planning workers, simulation threads and Mesa's renderer threads all limited to
 them) twice: a cold run into an empty episode store and a warm run after deleting the episodes
@@ -57,9 +65,12 @@ PROMPTS = {
     # (docs/ARTICULATED_TASKS.md, "Which part")
     "open": "a kitchen where the robot picks up a mug and puts it in the bowl",
     "close": "a kitchen where the robot picks up a mug and puts it in the bowl",
+    # place_inside: the same kitchens; the task puts the scene's pick object (the mug) away in
+    # the first drawer the robot can work (docs/ARTICULATED_TASKS.md, "Putting things away")
+    "place_inside": "a kitchen where the robot picks up a mug and puts it in the bowl",
 }
 """The generation request of each task's benchmark scenes."""
-GENERATE_ARGS = {"open": ["assets.articulated=true"], "close": ["assets.articulated=true"]}
+GENERATE_ARGS = {name: ["assets.articulated=true"] for name in ("open", "close", "place_inside")}
 """More ``stage=generate`` overrides of a task's benchmark scenes."""
 
 
@@ -160,6 +171,8 @@ def _kernels_ready(run: Path) -> list[float]:
 
 
 def main() -> None:
+    from factory.tasks import get_task
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", type=int, default=None, help="default 2 (cpu), 10 (warp)")
     p.add_argument(
@@ -185,9 +198,11 @@ def main() -> None:
         default="pick_place",
         choices=sorted(PROMPTS),
         help=(
-            "mobile_pick_place: living rooms; CPU executor: one episode at a time per worker; "
-            "--executor warp: --workers processes plan and simulate, the GPU renders "
-            "(factory.demos.gpu_pipeline, factory.demos.episode_execution)"
+            "mobile_pick_place: living rooms; open, close, place_inside: kitchens with "
+            "articulated furniture; these four on the CPU executor: one episode at a time per "
+            "worker; --executor warp: --workers processes plan and simulate, the GPU renders "
+            "with the task's cameras (factory.demos.gpu_pipeline, "
+            "factory.demos.episode_execution)"
         ),
     )
     p.add_argument(
@@ -326,6 +341,7 @@ def main() -> None:
         "executor": args.executor,
         "kernel_cache": cache,
         "task": args.task,
+        "demo_execution": get_task(args.task).demo_execution,
         "workers": workers,
         "scenes": args.scenes,
         "episodes_per_scene": args.episodes,

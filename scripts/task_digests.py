@@ -21,7 +21,7 @@ Cases (each into a fresh run dir ``<work>/<case>/run``, the same path every time
   state policy (3 steps) and its eval.
 * ``d``: ``mobile_pick_place`` with ``demos.executor=warp`` (MuJoCo Warp renders, on Warp's CPU
   device here) on a generated living room (the request of
-  ``tests/demos/test_mobile_render_warp.py``, no physics critic): 2 episodes at 32 x 32 and
+  ``tests/demos/test_recording_render_warp.py``, no physics critic): 2 episodes at 32 x 32 and
   5 fps, the dataset, eval replay.
 
 What is digested (SHA-256; paths inside outputs are written relative to the run dir as

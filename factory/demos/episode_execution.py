@@ -1,21 +1,26 @@
 """The ``episode`` execution of ``stage=demos``: the task simulates each episode itself, one at
 a time on one ``MjData`` (a :class:`~factory.demos.record.scene.SimulatingScene`: the mobile
-task, whose base drives between supports).
+task, whose base drives between supports; the articulated tasks ``open``, ``close`` and
+``place_inside``, whose fingers move a part of the scene).
 
 * CPU (:class:`EpisodeCpu`): a slot at a time, its attempts one after another; each episode is
   simulated, checked and drawn by the task
   (:meth:`~factory.demos.record.scene.SimulatingScene.simulate`) and logs one INFO line (slot,
   attempt, outcome, seconds of planning, simulation and rendering).
-* GPU pipeline: a mobile episode's cost on a CPU is its cameras (about 34 of its 40 s at 128 px), so
-  the images alone move to the GPU. The planner processes plan and simulate a slot without images,
-  trying its seeds until an episode succeeds (:func:`plan_and_simulate`, the CPU path's seeds and
-  attempts), and return the recording's states and signals; the main process (:class:`EpisodeGpu`)
-  renders the successful recordings of a scene on MuJoCo Warp
-  (:class:`~factory.demos.execute.mobile_render_warp.WarpMobileRenderer`): their frames fill the
-  worlds of each render call back to back
-  (:class:`~factory.demos.execute.mobile_render_warp.RecordingStream`), and each episode, once its
-  last frame is drawn, goes to a writer process (images as numpy arrays). The scene's ``render``
-  seconds are the GPU's, ``warp_seconds`` its upload, draw, copy, frames and calls.
+* GPU pipeline: such an episode's cost on a CPU is mostly its cameras (a mobile episode's about
+  34 of its 40 s at 128 px), so the images alone move to the GPU. The planner processes plan and
+  simulate a slot without images, trying its seeds until an episode succeeds
+  (:func:`plan_and_simulate`, the CPU path's seeds and attempts), and return the recording's
+  states and signals; the main process (:class:`EpisodeGpu`) renders the successful recordings
+  of a scene on MuJoCo Warp with the scene's own cameras
+  (:meth:`~factory.demos.record.scene.SimulatingScene.camera_rig`,
+  :class:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer`): their frames
+  fill the worlds of each render call back to back
+  (:class:`~factory.demos.execute.recording_render_warp.RecordingStream`), and each episode,
+  once its last frame is drawn, goes to a writer process (images as numpy arrays). The scene's
+  ``render`` seconds are the GPU's, ``warp_seconds`` its upload, draw, copy, frames and calls.
+* ``stage=warmup`` (:func:`warm_up_scene`): the renderer's kernels of a scene compiled ahead
+  into Warp's kernel cache.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from __future__ import annotations
 import logging
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, wait
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from factory.demos.execution import (
     CpuRecorder,
@@ -39,7 +44,10 @@ from factory.demos.record.scene import DemoScene, SimulatingScene
 from factory.demos.record.slots import StageEnv, episode_seed
 from factory.errors import ConfigError, FactoryError
 
-__all__ = ["EPISODE", "EpisodeCpu", "EpisodeGpu", "plan_and_simulate"]
+if TYPE_CHECKING:
+    from factory.sim.kernel_preload import PreloadReport
+
+__all__ = ["EPISODE", "EpisodeCpu", "EpisodeGpu", "plan_and_simulate", "warm_up_scene"]
 
 log = logging.getLogger(__name__)
 
@@ -162,12 +170,15 @@ class EpisodeGpu(GpuRecorder):
     ) -> float:
         """Renders the scene's successful recordings as the planner processes return them;
         returns the GPU seconds (``render``)."""
-        from factory.demos.execute.mobile_render_warp import RecordingStream, WarpMobileRenderer
+        from factory.demos.execute.recording_render_warp import (
+            RecordingStream,
+            WarpRecordingRenderer,
+        )
 
         sim = simulating(scene)
         cfg = sim.record_config()
         bar = self.run.bar
-        renderer: WarpMobileRenderer | None = None
+        renderer: WarpRecordingRenderer | None = None
         stream: RecordingStream | None = None
         slots: dict[int, tuple[int, int, Any]] = {}
         left = set(futures)
@@ -190,7 +201,9 @@ class EpisodeGpu(GpuRecorder):
                     waited["writes"] += self._write(sim, res.rec, slots, cfg)
                     continue
                 if renderer is None:
-                    renderer = WarpMobileRenderer(sim.setup.model, cfg, device=self.run.device)
+                    renderer = WarpRecordingRenderer(
+                        sim.setup.model, sim.camera_rig(cfg), device=self.run.device
+                    )
                     stream = RecordingStream(renderer)
                 assert stream is not None
                 for rec in stream.push(res.rec):
@@ -211,11 +224,33 @@ class EpisodeGpu(GpuRecorder):
             w.result()
 
 
+def warm_up_scene(scene: DemoScene, env: StageEnv, device: str) -> PreloadReport:
+    """Compiles the kernels :class:`EpisodeGpu` launches in ``scene`` (set up without its
+    planner) on Warp device ``device`` (``stage=warmup``): a renderer of one world with the
+    scene's camera rig and the run's recording settings, warmed up
+    (:meth:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer.warm_up`), then
+    dropped; the kernels stay loaded in this process and compiled in Warp's kernel cache. With
+    ``demos.render=false`` the pipeline draws nothing and nothing is compiled."""
+    from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
+    from factory.sim.kernel_preload import PreloadReport
+
+    sim = simulating(scene)
+    cfg = sim.record_config()
+    if not cfg.render:
+        return PreloadReport(0, 0, 0.0, 0.0, 0, "")
+    renderer = WarpRecordingRenderer(sim.setup.model, sim.camera_rig(cfg), device, max_worlds=1)
+    try:
+        return renderer.warm_up()
+    finally:
+        renderer.close()
+
+
 EPISODE = Execution(
     round_slots=1,
     queue_per_worker=2,
     slot_worker=plan_and_simulate,
     cpu_recorder=EpisodeCpu,
     gpu_recorder=EpisodeGpu,
+    warm_up=warm_up_scene,
 )
 """The ``episode`` execution (see the module)."""

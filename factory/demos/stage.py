@@ -45,7 +45,7 @@ EXECUTORS: dict[str, str] = {
     "or the task's own simulation an episode at a time",
     "warp": "the GPU pipeline (factory.demos.gpu_pipeline): MuJoCo Warp worlds + its batch "
     "renderer (factory.demos.execute.warp), or the task's simulation on the CPU and Warp "
-    "rendering (factory.demos.execute.mobile_render_warp)",
+    "rendering (factory.demos.execute.recording_render_warp)",
 }
 """``demos.executor`` values."""
 

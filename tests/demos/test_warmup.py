@@ -81,12 +81,20 @@ def test_warmup_compiles_a_scenes_kernels_once(
 
 
 def test_a_task_without_gpu_kernels_compiles_nothing(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    """``task=open`` records on the CPU executor only: the stage says so in one line, compiles
-    nothing (no scene set up, no Warp) and writes the summary with the reason."""
+    """A task whose execution has no warm-up (``Execution.warm_up`` None; every registered
+    execution has one now, so ``task=open``'s stands in without it): the stage says so in one
+    line, compiles nothing (no scene set up, no Warp) and writes the summary with the reason."""
+    import dataclasses
+
+    import factory.demos.execution as execution
+    from factory.demos.episode_execution import EPISODE
     from factory.demos.warmup import run
 
+    monkeypatch.setattr(
+        execution, "execution_of", lambda task: dataclasses.replace(EPISODE, warm_up=None)
+    )
     root = tmp_path / "run"
     (root / "scenes" / "kitchen").mkdir(parents=True)
     shutil.copy(EXAMPLE_SCENE, root / "scenes" / "kitchen" / "scene.json")
@@ -99,6 +107,33 @@ def test_a_task_without_gpu_kernels_compiles_nothing(
     assert "task=open compiles no GPU kernels ahead" in reason and "nothing compiled" in reason
     assert reason in caplog.text
     assert out["produced"][0]["detail"] == reason
+
+
+def test_warmup_compiles_the_episode_renderers_kernels(tmp_path: Path) -> None:
+    """``task=open`` (the ``episode`` execution: the GPU draws recorded states) on its bundled
+    kitchen, on Warp's CPU device: the scene is set up without its planner and the kernels of
+    the renderer's calls (kinematics, camera poses, BVH, ray tracing, pixel conversion) are
+    traced and loaded; a second warm-up loads none."""
+    require_robot_models()
+    pytest.importorskip("ompl")
+    pytest.importorskip("mujoco_warp")
+    from factory.demos.warmup import run
+    from factory.tasks import get_task
+
+    src = get_task("open").example_scene_path()
+    assert src is not None
+    root = tmp_path / "run"
+    (root / "scenes" / src.parent.name).mkdir(parents=True)
+    shutil.copy(src, root / "scenes" / src.parent.name / "scene.json")
+    ctx = _ctx(root, task="open", width=32, height=32)
+    first = run(ctx)
+    assert first["scenes_warmed"] == 1 and first["scenes_failed"] == 0, first
+    (one,) = json.loads((root / "warmup.json").read_text())["scenes"]
+    assert "trace_error" not in one and one["modules"] >= 5, one
+    assert 0 <= one["compiled"] <= one["loaded"] <= one["modules"]
+    run(ctx)
+    (again,) = json.loads((root / "warmup.json").read_text())["scenes"]
+    assert again["modules"] == one["modules"] and again["loaded"] == 0, again
 
 
 def test_a_run_without_scenes_names_the_fix(tmp_path: Path, cli) -> None:

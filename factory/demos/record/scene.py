@@ -13,12 +13,15 @@ a time by the task's own simulation (:meth:`SimulatingScene.simulate`).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from factory.demos.record.slots import StageEnv
 from factory.schema.episode import EpisodeInfo
+
+if TYPE_CHECKING:
+    from factory.demos.record.rig import CameraRig
 
 __all__ = ["DemoScene", "SimulatingScene"]
 
@@ -71,7 +74,8 @@ class DemoScene(ABC):
 class SimulatingScene(DemoScene):
     """A :class:`DemoScene` whose task simulates each episode itself (``demo_execution =
     "episode"``): the CPU path simulates and draws an episode at a time, the GPU pipeline's
-    workers simulate without images and the GPU draws the recorded states."""
+    workers simulate without images and the GPU draws the recorded states with the scene's
+    own cameras (:meth:`camera_rig`)."""
 
     @abstractmethod
     def record_config(self, render: bool | None = None) -> Any:
@@ -80,6 +84,14 @@ class SimulatingScene(DemoScene):
     @abstractmethod
     def renderer(self, rec_cfg: Any) -> Any:
         """A CPU renderer of the scene's cameras for :meth:`simulate` (has ``close()``)."""
+
+    @abstractmethod
+    def camera_rig(self, rec_cfg: Any) -> CameraRig:
+        """The cameras :meth:`renderer` draws with the settings ``rec_cfg``, for a renderer of
+        recorded states (the GPU pipeline's,
+        :class:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer`): each
+        recorded camera's key, its camera in :attr:`setup`'s model, image size and lens, in
+        the recorded order, and the depth format."""
 
     @abstractmethod
     def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:

@@ -28,9 +28,9 @@ import numpy as np
 
 from factory.config import DemosConfig
 from factory.demos.record.payload import episode_arrays, episode_meta
+from factory.demos.record.rig import CameraRig
 from factory.demos.record.scene import SimulatingScene
 from factory.demos.record.slots import StageEnv
-from factory.errors import TaskError
 from factory.schema import Scene
 from factory.schema.episode import EpisodeInfo, RobotBase
 from factory.tasks.articulated.plan import ArticulatedPlan, ArticulatedPlanner, ArticulatedSetup
@@ -188,6 +188,13 @@ class ArticulatedScene(SimulatingScene):
 
         return ArticulatedRenderer(self.setup.model, rec_cfg)
 
+    def camera_rig(self, rec_cfg: Any) -> CameraRig:
+        """The fixed-base Panda's cameras :meth:`renderer` draws
+        (:func:`~factory.tasks.articulated.record.camera_rig`)."""
+        from factory.tasks.articulated.record import camera_rig
+
+        return camera_rig(rec_cfg)
+
     def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> Any:
         """:meth:`execute` (images only with a renderer)."""
         if renderer is None:
@@ -242,29 +249,29 @@ class ArticulatedScene(SimulatingScene):
 
 def demo_scene(env: StageEnv, scene_id: str, plan: bool = True) -> ArticulatedScene:
     """:meth:`factory.tasks.base.Task.demo_scene` of the articulated tasks (the direction is
-    the task's, ``env.task``); with its planner, logs the set-up time and the part.
+    the task's, ``env.task``); logs the set-up time and the part. Without ``plan`` (the GPU
+    pipeline's main process, which draws the recorded states with the scene's cameras) the
+    scene is set up as the planner processes set it up (:func:`scene_setup`: the same model,
+    base spot and part), without its planner.
 
     Raises:
-        TaskError: the scene has no usable part, or ``plan`` is False (the GPU pipeline,
-            which cannot draw these tasks yet).
+        TaskError: the scene has no usable part.
     """
     from factory.tasks import get_task
 
     direction = str(getattr(get_task(env.task), "direction"))  # noqa: B009
     t0 = time.perf_counter()
-    if not plan:  # the GPU pipeline's main process: it would draw with the mobile robot's rig
-        raise TaskError(
-            f"task={env.task} records on the CPU executor only: the GPU pipeline's renderer "
-            "for tasks that simulate their episodes themselves draws the mobile robot's cameras "
-            "(pass demos.executor=cpu)"
-        )
-    setup, planner = scene_planner(env.run_dir, scene_id, env.demos, direction)
+    if plan:
+        setup, planner = scene_planner(env.run_dir, scene_id, env.demos, direction)
+    else:
+        setup, planner = scene_setup(env.run_dir, scene_id, env.demos, direction), None
     log.info(
-        "scene %s: %s %s (%s), set up in %.1f s",
+        "scene %s: %s %s (%s), set up in %.1f s%s",
         scene_id,
         direction,
         setup.part.key,
         setup.part.label,
         time.perf_counter() - t0,
+        "" if plan else " (no planner: recording only)",
     )
     return ArticulatedScene(env, setup, planner)

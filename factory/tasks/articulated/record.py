@@ -1,6 +1,8 @@
 """The recording pieces of the articulated tasks' episodes, on the tasks' floor: what is
 recorded (:class:`RecordConfig`, :class:`Recording`), the cameras' renderer
-(:class:`ArticulatedRenderer`) and the robot's signals and contacts per frame.
+(:class:`ArticulatedRenderer`) and the same cameras as a renderer of recorded states needs them
+(:func:`camera_rig`: the GPU pipeline draws them on MuJoCo Warp), and the robot's signals and
+contacts per frame.
 
 They match the fixed task's (:mod:`factory.demos.execute.cpu`, a floor above the tasks, which
 a task package does not import): the same settings, arrays, renderer set-up (one
@@ -12,7 +14,7 @@ export and the evaluation env read them the same way.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -20,11 +22,15 @@ import numpy as np
 from factory.demos.record.frame_render import CameraStrip, size_offscreen
 from factory.robots.panda import CAMERAS, RobotIndex
 
+if TYPE_CHECKING:
+    from factory.demos.record.rig import CameraRig
+
 __all__ = [
     "SHADOW_SIZE",
     "ArticulatedRenderer",
     "RecordConfig",
     "Recording",
+    "camera_rig",
     "robot_penetration",
     "robot_signals",
 ]
@@ -97,6 +103,19 @@ class ArticulatedRenderer(CameraStrip):
         size_offscreen(model, len(cfg.cameras) * cfg.width, cfg.height)
         cams = [model.camera(CAMERAS[c]).id for c in cfg.cameras]
         super().__init__(model, cams, cfg.width, cfg.height, cfg.depth, cfg.shadows, cull)
+
+
+def camera_rig(cfg: RecordConfig) -> CameraRig:
+    """The cameras :class:`ArticulatedRenderer` draws with ``cfg``, for a renderer of recorded
+    states (the GPU pipeline's): the fixed-base Panda's pinhole cameras
+    (:data:`factory.robots.panda.CAMERAS`: ``left`` and ``right`` fixed in the scene, ``wrist``
+    on the hand), ``width`` x ``height`` px each, in ``cfg.cameras``' order, and the depth
+    format."""
+    from factory.demos.record.rig import CameraRig, RigCamera
+
+    return CameraRig(
+        tuple(RigCamera(c, CAMERAS[c], cfg.width, cfg.height) for c in cfg.cameras), cfg.depth
+    )
 
 
 def robot_signals(

@@ -16,7 +16,8 @@ from them; importing the package is cheap, a name loads its module on first use)
   and the timed per-step plan :class:`MobileEpisodePlan`;
 * :mod:`factory.tasks.mobile_pick_place.execute`: :func:`execute_mobile` (simulate, record,
   check success with :func:`check_mobile_success`, then render the successful episodes'
-  images), :func:`replay`, :class:`MobileRenderer`;
+  images), :func:`replay`, :class:`MobileRenderer` and its cameras as a renderer of recorded
+  states needs them (:func:`camera_rig`);
 * :mod:`factory.tasks.mobile_pick_place.demos`: what ``stage=demos task=mobile_pick_place``
   records with (:func:`~factory.tasks.mobile_pick_place.demos.mobile_scene_planner`, the scene
   and its planner; :class:`~factory.tasks.mobile_pick_place.demos.MobilePickPlaceScene`);
@@ -44,6 +45,9 @@ if TYPE_CHECKING:
     )
     from factory.tasks.mobile_pick_place.execute import (
         MobileRenderer as MobileRenderer,
+    )
+    from factory.tasks.mobile_pick_place.execute import (
+        camera_rig as camera_rig,
     )
     from factory.tasks.mobile_pick_place.execute import (
         check_mobile_success as check_mobile_success,
@@ -175,6 +179,7 @@ _LAZY: dict[str, str] = {
     "SUBTASKS": "factory.tasks.mobile_pick_place.scene",
     "base_matrix": "factory.tasks.mobile_pick_place.scene",
     "body_box": "factory.tasks.mobile_pick_place.scene",
+    "camera_rig": "factory.tasks.mobile_pick_place.execute",
     "carry_order": "factory.tasks.mobile_pick_place.plan",
     "check_mobile_success": "factory.tasks.mobile_pick_place.execute",
     "clear_for_base": "factory.tasks.mobile_pick_place.scene",

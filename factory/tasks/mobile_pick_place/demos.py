@@ -29,6 +29,7 @@ import numpy as np
 
 from factory.config import DemosConfig
 from factory.demos.record.payload import episode_arrays, episode_meta
+from factory.demos.record.rig import CameraRig
 from factory.demos.record.scene import SimulatingScene
 from factory.demos.record.slots import StageEnv
 from factory.errors import TaskError
@@ -37,6 +38,7 @@ from factory.tasks.mobile_pick_place.execute import (
     MobileRecordConfig,
     MobileRecording,
     MobileRenderer,
+    camera_rig,
     execute_mobile,
 )
 from factory.tasks.mobile_pick_place.plan import MobileEpisodePlan, MobilePlanner
@@ -107,6 +109,11 @@ class MobilePickPlaceScene(SimulatingScene):
 
     def renderer(self, rec_cfg: MobileRecordConfig) -> MobileRenderer:
         return MobileRenderer(self.setup.model, rec_cfg)
+
+    def camera_rig(self, rec_cfg: MobileRecordConfig) -> CameraRig:
+        """The robot's cameras :meth:`renderer` draws, three pinhole and two fisheye
+        (:func:`~factory.tasks.mobile_pick_place.execute.camera_rig`)."""
+        return camera_rig(rec_cfg)
 
     def simulate(self, plan: Any, rec_cfg: Any, renderer: Any | None = None) -> MobileRecording:
         """:func:`~factory.tasks.mobile_pick_place.execute.execute_mobile`."""

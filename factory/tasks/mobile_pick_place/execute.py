@@ -39,6 +39,7 @@ from factory.tasks.mobile_pick_place.scene import (
 from factory.tasks.pick_place.objects import Outcome
 
 if TYPE_CHECKING:
+    from factory.demos.record.rig import CameraRig
     from factory.tasks.mobile_pick_place.plan import MobileEpisodePlan
 
 log = logging.getLogger(__name__)
@@ -178,6 +179,25 @@ class MobileRenderer:
             self.strip.close()
         if self.fish is not None:
             self.fish.close()
+
+
+def camera_rig(cfg: MobileRecordConfig) -> CameraRig:
+    """The cameras :class:`MobileRenderer` draws with ``cfg``, for a renderer of recorded
+    states (the GPU pipeline's): the pinhole cameras on the robot
+    (:data:`factory.robots.mobile_panda.CAMERAS`, ``width`` x ``height`` px) and the fisheye
+    cameras (:data:`~factory.tasks.mobile_pick_place.scene.FISHEYE_CAMERAS`, ``width`` px
+    square, an equidistant lens of ``fisheye_fov_deg``), in ``cfg.cameras``' order."""
+    from factory.demos.record.rig import CameraRig, RigCamera
+    from factory.sim.fisheye import FisheyeSpec
+
+    cams = []
+    for c in cfg.cameras:
+        if c in FISHEYE_CAMERAS:
+            lens = FisheyeSpec(resolution=cfg.width, fov_deg=cfg.fisheye_fov_deg)
+            cams.append(RigCamera(c, FISHEYE_CAMERAS[c], cfg.width, cfg.width, lens))
+        else:
+            cams.append(RigCamera(c, CAMERAS[c], cfg.width, cfg.height))
+    return CameraRig(tuple(cams), cfg.depth)
 
 
 def penetrations(

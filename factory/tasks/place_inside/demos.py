@@ -28,34 +28,26 @@ from factory.config import DemosConfig
 from factory.demos.record.payload import episode_arrays, episode_meta
 from factory.demos.record.scene import SimulatingScene
 from factory.demos.record.slots import StageEnv
-from factory.errors import TaskError
 from factory.schema.episode import EpisodeInfo, RobotBase
 from factory.tasks.articulated.demos import ArticulatedScene, ensure_assets
 from factory.tasks.place_inside.plan import PlaceInsidePlan, PlaceInsidePlanner, PlaceInsideSetup
 
-__all__ = ["PlaceInsideScene", "demo_scene", "scene_planner"]
+__all__ = ["PlaceInsideScene", "demo_scene", "scene_planner", "scene_setup"]
 
 log = logging.getLogger(__name__)
 
 
-def scene_planner(
-    run_dir: str | Path, scene_id: str, dc: DemosConfig
-) -> tuple[PlaceInsideSetup, PlaceInsidePlanner]:
+def scene_setup(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> PlaceInsideSetup:
     """A scene of a run composed with the robot in front of its container part as
     ``stage=demos`` records it (:func:`~factory.tasks.place_inside.plan.setup_scene`,
-    deterministic per scene) and its planner (free-motion speed and RRTConnect timeout from
-    ``demos.*``).
+    deterministic per scene; objects beyond ``demos.freeze_beyond`` static).
 
     Raises:
-        TaskError: no object to put away, no container part the robot can work, or an object
-            the gripper cannot take from the container's top
-            (:meth:`~factory.tasks.place_inside.plan.PlaceInsidePlanner.check_graspable`).
+        TaskError: no object to put away, or no container part the robot can work.
     """
     import mujoco
 
-    from factory.demos.plan.planner import PlannerConfig
     from factory.store import RunStore
-    from factory.tasks.articulated.plan import ArticulatedMotion
     from factory.tasks.place_inside.plan import setup_scene
 
     store = RunStore(run_dir)
@@ -63,6 +55,24 @@ def scene_planner(
     setup = setup_scene(scene, store.assets_dir, freeze_beyond=dc.freeze_beyond)
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    return setup
+
+
+def scene_planner(
+    run_dir: str | Path, scene_id: str, dc: DemosConfig
+) -> tuple[PlaceInsideSetup, PlaceInsidePlanner]:
+    """:func:`scene_setup` and its planner (free-motion speed and RRTConnect timeout from
+    ``demos.*``).
+
+    Raises:
+        TaskError: no object to put away, no container part the robot can work, or an object
+            the gripper cannot take from the container's top
+            (:meth:`~factory.tasks.place_inside.plan.PlaceInsidePlanner.check_graspable`).
+    """
+    from factory.demos.plan.planner import PlannerConfig
+    from factory.tasks.articulated.plan import ArticulatedMotion
+
+    setup = scene_setup(run_dir, scene_id, dc)
     motion = ArticulatedMotion(speed=dc.speed, accel=0.6 * dc.speed, jerk=0.4 * dc.speed)
     planner = PlaceInsidePlanner(setup, motion, PlannerConfig(timeout=dc.plan_timeout))
     planner.check_graspable()
@@ -71,8 +81,8 @@ def scene_planner(
 
 class PlaceInsideScene(ArticulatedScene):
     """A scene of ``task=place_inside`` set up for ``stage=demos`` (episodes simulated one at a
-    time): the articulated tasks' scene (its planner, renderer and recording settings) with
-    this task's episode execution, summary and payload."""
+    time): the articulated tasks' scene (its planner, renderer, camera rig and recording
+    settings) with this task's episode execution, summary and payload."""
 
     plan_type: ClassVar[type[Any]] = PlaceInsidePlan
     setup: PlaceInsideSetup  # type: ignore[assignment]  # the articulated set-up inside it
@@ -139,26 +149,26 @@ class PlaceInsideScene(ArticulatedScene):
 
 def demo_scene(env: StageEnv, scene_id: str, plan: bool = True) -> PlaceInsideScene:
     """:meth:`factory.tasks.base.Task.demo_scene` of ``task=place_inside``; logs the set-up
-    time, the part and the object.
+    time, the part and the object. Without ``plan`` (the GPU pipeline's main process, which
+    draws the recorded states with the scene's cameras) the scene is set up as the planner
+    processes set it up (:func:`scene_setup`), without its planner; an object the gripper
+    cannot take is then found by the planner processes, which report the scene unusable.
 
     Raises:
-        TaskError: the scene cannot host the task, or ``plan`` is False (the GPU pipeline,
-            which cannot draw the task yet).
+        TaskError: the scene cannot host the task.
     """
     t0 = time.perf_counter()
-    if not plan:
-        raise TaskError(
-            f"task={env.task} records on the CPU executor only: the GPU pipeline's renderer "
-            "for tasks that simulate their episodes themselves draws the mobile robot's cameras "
-            "(pass demos.executor=cpu)"
-        )
-    setup, planner = scene_planner(env.run_dir, scene_id, env.demos)
+    if plan:
+        setup, planner = scene_planner(env.run_dir, scene_id, env.demos)
+    else:
+        setup, planner = scene_setup(env.run_dir, scene_id, env.demos), None
     log.info(
-        "scene %s: put %s in %s (%s), set up in %.1f s",
+        "scene %s: put %s in %s (%s), set up in %.1f s%s",
         scene_id,
         setup.pick.id,
         setup.art.part.key,
         setup.art.part.label,
         time.perf_counter() - t0,
+        "" if plan else " (no planner: recording only)",
     )
     return PlaceInsideScene(env, setup, planner)

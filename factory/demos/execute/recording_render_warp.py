@@ -1,32 +1,40 @@
-"""The mobile task's five cameras rendered in batches on MuJoCo Warp (the GPU twin of
-:class:`factory.tasks.mobile_pick_place.execute.MobileRenderer`).
+"""Recorded states of the episodes a task simulates itself, drawn in batches on MuJoCo Warp with
+the scene's own cameras (the GPU twin of the task's CPU renderer: the articulated tasks'
+:class:`~factory.tasks.articulated.record.ArticulatedRenderer`, the mobile task's
+:class:`~factory.tasks.mobile_pick_place.execute.MobileRenderer`).
 
-A mobile episode is simulated first (on the CPU,
-:func:`~factory.tasks.mobile_pick_place.execute.execute_mobile` without images) and drawn afterwards
-from its recorded integration states. :class:`WarpMobileRenderer` makes the recorded frames of one
-or several episodes of a scene the worlds of one MuJoCo Warp model: per call it uploads each world's
+An episode of a :class:`~factory.demos.record.scene.SimulatingScene` is simulated first (on the
+CPU, in the GPU pipeline's planner processes, without images) and drawn afterwards from its
+recorded integration states. :class:`WarpRecordingRenderer` makes the recorded frames of one or
+several episodes of a scene the worlds of one MuJoCo Warp model: per call it uploads each world's
 configuration (``qpos``, and the mocap poses when the model has mocap bodies) from the recorded
 states, runs ``mujoco_warp.kinematics`` and ``camlight`` (plus ``com_pos`` where a camera or light
 tracks a centre of mass), refits the renderer's BVH, ray-traces every camera of every world in one
 ``mujoco_warp.render``, converts the pixels on the device
-(:mod:`factory.demos.execute.mobile_warp_kernels`) and copies RGB and depth back in one block each.
+(:mod:`factory.demos.execute.recording_warp_kernels`) and copies RGB and depth back in one block
+each.
 
-Cameras: the pinhole cameras (``left``, ``right``, ``wrist``) use MuJoCo Warp's own rays;
-each fisheye camera (``fisheye_front``, ``fisheye_back``) is one camera whose precomputed
-per-pixel rays (``RenderContext.ray``) are overwritten with the equidistant lens's directions
-(:attr:`factory.sim.fisheye.FisheyeSpec.rays`, in MuJoCo's camera frame: ``-z`` forward,
-``+y`` up, ``+x`` right), so a fisheye is one ray-traced image, not a cube map.
+Cameras: the scene's :class:`~factory.demos.record.rig.CameraRig`
+(:meth:`~factory.demos.record.scene.SimulatingScene.camera_rig`: the fixed-base Panda's ``left``,
+``right`` and ``wrist``; the mobile robot's ``left``, ``right``, ``wrist``, ``fisheye_front`` and
+``fisheye_back``), never a list of its own. Pinhole cameras use MuJoCo Warp's own rays; each
+fisheye camera is one camera whose precomputed per-pixel rays (``RenderContext.ray``) are
+overwritten with the lens's directions (:attr:`factory.sim.fisheye.FisheyeSpec.rays`, in MuJoCo's
+camera frame: ``-z`` forward, ``+y`` up, ``+x`` right), so a fisheye is one ray-traced image, not
+a cube map.
 
 Output: what the CPU path records, camera -> ``(F, H, W, 3)`` uint8 RGB and ``(F, H, W)``
-depth (``uint16_mm`` millimetres or ``float32`` metres; fisheye images ``width`` square).
-Pinhole depth is along the optical axis (MuJoCo Warp's planar depth); a ray that hits nothing
-reads the far plane (``vis.map.zfar`` x extent), as OpenGL's depth buffer does. Fisheye depth
-is the ray length (planar depth / cos(theta)); pixels outside the image circle are black with
-depth 0, and rays that hit nothing, or beyond the lens's ``far`` (50 m), read 0, as
-:class:`~factory.sim.fisheye.FisheyeRenderer` writes them.
+depth (``uint16_mm`` millimetres or ``float32`` metres; fisheye images square). Pinhole depth
+is along the optical axis (MuJoCo Warp's planar depth); a ray that hits nothing, or hits beyond
+the far plane, reads the far plane (``vis.map.zfar`` x ``stat.extent`` of the model, m), as
+OpenGL's depth buffer does (:class:`~factory.demos.record.frame_render.CameraStrip`). Fisheye
+depth is the ray length (planar depth / cos(theta)); pixels outside the image circle are black
+with depth 0, and rays that hit nothing, or beyond the lens's ``far`` (50 m), read 0, as
+:class:`~factory.sim.fisheye.FisheyeRenderer` writes them. No depth is NaN.
 
 The images are alike, not identical, to the OpenGL ones: a ray tracer with the model's lights
-and headlight, no shadows (tests/demos/test_mobile_render_warp.py states the tolerances).
+and headlight, no shadows (``demos.shadows`` does not apply), the geom groups 0-2 OpenGL draws
+(tests/demos/test_recording_render_warp.py states the tolerances, per task).
 """
 
 from __future__ import annotations
@@ -35,18 +43,18 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import mujoco
 import numpy as np
 
-from factory.robots.mobile_panda import CAMERAS
-from factory.tasks.mobile_pick_place.scene import FISHEYE_CAMERAS
-
 if TYPE_CHECKING:
-    from factory.tasks.mobile_pick_place.execute import MobileRecordConfig, MobileRecording
+    from factory.demos.record.rig import CameraRig
+    from factory.sim.kernel_preload import PreloadReport
 
 log = logging.getLogger(__name__)
+
+_CAMERA = int(mujoco.mjtObj.mjOBJ_CAMERA)
 
 DEVICE_MEMORY_SHARE = 0.5
 """Share of a CUDA device's free memory one batch of worlds may take (physics data, BVH,
@@ -93,12 +101,32 @@ def _device_bytes(obj: Any, seen: set[int] | None = None) -> int:
     return 0
 
 
-class WarpMobileRenderer:
-    """Renders recorded mobile-robot states on MuJoCo Warp, a batch of frames per call.
+class DrawnRecording(Protocol):
+    """A recording the renderer draws into: a task's recording type (the articulated tasks'
+    :class:`~factory.tasks.articulated.record.Recording`, the mobile task's
+    :class:`~factory.tasks.mobile_pick_place.execute.MobileRecording`).
+
+    Attributes:
+        state: (F, nstate) MuJoCo integration states, one per frame.
+        rgb: camera -> (F, H, W, 3) uint8 (filled here).
+        depth: camera -> (F, H, W) uint16 mm or float32 m (filled here).
+        render_seconds: seconds spent drawing it (added to here).
+    """
+
+    state: np.ndarray
+    rgb: dict[str, np.ndarray]
+    depth: dict[str, np.ndarray]
+    render_seconds: float
+
+
+class WarpRecordingRenderer:
+    """Renders recorded states of a scene on MuJoCo Warp with the scene's cameras, a batch of
+    frames per call.
 
     Args:
-        model: the compiled scene with the mobile robot (not changed).
-        cfg: cameras, image size and depth format (as the CPU path's).
+        model: the scene's compiled model, the robot included (not changed).
+        rig: the cameras, image sizes and depth format, as the CPU path draws them
+            (:meth:`~factory.demos.record.scene.SimulatingScene.camera_rig`).
         device: Warp device; default ``cuda:0`` when CUDA is present, else ``cpu`` (slow: tests).
         max_worlds: most frames per call (default by device kind, :data:`MAX_WORLDS`).
         budget: bytes one call's worlds may take (default: :data:`DEVICE_MEMORY_SHARE` of the
@@ -108,12 +136,15 @@ class WarpMobileRenderer:
         worlds: frames per call (the batch size): the fewest of ``max_worlds`` and what fits
             in ``budget``.
         times: seconds spent so far (:class:`WarpRenderTimes`).
+
+    Raises:
+        ConfigError: the rig names no camera, or a camera the model lacks.
     """
 
     def __init__(
         self,
         model: mujoco.MjModel,
-        cfg: MobileRecordConfig,
+        rig: CameraRig,
         device: str | None = None,
         max_worlds: int | None = None,
         budget: int | None = None,
@@ -122,26 +153,32 @@ class WarpMobileRenderer:
         import warp as wp
 
         from factory.demos.execute.warp import state_layout
+        from factory.errors import ConfigError
         from factory.sim.backend import cuda_available, init_warp
-        from factory.sim.fisheye import FisheyeSpec
 
+        if not rig.cameras:
+            raise ConfigError(
+                "the GPU renderer got no cameras to draw; record at least one camera "
+                "(demos.cameras), or demos.render=false to record no images"
+            )
+        missing = [c.camera for c in rig.cameras if mujoco.mj_name2id(model, _CAMERA, c.camera) < 0]
+        if missing:
+            raise ConfigError(
+                f"the scene's model has no camera(s) {missing} that its camera rig draws; the "
+                "task's camera_rig must name cameras of the model its set-up composed"
+            )
         init_warp()
         self.wp, self.mjw = wp, mjw
         self.model = model
-        self.cfg = cfg
+        self.rig = rig
         self.device = device or ("cuda:0" if cuda_available() else "cpu")
         dev = wp.get_device(self.device)
         self.layout = state_layout(model)
         self.times = WarpRenderTimes()
-        self.cameras = list(cfg.cameras)
-        names, res = [], []
-        for c in self.cameras:
-            if c in FISHEYE_CAMERAS:
-                names.append(FISHEYE_CAMERAS[c])
-                res.append((cfg.width, cfg.width))
-            else:
-                names.append(CAMERAS[c])
-                res.append((cfg.width, cfg.height))
+        self.cameras = list(rig.keys)
+        names = [c.camera for c in rig.cameras]
+        res = [(c.width, c.height) for c in rig.cameras]
+        self._names, self._res = names, res
         self.sizes = [(h, w) for w, h in res]  # (rows, columns) per camera
         npix = [w * h for w, h in res]
         self.starts = np.concatenate([[0], np.cumsum(npix)[:-1]]).astype(np.int64)
@@ -153,7 +190,7 @@ class WarpMobileRenderer:
         self.needs_com = bool(
             np.isin(model.cam_mode, modes).any() or np.isin(model.light_mode, modes).any()
         )
-        depth_bytes = 2 if cfg.depth == "uint16_mm" else 4
+        depth_bytes = 2 if rig.depth == "uint16_mm" else 4
         with wp.ScopedDevice(self.device):
             self.m = mjw.put_model(model)
             one = mjw.make_data(model, nworld=1, nconmax=1, njmax=1)
@@ -189,12 +226,12 @@ class WarpMobileRenderer:
             extent = model.stat.extent
             far_gl = np.float32(model.vis.map.zfar * extent)
             miss = np.full(self.total, far_gl, np.float32)
-            far = np.full(self.total, np.inf, np.float32)
+            far = np.full(self.total, far_gl, np.float32)  # beyond OpenGL's far plane: cleared
             rays = self.rc.ray.numpy()
-            for k, c in enumerate(self.cameras):
-                if c not in FISHEYE_CAMERAS:
+            for k, cam in enumerate(rig.cameras):
+                spec = cam.fisheye
+                if spec is None:
                     continue
-                spec = FisheyeSpec(resolution=cfg.width, fov_deg=cfg.fisheye_fov_deg)
                 mask = spec.mask.reshape(-1)
                 d = np.array(spec.rays.reshape(-1, 3), np.float64)
                 d[~mask] = (0.0, 0.0, -1.0)  # outside the circle: masked, cast straight ahead
@@ -217,7 +254,7 @@ class WarpMobileRenderer:
                 wp.array(miss, dtype=float),
                 wp.array(far, dtype=float),
             ]
-            mm = cfg.depth == "uint16_mm"
+            mm = rig.depth == "uint16_mm"
             self._mm = mm
             self._rgb = wp.empty(n * self.total * 3, dtype=wp.uint8)
             self._depth_mm = wp.empty(n * self.total if mm else 1, dtype=wp.uint16)
@@ -228,7 +265,7 @@ class WarpMobileRenderer:
             n * self.total, dtype=wp.uint16 if mm else float, device="cpu", pinned=pinned
         )
         log.info(
-            "warp mobile renderer on %s: %d frames per call (%d cameras, %d rays per frame, "
+            "warp recording renderer on %s: %d frames per call (%d cameras, %d rays per frame, "
             "%.1f MB per world)",
             self.device,
             n,
@@ -240,7 +277,7 @@ class WarpMobileRenderer:
     def _draw(self, states: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """Renders up to :attr:`worlds` states (n, nstate) in one call; camera -> RGB (n, H, W,
         3) and depth (n, H, W), views of the host buffers (valid until the next call)."""
-        from factory.demos.execute.mobile_warp_kernels import to_images
+        from factory.demos.execute.recording_warp_kernels import to_images
 
         wp, mjw = self.wp, self.mjw
         n, nw = len(states), self.worlds
@@ -301,7 +338,7 @@ class WarpMobileRenderer:
             float32 m), new arrays.
         """
         f = len(states)
-        depth_type = np.uint16 if self.cfg.depth == "uint16_mm" else np.float32
+        depth_type = np.uint16 if self.rig.depth == "uint16_mm" else np.float32
         rgb = {c: np.zeros((f, *self.sizes[k], 3), np.uint8) for k, c in enumerate(self.cameras)}
         depth = {c: np.zeros((f, *self.sizes[k]), depth_type) for k, c in enumerate(self.cameras)}
         for a in range(0, f, self.worlds):
@@ -312,7 +349,49 @@ class WarpMobileRenderer:
                 depth[c][a:b] = dp[c]
         return rgb, depth
 
-    def render_recordings(self, recs: list[MobileRecording]) -> None:
+    def warm_up(self) -> PreloadReport:
+        """Compiles (or loads from Warp's kernel cache) the kernels a call launches, now and on
+        every core (:func:`factory.sim.kernel_preload.preload`): a dry trace of :meth:`_draw`'s
+        launches on one world of a throwaway data and render context (same model, cameras and
+        options), then the modules in parallel; Warp would otherwise compile them one after
+        the other at the first call (``stage=warmup``).
+
+        Returns:
+            what the preload did (module variants traced, those loaded now, seconds).
+        """
+        from factory.demos.execute import recording_warp_kernels as k
+        from factory.demos.execute.warp import render_context
+        from factory.sim.kernel_preload import preload
+
+        wp, mjw, model = self.wp, self.mjw, self.model
+
+        def trace() -> None:
+            wp.launch(k.to_images, dim=1)
+            d = mjw.make_data(model, nworld=1, nconmax=1, njmax=1)
+            rc = render_context(model, 1, self._res, self._names)
+            mjw.kinematics(self.m, d)
+            if self.needs_com:
+                mjw.com_pos(self.m, d)
+            mjw.camlight(self.m, d)
+            mjw.refit_bvh(self.m, d, rc)
+            mjw.render(self.m, d, rc)
+
+        t0 = time.perf_counter()
+        with wp.ScopedDevice(self.device):
+            report = preload(wp, trace)
+        log.info(
+            "warp recording renderer: kernels: %d modules to load of the %d a call launches, on "
+            "%d threads in %.1f s (%.1f s with the trace)%s",
+            report.compiled,
+            report.modules,
+            report.workers,
+            report.load_s,
+            time.perf_counter() - t0,
+            f"; trace stopped early: {report.error}" if report.error else "",
+        )
+        return report
+
+    def render_recordings(self, recs: list[DrawnRecording]) -> None:
         """Draws every frame of ``recs`` (episodes of this scene) into their ``rgb``/``depth``,
         the frames of all of them filling the calls together; adds each recording's share of
         the time to its ``render_seconds``."""
@@ -329,16 +408,16 @@ class WarpMobileRenderer:
 
 
 class RecordingStream:
-    """Feeds the frames of recordings to a :class:`WarpMobileRenderer` in full calls.
+    """Feeds the frames of recordings to a :class:`WarpRecordingRenderer` in full calls.
 
     Recordings are queued whole; every time the queue holds a call's worth of frames
-    (:attr:`WarpMobileRenderer.worlds`) they are rendered, an episode's frames possibly split
+    (:attr:`WarpRecordingRenderer.worlds`) they are rendered, an episode's frames possibly split
     over two calls, and the recordings whose last frame is drawn come back complete
     (``rgb``/``depth`` filled, ``render_seconds`` added). :meth:`flush` draws the rest in one
     last, padded call.
     """
 
-    def __init__(self, renderer: WarpMobileRenderer) -> None:
+    def __init__(self, renderer: WarpRecordingRenderer) -> None:
         self.renderer = renderer
         self._queue: list[list[Any]] = []  # [recording, next frame to draw]
         self._queued = 0
@@ -348,30 +427,30 @@ class RecordingStream:
         """Frames waiting to be drawn."""
         return self._queued
 
-    def push(self, rec: MobileRecording) -> list[MobileRecording]:
+    def push(self, rec: DrawnRecording) -> list[DrawnRecording]:
         """Queues a recording; returns the recordings completed by the calls this made."""
         r = self.renderer
         f = len(rec.state)
-        depth_type = np.uint16 if r.cfg.depth == "uint16_mm" else np.float32
+        depth_type = np.uint16 if r.rig.depth == "uint16_mm" else np.float32
         for k, c in enumerate(r.cameras):
             rec.rgb[c] = np.empty((f, *r.sizes[k], 3), np.uint8)
             rec.depth[c] = np.empty((f, *r.sizes[k]), depth_type)
         self._queue.append([rec, 0])
         self._queued += f
-        done: list[MobileRecording] = []
+        done: list[DrawnRecording] = []
         while self._queued >= r.worlds:
             done.extend(self._call(r.worlds))
         return done
 
-    def flush(self) -> list[MobileRecording]:
+    def flush(self) -> list[DrawnRecording]:
         """Draws every queued frame; returns the recordings completed."""
-        done: list[MobileRecording] = []
+        done: list[DrawnRecording] = []
         while self._queued:
             done.extend(self._call(min(self._queued, self.renderer.worlds)))
         return done
 
-    def _call(self, n: int) -> list[MobileRecording]:
-        pieces: list[tuple[MobileRecording, int, int]] = []
+    def _call(self, n: int) -> list[DrawnRecording]:
+        pieces: list[tuple[DrawnRecording, int, int]] = []
         need = n
         for item in self._queue:
             if not need:

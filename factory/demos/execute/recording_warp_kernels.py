@@ -1,5 +1,6 @@
 # mypy: ignore-errors
-"""Warp kernels of the mobile task's GPU renderer (:mod:`factory.demos.execute.mobile_render_warp`).
+"""Warp kernels of the GPU renderer of recorded states
+(:mod:`factory.demos.execute.recording_render_warp`).
 
 No ``from __future__ import annotations`` here: Warp reads the kernels' annotations as types.
 Importing this module imports Warp (not cheap); only the renderer imports it.
@@ -31,10 +32,11 @@ def to_images(
 
     Depth: the renderer's planar depth times ``ray_scale`` (1 for a pinhole camera: depth
     along the optical axis; ``1 / cos(theta)`` for a fisheye ray: its length, also beyond 90
-    degrees where both are negative; 0 for a ray at 90 degrees); a missed ray
-    reads ``ray_miss`` (the pinhole far plane, as OpenGL's cleared depth buffer; 0 for a
-    fisheye), a fisheye depth beyond ``ray_far`` reads 0, and pixels outside a fisheye's image
-    circle (``ray_inside`` 0) are black with depth 0.
+    degrees where both are negative; 0 for a ray at 90 degrees); a missed ray, and a depth
+    beyond ``ray_far`` (the pinhole far plane; a fisheye lens's ``far``), reads ``ray_miss``
+    (the pinhole far plane, as OpenGL's cleared depth buffer; 0 for a fisheye), a negative
+    depth reads 0, and pixels outside a fisheye's image circle (``ray_inside`` 0) are black
+    with depth 0.
     """
     w, r = wp.tid()
     s = ray_start[r]
@@ -55,7 +57,9 @@ def to_images(
             z = ray_miss[r]
         else:
             z = z * ray_scale[r]
-            if z > ray_far[r] or z < 0.0:
+            if z > ray_far[r]:
+                z = ray_miss[r]
+            elif z < 0.0:
                 z = 0.0
     if depth_mm != 0:
         mm_out[o] = wp.uint16(wp.clamp(wp.round(z * 1000.0), 0.0, 65535.0))
