@@ -527,6 +527,9 @@ def test_open_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
     assert summary["executor"] == "warp" and summary["new_successes"] == 1, summary
     assert summary["seconds"]["gpu"]["frames"] > 10 and summary["seconds"]["render"] > 0
     assert len(summary["scenes"][sid]["robot_base"]) == 3
+    # the writer read the images from the main process's shared memory (not pickled)
+    log_text = (run / "logs" / "demos-0-of-1.log").read_text()
+    assert "episode images handed to the writers in shared memory: 1" in log_text
     store = EpisodeStore(run / "episodes" / "shard-0.zarr")
     (eid,) = store.episode_ids()
     info = store.info(eid)

@@ -42,6 +42,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -427,14 +428,33 @@ class RecordingStream:
         """Frames waiting to be drawn."""
         return self._queued
 
-    def push(self, rec: DrawnRecording) -> list[DrawnRecording]:
-        """Queues a recording; returns the recordings completed by the calls this made."""
+    def image_specs(self, frames: int) -> list[tuple[tuple[int, ...], Any]]:
+        """``(shape, dtype)`` of the image arrays of a recording of ``frames`` frames, in the
+        order :meth:`push` allocates them: each camera's RGB ``(frames, H, W, 3)`` uint8, then
+        its depth ``(frames, H, W)`` (uint16 mm or float32 m, the rig's)."""
+        r = self.renderer
+        depth_type = np.uint16 if r.rig.depth == "uint16_mm" else np.float32
+        out: list[tuple[tuple[int, ...], Any]] = []
+        for k in range(len(r.cameras)):
+            out += [((frames, *r.sizes[k], 3), np.uint8), ((frames, *r.sizes[k]), depth_type)]
+        return out
+
+    def push(
+        self, rec: DrawnRecording, alloc: Callable[[tuple[int, ...], Any], np.ndarray] = np.empty
+    ) -> list[DrawnRecording]:
+        """Queues a recording; returns the recordings completed by the calls this made.
+
+        Args:
+            rec: the recording (its ``state`` rows are the frames to draw).
+            alloc: makes its image arrays (``alloc(shape, dtype)``; e.g. a shared memory
+                arena's ``empty``, so that a writer process reads them in place).
+        """
         r = self.renderer
         f = len(rec.state)
-        depth_type = np.uint16 if r.rig.depth == "uint16_mm" else np.float32
-        for k, c in enumerate(r.cameras):
-            rec.rgb[c] = np.empty((f, *r.sizes[k], 3), np.uint8)
-            rec.depth[c] = np.empty((f, *r.sizes[k]), depth_type)
+        specs = iter(self.image_specs(f))
+        for c in r.cameras:
+            rec.rgb[c] = alloc(*next(specs))
+            rec.depth[c] = alloc(*next(specs))
         self._queue.append([rec, 0])
         self._queued += f
         done: list[DrawnRecording] = []
