@@ -9,8 +9,9 @@ images are drawn. Nothing is teleported: the drawer moves because the fingers pu
 its handle, the object because the fingers hold it or the drawer carries it.
 
 Success (:func:`check_outcome`): at the end the object lies in the interior volume behind the
-part (its origin, which is its bottom's centre, inside the volume's rectangle in the link's
-frame and within :data:`FLOOR_TOL` of its floor), the part is closed (at most
+part (its origin, which is its bottom's centre, inside the volume's rectangle in the frame of
+the body holding it, the drawer's link or, behind a door, the container's case, and within
+:data:`FLOOR_TOL` of its floor or shelf), the part is closed (at most
 :data:`~factory.tasks.articulated.plan.CLOSED_AT` of its range), the hand is open and away from
 the handle, and no robot contact with the scene other than the container and the object went
 deeper than :data:`~factory.tasks.articulated.execute.COLLISION_DEPTH`. Failure reasons, the
@@ -88,10 +89,11 @@ def allowed(setup: PlaceInsideSetup) -> np.ndarray:
 
 def inside(setup: PlaceInsideSetup, data: mujoco.MjData) -> tuple[bool, np.ndarray]:
     """Whether the object lies in the interior volume behind the part (its origin inside the
-    volume's rectangle, the link's frame, and within :data:`FLOOR_TOL` of its floor), and the
-    origin in the link's frame (3,) (m); ``data`` with current kinematics."""
-    art = setup.art
-    b = art.body
+    volume's rectangle and within :data:`FLOOR_TOL` of its support, in the frame of
+    :attr:`~factory.tasks.place_inside.plan.PlaceInsideSetup.interior_body`: the drawer's link,
+    or the case behind a door), and the origin in that frame (3,) (m); ``data`` with current
+    kinematics."""
+    b = setup.interior_body
     link = np.eye(4)
     link[:3, :3] = data.xmat[b].reshape(3, 3)
     link[:3, 3] = data.xpos[b]
