@@ -39,7 +39,7 @@ import logging
 import math
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -637,6 +637,7 @@ def _setup_part(
     why: Counter[str],
     open_to: float = OPEN_GOAL[1],
     round_trip: bool = False,
+    spot_check: SpotCheck | None = None,
 ) -> ArticulatedSetup | str:
     """:func:`setup_scene` for one part: the set-up, ``"blocked:<body>"`` when the moving link
     runs into that body, or ``""`` when no base spot works (reasons counted into ``why``,
@@ -723,6 +724,11 @@ def _setup_part(
             if back:
                 why[f"back_{back}"] += 1
                 continue
+        if spot_check is not None:
+            refused = spot_check(setup, checker)
+            if refused:
+                why[refused] += 1
+                continue
         found = spot
         break
     if found is None:
@@ -772,6 +778,12 @@ def _setup_part(
     )
 
 
+SpotCheck = Callable[[ArticulatedSetup, CollisionChecker], str]
+"""A task's own test of a base spot (:func:`setup_scene`'s ``spot_check``): given the set-up
+with the robot at the spot and a collision checker of it, ``""`` to take the spot, else the
+reason counted against it."""
+
+
 def _way_back(
     setup: ArticulatedSetup,
     kin: _Kinematics,
@@ -802,6 +814,7 @@ def setup_scene(
     max_parts: int = MAX_PARTS,
     open_to: float = OPEN_GOAL[1],
     round_trip: bool = False,
+    spot_check: SpotCheck | None = None,
 ) -> ArticulatedSetup:
     """Chooses the part and the robot's base spot and composes the scene with the robot there.
 
@@ -822,6 +835,8 @@ def setup_scene(
         round_trip: for ``open``, the spot must also let the arm push the part back from
             there to 0 (:func:`grasp_and_follow` of the closing motion: a task that opens,
             works inside and closes again).
+        spot_check: a task's own test of a spot that passed the others (:data:`SpotCheck`:
+            ``place_inside`` asks that the hand reach the interior behind a door).
 
     Raises:
         TaskError: no part, a named part missing, or no part reachable (with the reasons).
@@ -846,6 +861,7 @@ def setup_scene(
                 why,
                 open_to,
                 round_trip,
+                spot_check,
             )
             if isinstance(res, ArticulatedSetup):
                 res.cleared = tuple(sorted(cleared))

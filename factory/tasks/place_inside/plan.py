@@ -58,7 +58,7 @@ from factory.demos.plan.grasps import (
     facing_order,
     gripper_clear,
 )
-from factory.demos.plan.planner import Attachment, PlannerConfig, plan
+from factory.demos.plan.planner import Attachment, CollisionChecker, PlannerConfig, plan
 from factory.demos.plan.timing import Limits, time_path
 from factory.errors import TaskError
 from factory.robots.panda import (
@@ -127,12 +127,15 @@ DOOR_OUT = 0.08
 near side), 1 cm above its place pose."""
 DOOR_RETREAT = 0.08
 """Behind a door, the open hand backs off this far (m) along its approach after the release."""
-DOOR_GRASPS = GraspConfig(approaches=12, max_tilt_deg=61.0)
-"""Object grasps behind a door: approaches every 30 deg about the closing axis, up to 60 deg
-from straight down. The hand holds the object with its wrist as low as it can (60 deg) so that
-the forearm passes under the top of the opening (a microwave's cavity is 0.28 m high); a level
-hand cannot take the object from a top (its forearm runs into the top) and the pick-and-place
-default's 45 deg puts the forearm into the opening's top."""
+DOOR_GRASPS = GraspConfig(approaches=12, max_tilt_deg=91.0)
+"""Object grasps behind a door: approaches every 30 deg about the closing axis, up to level,
+the most level first: the forearm must pass under the top of the opening (a microwave's cavity
+is 0.28 m high), which the pick-and-place default's tilts (up to 45 deg from straight down
+here) run into."""
+DOOR_TOP_FRONT = (0.01, 0.06)
+"""Behind a door, the object starts this far (m) plus its radius behind the top's front edge:
+a level hand takes it with the forearm out beyond the edge (further back, the forearm runs
+into the top)."""
 GRASP_CHECK_SEEDS = 3
 """Starts of the object (seeds 0, 1, ...) at which :meth:`PlaceInsidePlanner.check_graspable`
 looks for a grasp before the scene's episodes are planned."""
@@ -297,6 +300,7 @@ def _setup_container(
             freeze_beyond=freeze_beyond,
             open_to=DOOR_OPEN[1] if door else OPEN_GOAL[1],
             round_trip=door,
+            spot_check=_InteriorReach(box, pick) if door else None,
         )
     except TaskError as e:
         log.info("scene %s: %s: %s", scene.id, part.key, e)
@@ -334,6 +338,55 @@ def _setup_container(
         list(out.cleared),
     )
     return out
+
+
+REACH_TILTS = (60.0, 30.0)
+"""Tilts (deg from straight down) of the hand :class:`_InteriorReach` tries at the place
+point behind a door."""
+
+
+class _InteriorReach:
+    """The articulated set-up's ``spot_check`` behind a door: from the spot, the hand reaches
+    the place point (:meth:`PlaceInsidePlanner.place_xy`, at 0.6 of the object's height above
+    the level) collision-free with the door open to :data:`DOOR_OPEN`'s upper end, approaching
+    into the case (+y of the container) tilted :data:`REACH_TILTS` from straight down, the
+    closing axis level. Refuses the spot with ``interior_out_of_reach``: the handle's path
+    alone picks spots from which the case's inside is out of the hand's reach or behind the
+    open door."""
+
+    def __init__(self, box: Container, pick: SceneObject) -> None:
+        from factory.robots.ik import IKSolver
+
+        self.box = box
+        self.pick = pick
+        self.ik = IKSolver()
+
+    def __call__(self, art: ArticulatedSetup, checker: CollisionChecker) -> str:
+        c = self.box.part.obj
+        world = pose_matrix(
+            np.array([c.position.x, c.position.y, c.position.z]),
+            rot_z(math.radians(c.rotation.z)),
+        )
+        inner, d = self.box.interior, self.pick.dimensions
+        r = 0.5 * math.hypot(d.width, d.length)
+        u = 0.5 * (inner.lo[0] + inner.hi[0])
+        v = min(inner.lo[1] + r + MARGIN + DOOR_DEPTH, 0.5 * (inner.lo[1] + inner.hi[1]))
+        point = (world @ np.array([u, v, inner.floor_z + 0.6 * d.height, 1.0]))[:3]
+        into = world[:3, 1]
+        side = np.cross([0.0, 0.0, 1.0], into)
+        checker.set_scene(initial_state(art, DOOR_OPEN[1] * art.span))
+        checker.attach(None)
+        checker.ignore_bodies([])
+        base_inv = np.linalg.inv(art.placement.matrix())
+        for tilt in REACH_TILTS:
+            t = math.radians(tilt)
+            z = math.sin(t) * into - math.cos(t) * np.array([0.0, 0.0, 1.0])
+            rot = np.stack([side, np.cross(z, side), z], axis=1)
+            tool = pose_matrix(point, rot)
+            seeds = [READY_QPOS, *GRASP_SEEDS]
+            if self.ik.solve(base_inv @ tool, seeds, accept=checker.valid) is not None:
+                return ""
+        return "interior_out_of_reach"
 
 
 @dataclass
@@ -463,9 +516,12 @@ class PlaceInsidePlanner:
         x0, y0, x1, y1 = s.top_rect
         world = s.pose_container()
         base = s.art.placement.pos()[:2]
+        front = (TOP_FRONT, y1 - y0 - 2 * r - MARGIN)
+        if s.behind_door:
+            front = DOOR_TOP_FRONT
         for _ in range(tries):
             u = rng.uniform(x0 + r + MARGIN, x1 - r - MARGIN)
-            v = rng.uniform(y0 + r + TOP_FRONT, y1 - r - MARGIN)
+            v = rng.uniform(y0 + r + front[0], y0 + r + front[1])
             xy = (world @ np.array([u, v, 0.0, 1.0]))[:2]
             if REACH[0] <= float(np.linalg.norm(xy - base)) <= REACH[1]:
                 break
@@ -600,6 +656,8 @@ class PlaceInsidePlanner:
         pose = pose_matrix(data.xpos[s.pick_body], data.xmat[s.pick_body])
         cands = self.pool.candidates(pose[:3, :3], rng)
         cands = facing_order(cands, pose, s.art.placement.pos()[:2], 1.0)
+        if s.behind_door:  # the lowest wrist first (DOOR_GRASPS); stable: facing order within
+            cands.sort(key=lambda g: -round(float((pose @ g.pose_tool_in_obj)[2, 2]), 1))
         back = np.eye(4)
         back[2, 3] = -self.grasp_cfg.pregrasp
         out = []
