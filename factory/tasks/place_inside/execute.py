@@ -55,6 +55,7 @@ __all__ = [
     "env_state",
     "execute_episode",
     "inside",
+    "tilt",
 ]
 
 ENV_STATE_DIM = 9
@@ -107,6 +108,13 @@ def inside(setup: PlaceInsideSetup, data: mujoco.MjData) -> tuple[bool, np.ndarr
     return ok, p
 
 
+def tilt(setup: PlaceInsideSetup, data: mujoco.MjData) -> float:
+    """The object's tilt (deg): the angle between its up axis and the world's (0 upright, 90
+    lying on its side; reported, not judged: an object on its side inside still counts)."""
+    up = float(data.xmat[setup.pick_body].reshape(3, 3)[2, 2])
+    return float(np.degrees(np.arccos(np.clip(up, -1.0, 1.0))))
+
+
 @dataclass
 class Watch:
     """What the success check needs besides the final state, gathered while the episode runs.
@@ -149,6 +157,7 @@ def check_outcome(
         "lifted": float(watch.lifted),
         "off_place": float(watch.off_place),
         "released": float(released),
+        "tilt": tilt(setup, data),
     }
     if watch.worst > COLLISION_DEPTH:
         return Outcome(False, "collision", details)

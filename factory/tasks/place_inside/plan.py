@@ -133,9 +133,10 @@ the most level first: the forearm must pass under the top of the opening (a micr
 is 0.28 m high), which the pick-and-place default's tilts (up to 45 deg from straight down
 here) run into."""
 DOOR_TOP_FRONT = (0.01, 0.06)
-"""Behind a door, the object starts this far (m) plus its radius behind the top's front edge:
-a level hand takes it with the forearm out beyond the edge (further back, the forearm runs
-into the top)."""
+"""Behind a door, the object starts this far (m) plus its radius behind the door's hinge line
+(the door's top edge is part of the top's front: an object standing on it fell when the door
+swung), near the front so that the forearm of a hand held level or tilted 30 deg stays clear
+of the top."""
 GRASP_CHECK_SEEDS = 3
 """Starts of the object (seeds 0, 1, ...) at which :meth:`PlaceInsidePlanner.check_graspable`
 looks for a grasp before the scene's episodes are planned."""
@@ -517,8 +518,9 @@ class PlaceInsidePlanner:
         world = s.pose_container()
         base = s.art.placement.pos()[:2]
         front = (TOP_FRONT, y1 - y0 - 2 * r - MARGIN)
-        if s.behind_door:
-            front = DOOR_TOP_FRONT
+        if s.behind_door:  # behind the door's hinge line (the door's top edge moves)
+            hinge = float(s.art.part.joint.anchor[1]) * float(s.art.part.scale[1]) - y0
+            front = (hinge + DOOR_TOP_FRONT[0], hinge + DOOR_TOP_FRONT[1])
         for _ in range(tries):
             u = rng.uniform(x0 + r + MARGIN, x1 - r - MARGIN)
             v = rng.uniform(y0 + r + front[0], y0 + r + front[1])
@@ -656,8 +658,9 @@ class PlaceInsidePlanner:
         pose = pose_matrix(data.xpos[s.pick_body], data.xmat[s.pick_body])
         cands = self.pool.candidates(pose[:3, :3], rng)
         cands = facing_order(cands, pose, s.art.placement.pos()[:2], 1.0)
-        if s.behind_door:  # the lowest wrist first (DOOR_GRASPS); stable: facing order within
-            cands.sort(key=lambda g: -round(float((pose @ g.pose_tool_in_obj)[2, 2]), 1))
+        if s.behind_door:
+            com = pose[:3, :3] @ m.body_ipos[s.pick_body] + pose[:3, 3]
+            cands.sort(key=lambda g: _door_rank(g, pose, com))
         back = np.eye(4)
         back[2, 3] = -self.grasp_cfg.pregrasp
         out = []
@@ -923,6 +926,26 @@ class PlaceInsidePlanner:
             0.0,
             0,
         )
+
+
+def _door_rank(g: Grasp, pose: np.ndarray, com: np.ndarray) -> tuple[bool, int, float]:
+    """How a grasp suits an object slid in behind a door, lower first: a steep approach (more
+    than 55 deg from level: the wrist high, into the top of the opening) last; then the
+    horizontal distance (cm) of the object's centre of mass from the line between the contacts
+    (gravity turns an object held from the side about that line when it is off it: a can held
+    by its front edge turned over in the hand); then the most level approach.
+
+    Args:
+        g: the grasp (object frame).
+        pose: the object's pose (4, 4), world frame.
+        com: its centre of mass (3,) (m, world frame)."""
+    down = -float((pose @ g.pose_tool_in_obj)[2, 2])  # 1: straight down, 0: level
+    c = (pose[:3, :3] @ g.contacts_in_obj.T).T + pose[:3, 3]
+    u = c[1] - c[0]
+    u /= max(float(np.linalg.norm(u)), 1e-9)
+    d = com - c[0]
+    perp = d - float(np.dot(d, u)) * u
+    return down > 0.82, round(100.0 * float(np.hypot(perp[0], perp[1]))), round(down, 1)
 
 
 def _quat_mat(quat: np.ndarray) -> np.ndarray:
