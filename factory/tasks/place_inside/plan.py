@@ -137,6 +137,8 @@ DOOR_TOP_FRONT = (0.01, 0.06)
 (the door's top edge is part of the top's front: an object standing on it fell when the door
 swung), near the front so that the forearm of a hand held level or tilted 30 deg stays clear
 of the top."""
+LINE_STEP = 0.03
+"""Waypoint spacing (m) of the straight tool motion that slides the object in behind a door."""
 GRASP_CHECK_SEEDS = 3
 """Starts of the object (seeds 0, 1, ...) at which :meth:`PlaceInsidePlanner.check_graspable`
 looks for a grasp before the scene's episodes are planned."""
@@ -637,6 +639,25 @@ class PlaceInsidePlanner:
         out = depth - s.interior.lo[1] + r + DOOR_OUT
         return -front * out + np.array([0.0, 0.0, 0.01])
 
+    def place_turns(self, grasp: np.ndarray, xy: np.ndarray) -> list[float]:
+        """The turns (rad, about the world's z) of the object from its pick pose to its place
+        pose, in the order tried: 0, then quarter and eighth turns; behind a door first the
+        turns that point the hand's approach (the tool's +z at the grasp ``grasp`` (4, 4),
+        world frame) into the case (the container's +y), along the reach from the robot's
+        base to the place point ``xy`` (2,) (m, world frame) and between the two, so that the
+        hand comes in through the opening."""
+        out = [0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4]
+        s = self.setup
+        a = grasp[:2, 2]
+        if not s.behind_door or float(np.linalg.norm(a)) < 0.3:  # no level part to turn
+            return out
+        into = s.pose_container()[:2, 1]
+        reach = xy - s.placement.pos()[:2]
+        heading = math.atan2(a[1], a[0])
+        aims = [math.atan2(into[1], into[0]), math.atan2(reach[1], reach[0])]
+        aims.append(aims[0] + 0.5 * math.remainder(aims[1] - aims[0], 2 * math.pi))
+        return [math.remainder(t - heading, 2 * math.pi) for t in aims] + out
+
     def retreat_pose(self, place: np.ndarray) -> np.ndarray:
         """The open hand's pose (4, 4) after it let go of the object at the tool pose
         ``place``: :data:`LIFT` above for a drawer; behind a door, :data:`DOOR_RETREAT` back
@@ -677,6 +698,29 @@ class PlaceInsidePlanner:
     def _ik(self, pose: np.ndarray, seeds: list[np.ndarray]) -> np.ndarray | None:
         base_inv = np.linalg.inv(self.setup.art.placement.matrix())
         return self.ik.solve(base_inv @ pose, seeds, accept=self.checker.valid)
+
+    def _line(self, a: np.ndarray, b: np.ndarray, q_a: np.ndarray) -> np.ndarray | None:
+        """Arm configurations (k, 7) moving the tool on the straight line from pose ``a`` (where
+        the arm is ``q_a``) to pose ``b`` (4, 4, world frame; the orientation kept): a
+        waypoint every :data:`LINE_STEP`, IK seeded by the previous one, each step
+        collision-free and without a joint jump over
+        :data:`~factory.tasks.articulated.plan.MAX_JUMP`; None when it breaks off. (Sliding
+        the object in behind a door: the straight line in joint space between the ends
+        leaves the line in space and runs into the opening's frame.)"""
+        from factory.tasks.articulated.plan import MAX_JUMP
+
+        n = max(1, math.ceil(float(np.linalg.norm(b[:3, 3] - a[:3, 3])) / LINE_STEP))
+        out = [q_a]
+        for k in range(1, n + 1):
+            pose = a.copy()
+            pose[:3, 3] = a[:3, 3] + (b[:3, 3] - a[:3, 3]) * k / n
+            q = self._ik(pose, [out[-1]])
+            if q is None or float(np.max(np.abs(q - out[-1]))) > MAX_JUMP:
+                return None
+            if not self.checker.segment_valid(out[-1], q):
+                return None
+            out.append(q)
+        return np.array(out)
 
     def _pick_place(
         self,
@@ -719,7 +763,7 @@ class PlaceInsidePlanner:
         xy = self.place_xy(q_open)
         z = self.floor_z(q_open) + PLACE_DROP
         found = None
-        for turn in (0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4):
+        for turn in self.place_turns(grasp, xy):
             place_obj = np.eye(4)
             place_obj[:3, :3] = rot_z(turn) @ obj[:3, :3]
             place_obj[:3, 3] = [xy[0], xy[1], z]
@@ -728,20 +772,25 @@ class PlaceInsidePlanner:
             preplace[:3, 3] += self.insert_offset()
             if s.behind_door:  # the arm's branch inside the case first, then the way in
                 q_place = self._ik(place, [q_lift, q_from, READY_QPOS, *GRASP_SEEDS])
-                q_preplace = None if q_place is None else self._ik(preplace, [q_place])
+                way_in = None if q_place is None else self._line(place, preplace, q_place)
+                if way_in is None:
+                    continue
+                way_in = way_in[::-1]
             else:
                 q_preplace = self._ik(preplace, [q_lift])
                 q_place = None if q_preplace is None else self._ik(place, [q_preplace])
-            if q_preplace is None or q_place is None:
-                continue
-            if not ck.segment_valid(q_preplace, q_place):
-                continue
-            found = (q_preplace, q_place, place, place_obj)
+                if q_preplace is None or q_place is None:
+                    continue
+                if not ck.segment_valid(q_preplace, q_place):
+                    continue
+                way_in = np.stack([q_preplace, q_place])
+            found = (way_in, place, place_obj)
             break
         if found is None:
             counts["ik_failed"] += 1
             return None
-        q_preplace, q_place, place, place_obj = found
+        way_in, place, place_obj = found
+        q_preplace, q_place = way_in[0], way_in[-1]
         ck.attach(None)
         ck.ignore_bodies([s.pick_body])
         up = self.retreat_pose(place)
@@ -770,7 +819,7 @@ class PlaceInsidePlanner:
             ("pick_close", q_grasp[None], "hold_closed"),
             ("pick_lift", np.stack([q_grasp, q_lift]), "slow_closed"),
             ("transport", carry.path, "slow_closed"),
-            ("lower", np.stack([q_preplace, q_place]), "slow_closed"),
+            ("lower", way_in, "slow_closed"),
             ("place_release", q_place[None], "hold_open"),
             ("place_retreat", np.stack([q_place, q_up]), "slow_open"),
         ]
