@@ -66,7 +66,7 @@ LOW_REACH = 0.30
 handle's height minus :data:`~factory.tasks.articulated.plan.BASE_BELOW`) is *low*: offered
 after the others (a kitchen base cabinet's floor, 2 cm above the ground, under a base 0.37 m
 high)."""
-LEVEL_BELOW_BASE = 0.10
+LEVEL_BELOW_BASE = 0.0
 """The height (m) below the robot's base that :func:`door_level` prefers for a door's level:
 an object standing there is held with the tool level or a little below it."""
 

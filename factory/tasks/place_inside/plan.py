@@ -38,6 +38,7 @@ ruckig profile of the path parameter (:func:`~factory.tasks.articulated.plan.tim
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import time
@@ -303,7 +304,7 @@ def _setup_container(
             freeze_beyond=freeze_beyond,
             open_to=DOOR_OPEN[1] if door else OPEN_GOAL[1],
             round_trip=door,
-            spot_check=_InteriorReach(box, pick) if door else None,
+            spot_check=_InteriorReach(box, pick, top[1]) if door else None,
         )
     except TaskError as e:
         log.info("scene %s: %s: %s", scene.id, part.key, e)
@@ -352,16 +353,20 @@ class _InteriorReach:
     """The articulated set-up's ``spot_check`` behind a door: from the spot, the hand reaches
     the place point (:meth:`PlaceInsidePlanner.place_xy`, at 0.6 of the object's height above
     the level) collision-free with the door open to :data:`DOOR_OPEN`'s upper end, approaching
-    into the case (+y of the container) tilted :data:`REACH_TILTS` from straight down, the
-    closing axis level. Refuses the spot with ``interior_out_of_reach``: the handle's path
-    alone picks spots from which the case's inside is out of the hand's reach or behind the
-    open door."""
+    into the case (+y of the container), along the reach from the base or between the two,
+    tilted :data:`REACH_TILTS` from straight down, the closing axis level; and the middle of
+    the band of the container's top where the object starts (:data:`DOOR_TOP_FRONT` behind the
+    hinge line) lies within :data:`REACH` of the base (``top_out_of_reach``: a fridge's top,
+    1.45 m high, from a spot that works its door). Refuses the spot with
+    ``interior_out_of_reach`` (or ``top_out_of_reach``): the handle's path alone picks spots
+    from which the case's inside is out of the hand's reach or behind the open door."""
 
-    def __init__(self, box: Container, pick: SceneObject) -> None:
+    def __init__(self, box: Container, pick: SceneObject, top_rect: np.ndarray) -> None:
         from factory.robots.ik import IKSolver
 
         self.box = box
         self.pick = pick
+        self.top_rect = top_rect
         self.ik = IKSolver()
 
     def __call__(self, art: ArticulatedSetup, checker: CollisionChecker) -> str:
@@ -372,18 +377,36 @@ class _InteriorReach:
         )
         inner, d = self.box.interior, self.pick.dimensions
         r = 0.5 * math.hypot(d.width, d.length)
+        joint = self.box.part.joint
+        hinge = float(joint.anchor[1]) * self.box.part.scale[1]
+        band = np.array(
+            [
+                0.5 * (self.top_rect[0] + self.top_rect[2]),
+                hinge + r + 0.5 * sum(DOOR_TOP_FRONT),
+                0.0,
+                1.0,
+            ]
+        )
+        start = (world @ band)[:2]
+        if not REACH[0] <= float(np.linalg.norm(start - art.placement.pos()[:2])) <= REACH[1]:
+            return "top_out_of_reach"
         u = 0.5 * (inner.lo[0] + inner.hi[0])
         v = min(inner.lo[1] + r + MARGIN + DOOR_DEPTH, 0.5 * (inner.lo[1] + inner.hi[1]))
         point = (world @ np.array([u, v, inner.floor_z + 0.6 * d.height, 1.0]))[:3]
         into = world[:3, 1]
-        side = np.cross([0.0, 0.0, 1.0], into)
+        reach = point - art.placement.pos()
+        reach[2] = 0.0
+        reach /= max(float(np.linalg.norm(reach)), 1e-9)
+        mid = into + reach
+        aims = [into, reach, mid / max(float(np.linalg.norm(mid)), 1e-9)]
         checker.set_scene(initial_state(art, DOOR_OPEN[1] * art.span))
         checker.attach(None)
         checker.ignore_bodies([])
         base_inv = np.linalg.inv(art.placement.matrix())
-        for tilt in REACH_TILTS:
+        for aim, tilt in itertools.product(aims, REACH_TILTS):
             t = math.radians(tilt)
-            z = math.sin(t) * into - math.cos(t) * np.array([0.0, 0.0, 1.0])
+            z = math.sin(t) * aim - math.cos(t) * np.array([0.0, 0.0, 1.0])
+            side = np.cross([0.0, 0.0, 1.0], aim)
             rot = np.stack([side, np.cross(z, side), z], axis=1)
             tool = pose_matrix(point, rot)
             seeds = [READY_QPOS, *GRASP_SEEDS]
