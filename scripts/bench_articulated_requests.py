@@ -57,6 +57,7 @@ RUNS: dict[str, tuple[str, int]] = {
     "put_mug_bedroom": ("a bedroom where the robot puts the mug in the drawer", 2),
     # task=place_inside behind doors: a microwave's cavity, a fridge's shelf, a cabinet's floor
     "door_mug_microwave": ("put the mug in the microwave", 3),
+    "door_can_microwave": ("put the can in the microwave", 3),
     "door_bottle_fridge": ("put the bottle in the fridge", 2),
     "door_cup_cabinet": ("put the cup in the cabinet", 2),
     "door_mug_nightstand": ("put the mug in the nightstand", 2),

@@ -1003,21 +1003,18 @@ class PlaceInsidePlanner:
 def _door_rank(g: Grasp, pose: np.ndarray, com: np.ndarray) -> tuple[bool, int, float]:
     """How a grasp suits an object slid in behind a door, lower first: a steep approach (more
     than 55 deg from level: the wrist high, into the top of the opening) last; then the
-    horizontal distance (cm) of the object's centre of mass from the line between the contacts
-    (gravity turns an object held from the side about that line when it is off it: a can held
-    by its front edge turned over in the hand); then the most level approach.
+    horizontal distance (cm) of the object's centre of mass from the grip (the contacts'
+    middle: gravity turns an object held from the side about the grip when its centre is off
+    it; a can held by its front edge turned over in the hand); then the most level approach.
 
     Args:
         g: the grasp (object frame).
         pose: the object's pose (4, 4), world frame.
         com: its centre of mass (3,) (m, world frame)."""
     down = -float((pose @ g.pose_tool_in_obj)[2, 2])  # 1: straight down, 0: level
-    c = (pose[:3, :3] @ g.contacts_in_obj.T).T + pose[:3, 3]
-    u = c[1] - c[0]
-    u /= max(float(np.linalg.norm(u)), 1e-9)
-    d = com - c[0]
-    perp = d - float(np.dot(d, u)) * u
-    return down > 0.82, round(100.0 * float(np.hypot(perp[0], perp[1]))), round(down, 1)
+    grip = pose[:3, :3] @ g.contacts_in_obj.mean(axis=0) + pose[:3, 3]
+    off = float(np.hypot(*(com - grip)[:2]))
+    return down > 0.82, round(100.0 * off), round(down, 1)
 
 
 def _quat_mat(quat: np.ndarray) -> np.ndarray:
