@@ -263,10 +263,16 @@ def setup_scene(
         if out is not None:
             return out
     reasons = "; ".join(refusals)
+    fix = ""
+    if why["too_small"]:
+        fix = "; ask for a smaller object or a larger container"
+    elif why["unreachable"]:
+        fix = "; ask for another container, or generate the scene again (another seed)"
     raise TaskError(
         f"scene {scene.id!r}: no container part for {pick.id!r} "
         f"({len(parts)} candidate(s); {dict(why) or 'no articulated part with an interior'})"
         + (f": {reasons}" if reasons else "")
+        + fix
     )
 
 
