@@ -11,6 +11,10 @@ stored episodes, wall time and the moving joints of each generated model.
     python scripts/bench_articulated_requests.py --runs 'put_*' \
         --out benchmarks/results/place-inside-bedroom-requests-cpu2.json
 
+    # task=place_inside behind doors (the ``door_*`` runs)
+    python scripts/bench_articulated_requests.py --runs 'door_*' --episodes 6 \
+        --out benchmarks/results/place-inside-doors-cpu2.json
+
 For each run (a request and a scene count, :data:`RUNS`) it calls ``stage=generate`` with the
 request alone (no ``assets.articulated``: the request's task turns it on) and then
 ``stage=demos`` with no ``task=`` (the task is the scenes' ``task.kind``, read by
@@ -51,6 +55,12 @@ RUNS: dict[str, tuple[str, int]] = {
     "put_mug_dresser": ("put the mug in the top drawer of the dresser", 3),
     "put_candle_chest": ("put the candle in the drawer of the chest of drawers", 2),
     "put_mug_bedroom": ("a bedroom where the robot puts the mug in the drawer", 2),
+    # task=place_inside behind doors: a microwave's cavity, a fridge's shelf, a cabinet's floor
+    "door_mug_microwave": ("put the mug in the microwave", 3),
+    "door_can_microwave": ("put the can in the microwave", 3),
+    "door_bottle_fridge": ("put the bottle in the fridge", 2),
+    "door_cup_cabinet": ("put the cup in the cabinet", 2),
+    "door_mug_nightstand": ("put the mug in the nightstand", 2),
 }
 """Run name -> (request, scenes)."""
 

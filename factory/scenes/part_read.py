@@ -22,6 +22,13 @@ The rules, with the word tables of :mod:`.task_words` and the asset catalogue's 
    request's rooms hold, :func:`in_rooms`: a base cabinet in a kitchen, a bedside cabinet in
    a bedroom), checked by :func:`check_part_request`. A place target that is no drawer ("puts
    it in the bowl") is pick-and-place (:mod:`.task_read`).
+5. "<place verb> the P [away] in the [Q] X" where X opens by a door with an interior behind
+   it (:data:`~.task_words.DOOR_CONTAINERS`: "put the mug in the microwave", "put the bottle
+   in the fridge"): put P away behind X's door (``role`` ``door``, the role implied). X a
+   cabinet not said which ("put the cup in the cabinet", "the cupboard":
+   :data:`~.task_words.CABINET_WORDS`) is the first of :data:`~.task_words.DOOR_CABINETS`
+   that the request's rooms hold (a base cabinet in a kitchen, :func:`in_rooms`). Any other X
+   ("put the mug in the bowl") is no part task.
 
 The reading is deterministic and English (a foreign request is read through its English
 reading, :mod:`.translate`).
@@ -36,6 +43,9 @@ from functools import cache
 from factory.errors import ConfigError
 from factory.scenes.task_words import (
     ARTICLES,
+    CABINET_WORDS,
+    DOOR_CABINETS,
+    DOOR_CONTAINERS,
     DRAWER_CONTAINERS,
     PART_QUALIFIERS,
     PART_ROLES,
@@ -119,6 +129,43 @@ def _stow_pattern() -> re.Pattern[str]:
         rf"(?:in|into|inside)\s+(?P<pre>(?:{words}\s+){{0,4}}?)(?P<role>drawer)s?\b"
         rf"(?:\s+(?:of|on|in)\s+(?P<post>{words}(?:\s+{words}){{0,4}}))?"
     )
+
+
+@cache
+def _door_stow_pattern() -> re.Pattern[str]:
+    verbs = _alt(list(PLACE_VERBS))
+    words = r"[a-z][\w'-]*"
+    return re.compile(
+        rf"\b(?P<verb>{verbs})\s+(?P<pick>{words}(?:\s+{words}){{0,3}}?)\s+(?:away\s+)?"
+        rf"(?:in|into|inside)\s+(?P<post>{words}(?:\s+{words}){{0,4}})"
+    )
+
+
+def _door_stow(low: str, text: str) -> PartSpec | None:
+    """Rule 5 (module docstring): a put-away request whose place target opens by a door with
+    an interior, or None."""
+    for m in _door_stow_pattern().finditer(low):
+        post = _ENDS.sub("", m.group("post"))
+        named = _clean(post)
+        named_category = catalogue_category(named) if named else ""
+        category = openable_category(named_category)
+        if category not in DOOR_CONTAINERS:
+            if not set(named.split()) & set(CABINET_WORDS):
+                continue
+            category = DOOR_CABINETS[0]
+        item_named = _clean(m.group("pick"))
+        return PartSpec(
+            verb=m.group("verb"),
+            role="door",
+            qualifier=next((PART_QUALIFIERS[w] for w in post.split() if w in PART_QUALIFIERS), ""),
+            category=category,
+            named=named,
+            named_category=named_category,
+            instruction=text,
+            item=catalogue_category(item_named) if item_named else "",
+            item_named=item_named,
+        )
+    return None
 
 
 _ENDS = re.compile(r"\s+(?:in|on|at|near|by|so|and|then|with|for|that|which|where|while)\s.*$")
@@ -205,6 +252,10 @@ def read_part_task(text: str) -> PartSpec | None:
     """
     low = text.lower().replace("\u2019", "'")
     stow = _stow_pattern().search(low)
+    if stow is None:
+        door = _door_stow(low, text)
+        if door is not None:
+            return door
     m = stow or _pattern().search(low)
     if m is None:
         return None
@@ -234,15 +285,18 @@ def in_rooms(spec: PartSpec, room_types: tuple[str, ...]) -> PartSpec:
     """A put-away request that names no drawer's object read in its rooms: its ``category``
     is the first of :data:`~.task_words.DRAWER_CONTAINERS` that one of ``room_types`` holds
     (:func:`part_rooms`: "a bedroom where the robot puts the mug in the drawer" takes a
-    ``bedside_cabinet``'s); any other spec, or rooms that hold none of them, unchanged.
+    ``bedside_cabinet``'s); one that names a cabinet without saying which ("put the cup in
+    the cabinet") the first such of :data:`~.task_words.DOOR_CABINETS`; any other spec, or
+    rooms that hold none of them, unchanged.
 
     Args:
         spec: the request's part task (:func:`read_part_task`).
         room_types: the rooms the request builds.
     """
-    if not spec.item_named or spec.named:
+    generic = spec.role == "door" and openable_category(spec.named_category) != spec.category
+    if not spec.item_named or (spec.named and not generic):
         return spec
-    for category in DRAWER_CONTAINERS:
+    for category in DOOR_CABINETS if generic else DRAWER_CONTAINERS:
         if set(part_rooms(category)) & set(room_types):
             return replace(spec, category=category)
     return spec
@@ -258,18 +312,20 @@ def check_part_request(spec: PartSpec, room_types: tuple[str, ...]) -> None:
     Raises:
         ConfigError: the named object is not in the catalogue, does not open, or belongs in
             none of ``room_types``; a put-away request's object is not in the catalogue, or
-            its drawer's object is none of :data:`~.task_words.DRAWER_CONTAINERS` (the
-            message lists the valid choices).
+            its drawer's object is none of :data:`~.task_words.DRAWER_CONTAINERS` (a door's:
+            :data:`~.task_words.DOOR_CONTAINERS`; the message lists the valid choices).
     """
     if spec.item_named and not spec.item:
         raise ConfigError(
             f"request {spec.instruction!r}: the catalogue has no {spec.item_named!r}; "
             f"objects to put away: {', '.join(sorted(o.replace('_', ' ') for o in STOW_OBJECTS))}"
         )
-    if spec.item_named and spec.named and spec.category not in DRAWER_CONTAINERS:
+    choices = DOOR_CONTAINERS if spec.role == "door" else DRAWER_CONTAINERS
+    if spec.item_named and spec.named and spec.category not in choices:
         raise ConfigError(
-            f"request {spec.instruction!r}: no drawer of {spec.named!r} to put things in; "
-            f"drawers: {', '.join(n.replace('_', ' ') for n in DRAWER_CONTAINERS)}"
+            f"request {spec.instruction!r}: no {spec.role} of {spec.named!r} to put things "
+            f"{'behind' if spec.role == 'door' else 'in'}; {spec.role}s: "
+            f"{', '.join(n.replace('_', ' ') for n in choices)}"
         )
     if spec.named and not spec.category:
         what = (

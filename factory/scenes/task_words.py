@@ -201,6 +201,28 @@ DRAWER_CONTAINERS: tuple[str, ...] = ("base_cabinet", "bedside_cabinet", "drawer
 cabinet, a bedroom's nightstand and dresser); a request naming none takes the first that its
 room holds (:func:`~.part_read.in_rooms`)."""
 
+DOOR_CONTAINERS: tuple[str, ...] = (
+    "microwave_oven",
+    "upright_fridge",
+    "base_cabinet",
+    "bedside_cabinet",
+    "wall_cabinet",
+    "two_door_sideboard",
+    "double_door_cupboard",
+    "built_in_wardrobe",
+)
+"""The articulated categories a "put the mug in the microwave" request may name: a door with
+an interior support behind it (the cavity's floor, a fridge's or a cabinet's shelves and
+floor) and a top to stand the object on (``task=place_inside``)."""
+
+CABINET_WORDS: tuple[str, ...] = ("cabinet", "cabinets", "cupboard", "cupboards")
+"""Words that name a cabinet without saying which ("put the cup in the cabinet"): the first of
+:data:`DOOR_CABINETS` that the request's rooms hold (:func:`~.part_read.in_rooms`)."""
+
+DOOR_CABINETS: tuple[str, ...] = ("base_cabinet", "bedside_cabinet", "wall_cabinet")
+"""The cabinets :data:`CABINET_WORDS` stand for, in the order tried (a kitchen's base
+cabinet, a bedroom's nightstand)."""
+
 STOW_OBJECTS: tuple[str, ...] = (
     "mug",
     "cup",
@@ -217,7 +239,10 @@ a nightstand's drawer, a candle a dresser's)."""
 
 __all__ = [
     "ARTICLES",
+    "CABINET_WORDS",
     "DESTINATION_PREPOSITIONS",
+    "DOOR_CABINETS",
+    "DOOR_CONTAINERS",
     "DRAWER_CONTAINERS",
     "PART_QUALIFIERS",
     "PART_ROLES",

@@ -1,4 +1,5 @@
-"""Put-away requests ("put the mug in the drawer") are read for ``task=place_inside``."""
+"""Put-away requests ("put the mug in the drawer", "put the mug in the microwave") are read for
+``task=place_inside``."""
 
 from __future__ import annotations
 
@@ -56,6 +57,49 @@ CASES = [
         "bedroom",
     ),
 ]
+
+
+DOOR_CASES = [
+    ("put the mug in the microwave", "mug", "microwave_oven", "kitchen"),
+    ("put the bottle in the fridge", "bottle", "upright_fridge", "kitchen"),
+    ("put the cup in the cabinet", "cup", "base_cabinet", "kitchen"),
+    ("put the cup in the cupboard", "cup", "base_cabinet", "kitchen"),
+    ("put the mug away in the refrigerator", "mug", "upright_fridge", "kitchen"),
+    ("put the mug in the nightstand", "mug", "bedside_cabinet", "bedroom"),
+    # a cabinet not said which: the first door cabinet of the request's room
+    ("a bedroom where the robot puts the cup in the cabinet", "cup", "bedside_cabinet", "bedroom"),
+]
+
+
+@pytest.mark.parametrize(("text", "item", "category", "room"), DOOR_CASES)
+def test_put_behind_a_door_requests_are_place_inside(
+    text: str, item: str, category: str, room: str
+) -> None:
+    """ "put the mug in the microwave": the role ``door`` implied, the object's category the
+    container's; the kitchen or bedroom it belongs in."""
+    request = parse_request(text)
+    spec = request.task
+    assert spec is not None
+    assert task_kind(spec.__dict__) == "place_inside"
+    assert (spec.item, spec.role, spec.category) == (item, "door", category)  # type: ignore[union-attr]
+    assert request.room_types == (room,)
+    check_part_request(spec, request.room_types)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "text", ["put the mug in the bowl", "put the mug in the oven", "put the mug on the table"]
+)
+def test_a_place_target_without_a_door_interior_is_no_put_away(text: str) -> None:
+    spec = parse_any_task(text)
+    assert spec is None or task_kind(spec.__dict__) != "place_inside", spec
+
+
+def test_a_bad_put_behind_a_door_request_lists_the_choices() -> None:
+    text = "put the spaceship in the microwave"
+    spec = parse_any_task(text)
+    assert spec is not None
+    with pytest.raises(FactoryError, match="objects to put away: apple"):
+        check_part_request(spec, parse_request(text).room_types)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(("text", "item", "qualifier", "category", "room"), CASES)

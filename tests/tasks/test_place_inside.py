@@ -150,7 +150,7 @@ def test_a_drawer_with_something_stored_is_taken_after_the_empty_ones(tmp_path: 
     from factory.schema import SceneObject
     from factory.store import RunStore
     from factory.tasks.articulated.demos import ensure_assets
-    from factory.tasks.place_inside.containers import _interior, container_parts, pick_object
+    from factory.tasks.place_inside.containers import _interiors, container_parts, pick_object
     from factory.tasks.place_inside.plan import setup_scene
 
     src = get_task("place_inside").example_scene_path()
@@ -162,8 +162,7 @@ def test_a_drawer_with_something_stored_is_taken_after_the_empty_ones(tmp_path: 
     (box,) = container_parts(scene, store.assets_dir, pick, Counter())
     assert box.stored == ()
     cabinet = box.part.obj
-    floor = _interior(box.part, store.assets_dir)
-    assert floor is not None
+    (floor,) = _interiors(box.part, store.assets_dir)
     stored: SceneObject = replace(
         pick,
         id="can_1",

@@ -193,16 +193,17 @@ def scene_parts(scene: Scene, assets_root: str | Path | None) -> list[Part]:
     return out
 
 
-def names_part(text: str, part: Part) -> bool:
-    """Whether the instruction ``text`` names ``part``: its role word; a word of the object's
-    category (:func:`category_words`), or no object at all ("open the top drawer": any
-    object's); and the qualifier where the text gives one."""
+def names_part(text: str, part: Part, role: str | None = None) -> bool:
+    """Whether the instruction ``text`` names ``part``: its role word (or ``role``, the role
+    the text implies without saying it: "put the mug in the microwave" means its ``door``); a
+    word of the object's category (:func:`category_words`), or no object at all ("open the
+    top drawer": any object's); and the qualifier where the text gives one."""
     from factory.scenes.part_read import read_part_task
 
     words = set(_words(text))
     label = _words(part.label)
     word = ROLE_WORDS.get(part.joint.role, part.joint.role)
-    if word not in words and f"{word}s" not in words:
+    if word not in words and f"{word}s" not in words and word != role:
         return False
     if not words & set(category_words(part.obj.category)):
         spec = read_part_task(text)

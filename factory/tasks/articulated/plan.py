@@ -39,7 +39,7 @@ import logging
 import math
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -635,9 +635,13 @@ def _setup_part(
     ik: IKSolver,
     motion: ArticulatedMotion,
     why: Counter[str],
+    open_to: float = OPEN_GOAL[1],
+    round_trip: bool = False,
+    spot_check: SpotCheck | None = None,
 ) -> ArticulatedSetup | str:
     """:func:`setup_scene` for one part: the set-up, ``"blocked:<body>"`` when the moving link
-    runs into that body, or ``""`` when no base spot works (reasons counted into ``why``)."""
+    runs into that body, or ``""`` when no base spot works (reasons counted into ``why``,
+    those of the way back as ``back_<reason>``)."""
     from factory.tasks.pick_place.objects import move_robot
     from factory.tasks.pick_place.plan import aim_cameras, compose, far_objects
 
@@ -663,7 +667,7 @@ def _setup_part(
     span = setup.span
     close_start = setup.close_start
     start = (0.0 if direction == "open" else close_start[1]) * span
-    goal = (OPEN_GOAL[1] if direction == "open" else 0.0) * span
+    goal = (open_to if direction == "open" else 0.0) * span
     values = joint_values(setup, start, goal, motion)
     center, _, normal = part.handle_in_link()
     q0 = initial_state(setup, start)
@@ -715,6 +719,16 @@ def _setup_part(
         if not ok:
             why.update(r for r in results if isinstance(r, str))
             continue
+        if round_trip and direction == "open":
+            back = _way_back(setup, kin, ik, checker, float(ok[0].values[-1]), motion)
+            if back:
+                why[f"back_{back}"] += 1
+                continue
+        if spot_check is not None:
+            refused = spot_check(setup, checker)
+            if refused:
+                why[refused] += 1
+                continue
         found = spot
         break
     if found is None:
@@ -764,6 +778,33 @@ def _setup_part(
     )
 
 
+SpotCheck = Callable[[ArticulatedSetup, CollisionChecker], str]
+"""A task's own test of a base spot (:func:`setup_scene`'s ``spot_check``): given the set-up
+with the robot at the spot and a collision checker of it, ``""`` to take the spot, else the
+reason counted against it."""
+
+
+def _way_back(
+    setup: ArticulatedSetup,
+    kin: _Kinematics,
+    ik: IKSolver,
+    checker: CollisionChecker,
+    q_open: float,
+    motion: ArticulatedMotion,
+) -> str:
+    """Whether the part opened to ``q_open`` can be pushed back to 0 from the spot in
+    ``setup.placement`` (for one of the handle's grasps): ``""`` when it can, else the last
+    reason of :func:`grasp_and_follow`."""
+    closing = replace(setup, direction="close")
+    reason = "no_grasp"
+    for g in grasps_in_link(setup.part):
+        res = grasp_and_follow(closing, kin, ik, checker, q_open, 0.0, g, motion.pregrasp, motion)
+        if isinstance(res, HandleMotion):
+            return ""
+        reason = res
+    return reason
+
+
 def setup_scene(
     scene: Scene,
     assets_root: str | Path | None,
@@ -771,6 +812,9 @@ def setup_scene(
     rig: CameraRig | None = None,
     freeze_beyond: float = 1.0,
     max_parts: int = MAX_PARTS,
+    open_to: float = OPEN_GOAL[1],
+    round_trip: bool = False,
+    spot_check: SpotCheck | None = None,
 ) -> ArticulatedSetup:
     """Chooses the part and the robot's base spot and composes the scene with the robot there.
 
@@ -784,6 +828,16 @@ def setup_scene(
     articulated object is compiled static (its links move on their joints); movable objects
     farther than ``freeze_beyond`` (m) are static too.
 
+    Args:
+        open_to: for ``open``, the share of the span the checked motion goes to
+            (:data:`OPEN_GOAL`'s upper end by default; ``place_inside`` opens a door less, so
+            that the arm can push it back).
+        round_trip: for ``open``, the spot must also let the arm push the part back from
+            there to 0 (:func:`grasp_and_follow` of the closing motion: a task that opens,
+            works inside and closes again).
+        spot_check: a task's own test of a spot that passed the others (:data:`SpotCheck`:
+            ``place_inside`` asks that the hand reach the interior behind a door).
+
     Raises:
         TaskError: no part, a named part missing, or no part reachable (with the reasons).
     """
@@ -795,7 +849,20 @@ def setup_scene(
     for part in parts[:max_parts]:
         sc, cleared = scene, set[str]()
         for _ in range(MAX_CLEARED + 1):
-            res = _setup_part(sc, assets_root, part, direction, rig, freeze_beyond, ik, motion, why)
+            res = _setup_part(
+                sc,
+                assets_root,
+                part,
+                direction,
+                rig,
+                freeze_beyond,
+                ik,
+                motion,
+                why,
+                open_to,
+                round_trip,
+                spot_check,
+            )
             if isinstance(res, ArticulatedSetup):
                 res.cleared = tuple(sorted(cleared))
                 return res
@@ -829,6 +896,8 @@ class ArticulatedPlanner:
         setup: the scene with the robot placed.
         motion: timing and geometry.
         planner_cfg: the free reach's RRTConnect settings.
+        open_goal: the shares of the span an ``open`` episode's goal is drawn between
+            (:data:`OPEN_GOAL` by default).
     """
 
     def __init__(
@@ -836,10 +905,12 @@ class ArticulatedPlanner:
         setup: ArticulatedSetup,
         motion: ArticulatedMotion | None = None,
         planner_cfg: PlannerConfig | None = None,
+        open_goal: tuple[float, float] = OPEN_GOAL,
     ) -> None:
         from factory.tasks.pick_place.objects import initial_state as robot_home
 
         self.setup = setup
+        self.open_goal = open_goal
         self.motion = motion or ArticulatedMotion()
         self.planner_cfg = planner_cfg or PlannerConfig()
         self.ik = IKSolver()
@@ -859,7 +930,7 @@ class ArticulatedPlanner:
         """The episode's start and goal joint positions (rad or m), drawn with ``rng``."""
         hi = self.setup.span
         if self.setup.direction == "open":
-            return 0.0, float(rng.uniform(*OPEN_GOAL)) * hi
+            return 0.0, float(rng.uniform(*self.open_goal)) * hi
         return float(rng.uniform(*self.setup.close_start)) * hi, 0.0
 
     def plan_episode(self, seed: int) -> ArticulatedPlan | PlanFailure:

@@ -9,8 +9,9 @@ images are drawn. Nothing is teleported: the drawer moves because the fingers pu
 its handle, the object because the fingers hold it or the drawer carries it.
 
 Success (:func:`check_outcome`): at the end the object lies in the interior volume behind the
-part (its origin, which is its bottom's centre, inside the volume's rectangle in the link's
-frame and within :data:`FLOOR_TOL` of its floor), the part is closed (at most
+part (its origin, which is its bottom's centre, inside the volume's rectangle in the frame of
+the body holding it, the drawer's link or, behind a door, the container's case, and within
+:data:`FLOOR_TOL` of its floor or shelf), the part is closed (at most
 :data:`~factory.tasks.articulated.plan.CLOSED_AT` of its range), the hand is open and away from
 the handle, and no robot contact with the scene other than the container and the object went
 deeper than :data:`~factory.tasks.articulated.execute.COLLISION_DEPTH`. Failure reasons, the
@@ -54,6 +55,7 @@ __all__ = [
     "env_state",
     "execute_episode",
     "inside",
+    "tilt",
 ]
 
 ENV_STATE_DIM = 9
@@ -88,10 +90,11 @@ def allowed(setup: PlaceInsideSetup) -> np.ndarray:
 
 def inside(setup: PlaceInsideSetup, data: mujoco.MjData) -> tuple[bool, np.ndarray]:
     """Whether the object lies in the interior volume behind the part (its origin inside the
-    volume's rectangle, the link's frame, and within :data:`FLOOR_TOL` of its floor), and the
-    origin in the link's frame (3,) (m); ``data`` with current kinematics."""
-    art = setup.art
-    b = art.body
+    volume's rectangle and within :data:`FLOOR_TOL` of its support, in the frame of
+    :attr:`~factory.tasks.place_inside.plan.PlaceInsideSetup.interior_body`: the drawer's link,
+    or the case behind a door), and the origin in that frame (3,) (m); ``data`` with current
+    kinematics."""
+    b = setup.interior_body
     link = np.eye(4)
     link[:3, :3] = data.xmat[b].reshape(3, 3)
     link[:3, 3] = data.xpos[b]
@@ -103,6 +106,13 @@ def inside(setup: PlaceInsideSetup, data: mujoco.MjData) -> tuple[bool, np.ndarr
         and abs(p[2] - setup.interior.floor_z) <= FLOOR_TOL
     )
     return ok, p
+
+
+def tilt(setup: PlaceInsideSetup, data: mujoco.MjData) -> float:
+    """The object's tilt (deg): the angle between its up axis and the world's (0 upright, 90
+    lying on its side; reported, not judged: an object on its side inside still counts)."""
+    up = float(data.xmat[setup.pick_body].reshape(3, 3)[2, 2])
+    return float(np.degrees(np.arccos(np.clip(up, -1.0, 1.0))))
 
 
 @dataclass
@@ -147,6 +157,7 @@ def check_outcome(
         "lifted": float(watch.lifted),
         "off_place": float(watch.off_place),
         "released": float(released),
+        "tilt": tilt(setup, data),
     }
     if watch.worst > COLLISION_DEPTH:
         return Outcome(False, "collision", details)

@@ -1,14 +1,17 @@
-"""Planning one "put the mug in the drawer" demonstration: open the part, pick the object, place
-it on the interior support behind the part, release, retreat, close the part.
+"""Planning one "put the mug in the drawer" or "put the mug in the microwave" demonstration:
+open the part, pick the object, place it on the interior support behind the part, release,
+retreat, close the part.
 
 Per scene, :func:`setup_scene` chooses the container part (a drawer whose link carries an
-interior support and volume, tall enough for the object; empty ones first, then one with
-something stored on its floor, which is taken out), the pick object
-(:mod:`~factory.tasks.place_inside.containers`) and, through the articulated tasks' set-up
-(:func:`factory.tasks.articulated.plan.setup_scene` for that part, direction ``open``), the
-robot's base spot in front of the part. The pick object stands on the container's top (the
-counter above the drawer, a nightstand's or a dresser's top): it is moved there, and what
-else stands on that top is taken out of the scene (``cleared``).
+interior support and volume, or a door with a level of the fixed case behind it, big enough
+for the object; empty ones first, then one with something stored there, which is taken out),
+the pick object (:mod:`~factory.tasks.place_inside.containers`) and, through the articulated
+tasks' set-up (:func:`factory.tasks.articulated.plan.setup_scene` for that part, direction
+``open``; a door opened to :data:`DOOR_OPEN` only, and the spot must let the arm push it
+back: ``round_trip``), the robot's base spot in front of the part. The pick object stands on
+the container's top (the counter above the drawer, a nightstand's, a microwave's or a fridge's
+top): it is moved there, and what else stands on that top is taken out of the scene
+(``cleared``).
 
 Per episode (:meth:`PlaceInsidePlanner.plan_episode`):
 
@@ -20,11 +23,14 @@ Per episode (:meth:`PlaceInsidePlanner.plan_episode`):
    (:class:`~factory.demos.plan.grasps.GraspPool`), IK (mink), RRTConnect (OMPL) for the
    reach and the transport (the object attached), the object set upright on the drawer's
    floor in the part of the drawer that stands out of the cabinet, lowered from above,
-   released, the hand raised;
+   released, the hand raised; behind a door, set on the level's support
+   :data:`DOOR_DEPTH` behind its front, slid in level from in front of the opening
+   (:data:`DOOR_OUT`), released, the hand backed off along its approach
+   (:data:`DOOR_RETREAT`); the grasps that approach it level are tried first;
 4. ``close``: the handle grasp and the constrained push back to 0
-   (:func:`~factory.tasks.articulated.plan.grasp_and_follow`, the object carried by the drawer
-   ignored by the checker like the drawer itself), reached by RRTConnect, then release and
-   retreat.
+   (:func:`~factory.tasks.articulated.plan.grasp_and_follow`, the object carried by a drawer
+   ignored by the checker like the drawer itself; behind a door it stands still and counts as
+   an obstacle), reached by RRTConnect, then release and retreat.
 
 Every free motion is timed with ruckig segment by segment; the constrained motions as one
 ruckig profile of the path parameter (:func:`~factory.tasks.articulated.plan.time_along`).
@@ -32,6 +38,7 @@ ruckig profile of the path parameter (:func:`~factory.tasks.articulated.plan.tim
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import time
@@ -52,7 +59,7 @@ from factory.demos.plan.grasps import (
     facing_order,
     gripper_clear,
 )
-from factory.demos.plan.planner import Attachment, PlannerConfig, plan
+from factory.demos.plan.planner import Attachment, CollisionChecker, PlannerConfig, plan
 from factory.demos.plan.timing import Limits, time_path
 from factory.errors import TaskError
 from factory.robots.panda import (
@@ -66,6 +73,8 @@ from factory.robots.panda import (
 )
 from factory.schema import Scene, SceneObject
 from factory.tasks.articulated.plan import (
+    GRASP_SEEDS,
+    OPEN_GOAL,
     READY_QPOS,
     ArticulatedMotion,
     ArticulatedPlan,
@@ -81,6 +90,7 @@ from factory.tasks.articulated.plan import (
 from factory.tasks.pick_place.plan import targets_to_ctrl
 from factory.tasks.place_inside.containers import (
     MARGIN,
+    Container,
     Interior,
     container_parts,
     container_top,
@@ -106,6 +116,30 @@ PLACE_DROP = 0.01
 """The object is released this far above the drawer's floor (m)."""
 MAX_GRASPS = 8
 """Object grasps tried per episode."""
+DOOR_OPEN = (0.78, 0.82)
+"""Shares of the span (of 90 deg: 70-74 deg) a door is opened to: the arm pushes a door back
+shut from its handle up to about 72 deg (wider, the handle faces sideways: docs/
+ARTICULATED_TASKS.md), and the opening is clear for the hand at that angle."""
+DOOR_DEPTH = 0.03
+"""Behind a door, the object is set this far (m) plus its radius and :data:`MARGIN` behind
+the level's front edge (near the opening: the arm reaches in less)."""
+DOOR_OUT = 0.08
+"""The object is slid in level from this far (m) in front of the level's front edge (its
+near side), 1 cm above its place pose."""
+DOOR_RETREAT = 0.08
+"""Behind a door, the open hand backs off this far (m) along its approach after the release."""
+DOOR_GRASPS = GraspConfig(approaches=12, max_tilt_deg=91.0)
+"""Object grasps behind a door: approaches every 30 deg about the closing axis, up to level,
+the most level first: the forearm must pass under the top of the opening (a microwave's cavity
+is 0.28 m high), which the pick-and-place default's tilts (up to 45 deg from straight down
+here) run into."""
+DOOR_TOP_FRONT = (0.01, 0.06)
+"""Behind a door, the object starts this far (m) plus its radius behind the door's hinge line
+(the door's top edge is part of the top's front: an object standing on it fell when the door
+swung), near the front so that the forearm of a hand held level or tilted 30 deg stays clear
+of the top."""
+LINE_STEP = 0.03
+"""Waypoint spacing (m) of the straight tool motion that slides the object in behind a door."""
 GRASP_CHECK_SEEDS = 3
 """Starts of the object (seeds 0, 1, ...) at which :meth:`PlaceInsidePlanner.check_graspable`
 looks for a grasp before the scene's episodes are planned."""
@@ -134,6 +168,19 @@ class PlaceInsideSetup:
     pick_body: int
     pick_adr: int
     cleared: tuple[str, ...] = ()
+
+    @property
+    def behind_door(self) -> bool:
+        """The interior is the fixed case behind a door (not carried by the part)."""
+        return not self.interior.carried
+
+    @property
+    def interior_body(self) -> int:
+        """The body whose frame holds :attr:`interior` (id in :attr:`model`): the drawer's link,
+        or the container's root body behind a door."""
+        if self.interior.carried:
+            return self.art.body
+        return int(self.model.body(self.container.id).id)
 
     @property
     def model(self) -> mujoco.MjModel:
@@ -171,11 +218,18 @@ class PlaceInsideSetup:
     def instruction(self) -> str:
         """The episode's instruction: the scene's when the scene was made for the task, else
         "put the <object> in <the part's label>" ("put the mug in the drawer of the base
-        cabinet")."""
+        cabinet"), behind a door "put the <object> in the <container>" ("put the mug in the
+        microwave oven"; "... behind the left door" where it has two)."""
         task = self.scene.task
         if task is not None and task.kind == "place_inside" and task.instruction:
             return str(task.instruction)
-        return f"put the {self.pick.category.replace('_', ' ')} in {self.art.part.label}"
+        what = self.pick.category.replace("_", " ")
+        if not self.behind_door:
+            return f"put the {what} in {self.art.part.label}"
+        label = self.art.part.label
+        where = self.container.category.replace("_", " ")
+        side = label.split(" of the ")[0].removeprefix("the ")
+        return f"put the {what} in the {where}" + (f" behind the {side}" if side != "door" else "")
 
 
 class _CarriedSetup(ArticulatedSetup):
@@ -185,7 +239,8 @@ class _CarriedSetup(ArticulatedSetup):
     carried: int = -1
 
     def link_bodies(self) -> np.ndarray:
-        return np.append(super().link_bodies(), self.carried)
+        own = super().link_bodies()
+        return np.append(own, self.carried) if self.carried >= 0 else own
 
 
 def setup_scene(
@@ -196,61 +251,174 @@ def setup_scene(
 
     Raises:
         TaskError: no pick object, no container part (none with an interior, too small) or
-            none the robot can open from a free base spot (with the reasons).
+            none the robot can open (and, behind a door, push back) from a free base spot;
+            with the counts and, for the parts the instruction names, a reason each.
     """
-    from factory.tasks.articulated.plan import setup_scene as setup_part
-
     pick = pick_object(scene)
     why: Counter[str] = Counter()
-    parts = container_parts(scene, assets_root, pick, why)
+    refusals: list[str] = []
+    parts = container_parts(scene, assets_root, pick, why, refusals)
     for box in parts[:MAX_CONTAINERS]:
-        part, inner = box.part, box.interior
-        top = container_top(part.obj, assets_root)
-        assert top is not None
-        sc = on_top(without(scene, box.stored), part.obj, top[0], pick)
-        cleared = sorted({o.id for o in scene.objects} - {o.id for o in sc.objects})
-        sc = replace(
-            sc,
-            objects=[
-                replace(o, task_joint=part.joint.name if o.id == part.obj.id else None)
-                for o in sc.objects
-            ],
-        )
-        try:
-            art = setup_part(sc, assets_root, "open", freeze_beyond=freeze_beyond)
-        except TaskError as e:
-            log.info("scene %s: %s: %s", scene.id, part.key, e)
-            why["unreachable"] += 1
-            continue
-        if pick.id in art.frozen:
-            why["object_out_of_reach"] += 1
-            continue
-        m = art.model
-        body = m.body(pick.id).id
-        adr = int(m.jnt_qposadr[m.body_jntadr[body]])
-        out = PlaceInsideSetup(
-            art,
-            pick,
-            inner,
-            part.obj.position.z + top[0],
-            top[1],
-            body,
-            adr,
-            tuple(sorted(set(cleared) | set(art.cleared))),
-        )
-        log.info(
-            "scene %s: put %s in %s (%s); cleared %s",
-            scene.id,
-            pick.id,
-            part.key,
-            part.label,
-            list(out.cleared),
-        )
-        return out
+        out = _setup_container(scene, assets_root, pick, box, freeze_beyond, why, refusals)
+        if out is not None:
+            return out
+    reasons = "; ".join(refusals)
+    fix = ""
+    if why["too_small"]:
+        fix = "; ask for a smaller object or a larger container"
+    elif why["unreachable"]:
+        fix = "; ask for another container, or generate the scene again (another seed)"
     raise TaskError(
         f"scene {scene.id!r}: no container part for {pick.id!r} "
         f"({len(parts)} candidate(s); {dict(why) or 'no articulated part with an interior'})"
+        + (f": {reasons}" if reasons else "")
+        + fix
     )
+
+
+def _setup_container(
+    scene: Scene,
+    assets_root: str | Path,
+    pick: SceneObject,
+    box: Container,
+    freeze_beyond: float,
+    why: Counter[str],
+    refusals: list[str],
+) -> PlaceInsideSetup | None:
+    """:func:`setup_scene` for one container: the set-up, or None (counted into ``why``, the
+    reason added to ``refusals``)."""
+    from factory.tasks.articulated.plan import setup_scene as setup_part
+
+    part, inner = box.part, box.interior
+    top = container_top(part.obj, assets_root)
+    assert top is not None
+    sc = on_top(without(scene, box.stored), part.obj, top[0], pick)
+    cleared = sorted({o.id for o in scene.objects} - {o.id for o in sc.objects})
+    sc = replace(
+        sc,
+        objects=[
+            replace(o, task_joint=part.joint.name if o.id == part.obj.id else None)
+            for o in sc.objects
+        ],
+    )
+    door = box.behind_door
+    try:
+        art = setup_part(
+            sc,
+            assets_root,
+            "open",
+            freeze_beyond=freeze_beyond,
+            open_to=DOOR_OPEN[1] if door else OPEN_GOAL[1],
+            round_trip=door,
+            spot_check=_InteriorReach(box, pick, top[1]) if door else None,
+        )
+    except TaskError as e:
+        log.info("scene %s: %s: %s", scene.id, part.key, e)
+        why["unreachable"] += 1
+        counts = str(e).rpartition(" (")[2].rstrip(")")
+        refusals.append(
+            f"{part.key} ({part.label}): unreachable: no free base spot from which the "
+            f"arm opens it{' and pushes it back' if door else ''} ({counts})"
+        )
+        return None
+    if pick.id in art.frozen:
+        why["object_out_of_reach"] += 1
+        refusals.append(f"{part.key} ({part.label}): {pick.id!r} out of the arm's reach")
+        return None
+    m = art.model
+    body = m.body(pick.id).id
+    adr = int(m.jnt_qposadr[m.body_jntadr[body]])
+    out = PlaceInsideSetup(
+        art,
+        pick,
+        inner,
+        part.obj.position.z + top[0],
+        top[1],
+        body,
+        adr,
+        tuple(sorted(set(cleared) | set(art.cleared))),
+    )
+    log.info(
+        "scene %s: put %s in %s (%s, %s); cleared %s",
+        scene.id,
+        pick.id,
+        part.key,
+        part.label,
+        inner.support,
+        list(out.cleared),
+    )
+    return out
+
+
+REACH_TILTS = (60.0, 30.0)
+"""Tilts (deg from straight down) of the hand :class:`_InteriorReach` tries at the place
+point behind a door."""
+
+
+class _InteriorReach:
+    """The articulated set-up's ``spot_check`` behind a door: from the spot, the hand reaches
+    the place point (:meth:`PlaceInsidePlanner.place_xy`, at 0.6 of the object's height above
+    the level) collision-free with the door open to :data:`DOOR_OPEN`'s upper end, approaching
+    into the case (+y of the container), along the reach from the base or between the two,
+    tilted :data:`REACH_TILTS` from straight down, the closing axis level; and the middle of
+    the band of the container's top where the object starts (:data:`DOOR_TOP_FRONT` behind the
+    hinge line) lies within :data:`REACH` of the base (``top_out_of_reach``: a fridge's top,
+    1.45 m high, from a spot that works its door). Refuses the spot with
+    ``interior_out_of_reach`` (or ``top_out_of_reach``): the handle's path alone picks spots
+    from which the case's inside is out of the hand's reach or behind the open door."""
+
+    def __init__(self, box: Container, pick: SceneObject, top_rect: np.ndarray) -> None:
+        from factory.robots.ik import IKSolver
+
+        self.box = box
+        self.pick = pick
+        self.top_rect = top_rect
+        self.ik = IKSolver()
+
+    def __call__(self, art: ArticulatedSetup, checker: CollisionChecker) -> str:
+        c = self.box.part.obj
+        world = pose_matrix(
+            np.array([c.position.x, c.position.y, c.position.z]),
+            rot_z(math.radians(c.rotation.z)),
+        )
+        inner, d = self.box.interior, self.pick.dimensions
+        r = 0.5 * math.hypot(d.width, d.length)
+        joint = self.box.part.joint
+        hinge = float(joint.anchor[1]) * self.box.part.scale[1]
+        band = np.array(
+            [
+                0.5 * (self.top_rect[0] + self.top_rect[2]),
+                hinge + r + 0.5 * sum(DOOR_TOP_FRONT),
+                0.0,
+                1.0,
+            ]
+        )
+        start = (world @ band)[:2]
+        if not REACH[0] <= float(np.linalg.norm(start - art.placement.pos()[:2])) <= REACH[1]:
+            return "top_out_of_reach"
+        u = 0.5 * (inner.lo[0] + inner.hi[0])
+        v = min(inner.lo[1] + r + MARGIN + DOOR_DEPTH, 0.5 * (inner.lo[1] + inner.hi[1]))
+        point = (world @ np.array([u, v, inner.floor_z + 0.6 * d.height, 1.0]))[:3]
+        into = world[:3, 1]
+        reach = point - art.placement.pos()
+        reach[2] = 0.0
+        reach /= max(float(np.linalg.norm(reach)), 1e-9)
+        mid = into + reach
+        aims = [into, reach, mid / max(float(np.linalg.norm(mid)), 1e-9)]
+        checker.set_scene(initial_state(art, DOOR_OPEN[1] * art.span))
+        checker.attach(None)
+        checker.ignore_bodies([])
+        base_inv = np.linalg.inv(art.placement.matrix())
+        for aim, tilt in itertools.product(aims, REACH_TILTS):
+            t = math.radians(tilt)
+            z = math.sin(t) * aim - math.cos(t) * np.array([0.0, 0.0, 1.0])
+            side = np.cross([0.0, 0.0, 1.0], aim)
+            rot = np.stack([side, np.cross(z, side), z], axis=1)
+            tool = pose_matrix(point, rot)
+            seeds = [READY_QPOS, *GRASP_SEEDS]
+            if self.ik.solve(base_inv @ tool, seeds, accept=checker.valid) is not None:
+                return ""
+        return "interior_out_of_reach"
 
 
 @dataclass
@@ -337,11 +505,13 @@ class PlaceInsidePlanner:
         self.setup = setup
         self.motion = motion or ArticulatedMotion()
         self.planner_cfg = planner_cfg or PlannerConfig()
-        self.opener = ArticulatedPlanner(setup.art, self.motion, self.planner_cfg)
+        goal = DOOR_OPEN if setup.behind_door else OPEN_GOAL
+        self.opener = ArticulatedPlanner(setup.art, self.motion, self.planner_cfg, goal)
         art = setup.art
         fields = {f: getattr(art, f) for f in art.__dataclass_fields__}
         self.closer = _CarriedSetup(**{**fields, "direction": "close"})
-        self.closer.carried = setup.pick_body
+        if setup.interior.carried:  # a drawer carries the object; a door's case does not
+            self.closer.carried = setup.pick_body
         m = setup.model
         self.model = m
         self.robot = art.robot
@@ -349,7 +519,7 @@ class PlaceInsidePlanner:
         self.checker = self.opener.checker
         self.kin = self.opener.kin
         self.dt = float(m.opt.timestep)
-        self.grasp_cfg = GraspConfig()
+        self.grasp_cfg = DOOR_GRASPS if setup.behind_door else GraspConfig()
         self.shape = GripperShape.of(m, self.robot, GRIP_OPEN)
         self.pieces = collision_pieces(m, setup.pick_body)
         key = f"{setup.scene.id}/{setup.pick.id}".encode()
@@ -378,9 +548,13 @@ class PlaceInsidePlanner:
         x0, y0, x1, y1 = s.top_rect
         world = s.pose_container()
         base = s.art.placement.pos()[:2]
+        front = (TOP_FRONT, y1 - y0 - 2 * r - MARGIN)
+        if s.behind_door:  # behind the door's hinge line (the door's top edge moves)
+            hinge = float(s.art.part.joint.anchor[1]) * float(s.art.part.scale[1]) - y0
+            front = (hinge + DOOR_TOP_FRONT[0], hinge + DOOR_TOP_FRONT[1])
         for _ in range(tries):
             u = rng.uniform(x0 + r + MARGIN, x1 - r - MARGIN)
-            v = rng.uniform(y0 + r + TOP_FRONT, y1 - r - MARGIN)
+            v = rng.uniform(y0 + r + front[0], y0 + r + front[1])
             xy = (world @ np.array([u, v, 0.0, 1.0]))[:2]
             if REACH[0] <= float(np.linalg.norm(xy - base)) <= REACH[1]:
                 break
@@ -444,11 +618,19 @@ class PlaceInsidePlanner:
     # -- where the object goes ---------------------------------------------------------------
 
     def place_xy(self, q_open: float) -> np.ndarray:
-        """The middle (2,) (m, world frame) of the drawer's floor standing out of the cabinet
-        with the part at ``q_open``, :data:`MARGIN` plus the object's radius from its walls
-        and from the cabinet's front."""
+        """Where the object is set (2,) (m, world frame): the middle of the drawer's floor
+        standing out of the cabinet with the part at ``q_open``, :data:`MARGIN` plus the
+        object's radius from its walls and from the cabinet's front; behind a door, the
+        middle of the level's width, :data:`DOOR_DEPTH` plus :data:`MARGIN` plus the radius
+        behind its front edge."""
         s = self.setup
         inner = s.interior
+        if s.behind_door:
+            d = s.pick.dimensions
+            r = 0.5 * math.hypot(d.width, d.length)
+            v = min(inner.lo[1] + r + MARGIN + DOOR_DEPTH, 0.5 * (inner.lo[1] + inner.hi[1]))
+            u = 0.5 * (inner.lo[0] + inner.hi[0])
+            return (s.pose_container() @ np.array([u, v, 0.0, 1.0]))[:2]
         axis = np.array(s.art.part.joint.axis, float)
         shift = axis * q_open  # the link's displacement, the container's frame
         lo, hi = inner.lo + shift, inner.hi + shift
@@ -462,10 +644,59 @@ class PlaceInsidePlanner:
         return (s.pose_container() @ np.array([u, v, 0.0, 1.0]))[:2]
 
     def floor_z(self, q_open: float) -> float:
-        """The drawer floor's height (m, world frame) with the part at ``q_open``."""
+        """The interior support's height (m, world frame) with the part at ``q_open`` (a
+        drawer's floor moves with it; a door's level does not)."""
         s = self.setup
+        if s.behind_door:
+            return float(s.container.position.z + s.interior.floor_z)
         axis = np.array(s.art.part.joint.axis, float)
         return float(s.container.position.z + s.interior.floor_z + axis[2] * q_open)
+
+    def insert_offset(self) -> np.ndarray:
+        """Where the object's place pose is approached from, relative to it (3,) (m, world
+        frame): :data:`LIFT` above for a drawer; behind a door, out of the opening along the
+        container's front (-y) to :data:`DOOR_OUT` in front of the level's front edge, 1 cm
+        up."""
+        s = self.setup
+        if not s.behind_door:
+            return np.array([0.0, 0.0, LIFT])
+        d = s.pick.dimensions
+        r = 0.5 * math.hypot(d.width, d.length)
+        front = s.pose_container()[:3, 1]  # the container's +y: into the case
+        xy = self.place_xy(0.0)
+        depth = float(np.dot(np.append(xy, 0.0) - s.pose_container()[:3, 3], front))
+        out = depth - s.interior.lo[1] + r + DOOR_OUT
+        return -front * out + np.array([0.0, 0.0, 0.01])
+
+    def place_turns(self, grasp: np.ndarray, xy: np.ndarray) -> list[float]:
+        """The turns (rad, about the world's z) of the object from its pick pose to its place
+        pose, in the order tried: 0, then quarter and eighth turns; behind a door first the
+        turns that point the hand's approach (the tool's +z at the grasp ``grasp`` (4, 4),
+        world frame) into the case (the container's +y), along the reach from the robot's
+        base to the place point ``xy`` (2,) (m, world frame) and between the two, so that the
+        hand comes in through the opening."""
+        out = [0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4]
+        s = self.setup
+        a = grasp[:2, 2]
+        if not s.behind_door or float(np.linalg.norm(a)) < 0.3:  # no level part to turn
+            return out
+        into = s.pose_container()[:2, 1]
+        reach = xy - s.placement.pos()[:2]
+        heading = math.atan2(a[1], a[0])
+        aims = [math.atan2(into[1], into[0]), math.atan2(reach[1], reach[0])]
+        aims.append(aims[0] + 0.5 * math.remainder(aims[1] - aims[0], 2 * math.pi))
+        return [math.remainder(t - heading, 2 * math.pi) for t in aims] + out
+
+    def retreat_pose(self, place: np.ndarray) -> np.ndarray:
+        """The open hand's pose (4, 4) after it let go of the object at the tool pose
+        ``place``: :data:`LIFT` above for a drawer; behind a door, :data:`DOOR_RETREAT` back
+        along its approach axis."""
+        up = place.copy()
+        if self.setup.behind_door:
+            up[:3, 3] -= place[:3, 2] * DOOR_RETREAT
+        else:
+            up[2, 3] += LIFT
+        return up
 
     # -- planning ------------------------------------------------------------------------------
 
@@ -477,6 +708,9 @@ class PlaceInsidePlanner:
         pose = pose_matrix(data.xpos[s.pick_body], data.xmat[s.pick_body])
         cands = self.pool.candidates(pose[:3, :3], rng)
         cands = facing_order(cands, pose, s.art.placement.pos()[:2], 1.0)
+        if s.behind_door:
+            com = pose[:3, :3] @ m.body_ipos[s.pick_body] + pose[:3, 3]
+            cands.sort(key=lambda g: _door_rank(g, pose, com))
         back = np.eye(4)
         back[2, 3] = -self.grasp_cfg.pregrasp
         out = []
@@ -493,6 +727,29 @@ class PlaceInsidePlanner:
     def _ik(self, pose: np.ndarray, seeds: list[np.ndarray]) -> np.ndarray | None:
         base_inv = np.linalg.inv(self.setup.art.placement.matrix())
         return self.ik.solve(base_inv @ pose, seeds, accept=self.checker.valid)
+
+    def _line(self, a: np.ndarray, b: np.ndarray, q_a: np.ndarray) -> np.ndarray | None:
+        """Arm configurations (k, 7) moving the tool on the straight line from pose ``a`` (where
+        the arm is ``q_a``) to pose ``b`` (4, 4, world frame; the orientation kept): a
+        waypoint every :data:`LINE_STEP`, IK seeded by the previous one, each step
+        collision-free and without a joint jump over
+        :data:`~factory.tasks.articulated.plan.MAX_JUMP`; None when it breaks off. (Sliding
+        the object in behind a door: the straight line in joint space between the ends
+        leaves the line in space and runs into the opening's frame.)"""
+        from factory.tasks.articulated.plan import MAX_JUMP
+
+        n = max(1, math.ceil(float(np.linalg.norm(b[:3, 3] - a[:3, 3])) / LINE_STEP))
+        out = [q_a]
+        for k in range(1, n + 1):
+            pose = a.copy()
+            pose[:3, 3] = a[:3, 3] + (b[:3, 3] - a[:3, 3]) * k / n
+            q = self._ik(pose, [out[-1]])
+            if q is None or float(np.max(np.abs(q - out[-1]))) > MAX_JUMP:
+                return None
+            if not self.checker.segment_valid(out[-1], q):
+                return None
+            out.append(q)
+        return np.array(out)
 
     def _pick_place(
         self,
@@ -535,29 +792,37 @@ class PlaceInsidePlanner:
         xy = self.place_xy(q_open)
         z = self.floor_z(q_open) + PLACE_DROP
         found = None
-        for turn in (0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4, -np.pi / 4):
+        for turn in self.place_turns(grasp, xy):
             place_obj = np.eye(4)
             place_obj[:3, :3] = rot_z(turn) @ obj[:3, :3]
             place_obj[:3, 3] = [xy[0], xy[1], z]
             place = place_obj @ np.linalg.inv(pose_obj_in_tool)
             preplace = place.copy()
-            preplace[2, 3] += LIFT
-            q_preplace = self._ik(preplace, [q_lift])
-            if q_preplace is None:
-                continue
-            q_place = self._ik(place, [q_preplace])
-            if q_place is None or not ck.segment_valid(q_preplace, q_place):
-                continue
-            found = (q_preplace, q_place, place, place_obj)
+            preplace[:3, 3] += self.insert_offset()
+            if s.behind_door:  # the arm's branch inside the case first, then the way in
+                q_place = self._ik(place, [q_lift, q_from, READY_QPOS, *GRASP_SEEDS])
+                way_in = None if q_place is None else self._line(place, preplace, q_place)
+                if way_in is None:
+                    continue
+                way_in = way_in[::-1]
+            else:
+                q_preplace = self._ik(preplace, [q_lift])
+                q_place = None if q_preplace is None else self._ik(place, [q_preplace])
+                if q_preplace is None or q_place is None:
+                    continue
+                if not ck.segment_valid(q_preplace, q_place):
+                    continue
+                way_in = np.stack([q_preplace, q_place])
+            found = (way_in, place, place_obj)
             break
         if found is None:
             counts["ik_failed"] += 1
             return None
-        q_preplace, q_place, place, place_obj = found
+        way_in, place, place_obj = found
+        q_preplace, q_place = way_in[0], way_in[-1]
         ck.attach(None)
         ck.ignore_bodies([s.pick_body])
-        up = place.copy()
-        up[2, 3] += LIFT
+        up = self.retreat_pose(place)
         q_up = self._ik(up, [q_place])
         ok_up = q_up is not None and ck.segment_valid(q_place, q_up)
         ck.ignore_bodies([])
@@ -583,7 +848,7 @@ class PlaceInsidePlanner:
             ("pick_close", q_grasp[None], "hold_closed"),
             ("pick_lift", np.stack([q_grasp, q_lift]), "slow_closed"),
             ("transport", carry.path, "slow_closed"),
-            ("lower", np.stack([q_preplace, q_place]), "slow_closed"),
+            ("lower", way_in, "slow_closed"),
             ("place_release", q_place[None], "hold_open"),
             ("place_retreat", np.stack([q_place, q_up]), "slow_open"),
         ]
@@ -739,6 +1004,23 @@ class PlaceInsidePlanner:
             0.0,
             0,
         )
+
+
+def _door_rank(g: Grasp, pose: np.ndarray, com: np.ndarray) -> tuple[bool, int, float]:
+    """How a grasp suits an object slid in behind a door, lower first: a steep approach (more
+    than 55 deg from level: the wrist high, into the top of the opening) last; then the
+    horizontal distance (cm) of the object's centre of mass from the grip (the contacts'
+    middle: gravity turns an object held from the side about the grip when its centre is off
+    it; a can held by its front edge turned over in the hand); then the most level approach.
+
+    Args:
+        g: the grasp (object frame).
+        pose: the object's pose (4, 4), world frame.
+        com: its centre of mass (3,) (m, world frame)."""
+    down = -float((pose @ g.pose_tool_in_obj)[2, 2])  # 1: straight down, 0: level
+    grip = pose[:3, :3] @ g.contacts_in_obj.mean(axis=0) + pose[:3, 3]
+    off = float(np.hypot(*(com - grip)[:2]))
+    return down > 0.82, round(100.0 * off), round(down, 1)
 
 
 def _quat_mat(quat: np.ndarray) -> np.ndarray:

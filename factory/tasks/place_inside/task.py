@@ -1,6 +1,7 @@
-"""``task=place_inside``: the Panda on its pedestal puts a small object away in a drawer: it
-opens the drawer by its handle, picks the object from the counter above, places it on the
-drawer's floor, lets go, and closes the drawer.
+"""``task=place_inside``: the Panda on its pedestal puts a small object away in a drawer or
+behind a door: it opens the drawer (door) by its handle, picks the object from the top above,
+places it on the drawer's floor (the shelf or floor behind the door), lets go, and closes the
+drawer (door).
 
 The package reuses the articulated tasks' machinery (:mod:`factory.tasks.articulated`: the
 part, the base spot, the handle motions, recording) and the pick-and-place task's (grasps,
@@ -25,7 +26,8 @@ class PlaceInsideTask(Task):
 
     name: ClassVar[str] = "place_inside"
     description: ClassVar[str] = (
-        "put a small object in a drawer: open it, place the object inside, close it"
+        "put a small object in a drawer or behind a door (microwave, fridge, cabinet): open it, "
+        "place the object inside, close it"
     )
     example_scene: ClassVar[str | None] = "tasks/place_inside/kitchen_cabinet_can_drawer"
     demo_execution: ClassVar[str] = "episode"
@@ -34,11 +36,12 @@ class PlaceInsideTask(Task):
     articulated_assets: ClassVar[bool] = True
 
     def matches_request(self, spec: dict[str, Any]) -> bool:
-        """A request to put an object away in a drawer ("put the mug in the drawer of the
-        base cabinet": the ``PartSpec`` fields of :mod:`factory.scenes.part_read` with an
-        ``item`` and the role ``drawer``); a place target that is no drawer ("puts it in the
-        bowl") is pick-and-place's."""
-        return bool(spec.get("item_named")) and spec.get("role") == "drawer"
+        """A request to put an object away in a drawer or behind a door ("put the mug in the
+        drawer of the base cabinet", "put the mug in the microwave": the ``PartSpec`` fields
+        of :mod:`factory.scenes.part_read` with an ``item`` and the role ``drawer`` or
+        ``door``); a place target that is neither ("puts it in the bowl") is
+        pick-and-place's."""
+        return bool(spec.get("item_named")) and spec.get("role") in ("drawer", "door")
 
     def dataset_meta(self) -> dict[str, Any]:
         """``layout`` (a dataset without it is the default task's)."""
