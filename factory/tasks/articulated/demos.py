@@ -91,7 +91,9 @@ def scene_setup(
 ) -> ArticulatedSetup:
     """A scene of a run composed with the robot in front of its part as ``stage=demos``
     records it (:func:`~factory.tasks.articulated.plan.setup_scene`, deterministic per scene;
-    objects beyond ``demos.freeze_beyond`` static).
+    objects beyond ``demos.freeze_beyond`` static). The search runs once per scene and run:
+    the other processes compose its recorded choices
+    (:func:`~factory.tasks.articulated.setup_record.recorded_setup`).
 
     Raises:
         TaskError: the scene has no usable part (none, the named one missing, out of reach).
@@ -100,10 +102,19 @@ def scene_setup(
 
     from factory.store import RunStore
     from factory.tasks.articulated.plan import setup_scene
+    from factory.tasks.articulated.setup_record import recorded_setup
 
     store = RunStore(run_dir)
     scene = ensure_assets(store.load_scene(scene_id), store.assets_dir)
-    setup = setup_scene(scene, store.assets_dir, direction, freeze_beyond=dc.freeze_beyond)
+    key = {"task": direction, "freeze_beyond": dc.freeze_beyond}
+    setup = recorded_setup(
+        run_dir,
+        scene_id,
+        key,
+        lambda hint: setup_scene(
+            scene, store.assets_dir, direction, freeze_beyond=dc.freeze_beyond, hint=hint
+        ),
+    )
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     return setup

@@ -40,8 +40,9 @@ import math
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -223,6 +224,52 @@ class ArticulatedSetup:
                     out.append(b)
                     break
         return np.array(sorted(set(out)))
+
+
+@dataclass(frozen=True)
+class SetupHint:
+    """What :func:`setup_scene`'s search chose for a scene, to set the same scene up again
+    without searching (:func:`setup_scene`'s ``hint``; another process of the same run:
+    :mod:`factory.tasks.articulated.setup_record`).
+
+    Attributes:
+        part: the part's key (``<object id>:<joint name>``).
+        cleared: objects taken out of its way.
+        spot: the robot's base spot.
+        rig: the recording cameras as aimed there.
+    """
+
+    part: str
+    cleared: tuple[str, ...]
+    spot: RobotPlacement
+    rig: CameraRig
+
+    @staticmethod
+    def of(setup: ArticulatedSetup) -> SetupHint:
+        """The choices of a set-up."""
+        return SetupHint(setup.part.key, setup.cleared, setup.placement, setup.rig)
+
+    def to_json(self) -> dict[str, Any]:
+        """A plain dict (JSON)."""
+        return {
+            "part": self.part,
+            "cleared": list(self.cleared),
+            "spot": asdict(self.spot),
+            "rig": asdict(self.rig),
+        }
+
+    @staticmethod
+    def from_json(d: dict[str, Any]) -> SetupHint:
+        """The inverse of :meth:`to_json`."""
+        rig: dict[str, Any] = {
+            k: tuple(v) if isinstance(v, list) else v for k, v in d["rig"].items()
+        }
+        return SetupHint(
+            str(d["part"]),
+            tuple(d["cleared"]),
+            RobotPlacement(**d["spot"]),
+            CameraRig(**rig),
+        )
 
 
 @dataclass
@@ -638,14 +685,20 @@ def _setup_part(
     open_to: float = OPEN_GOAL[1],
     round_trip: bool = False,
     spot_check: SpotCheck | None = None,
+    chosen: SetupHint | None = None,
 ) -> ArticulatedSetup | str:
     """:func:`setup_scene` for one part: the set-up, ``"blocked:<body>"`` when the moving link
     runs into that body, or ``""`` when no base spot works (reasons counted into ``why``,
-    those of the way back as ``back_<reason>``)."""
+    those of the way back as ``back_<reason>``). With ``chosen`` (an earlier search's choices
+    for this part), its spot and cameras are taken without the checks."""
     from factory.tasks.pick_place.objects import move_robot
-    from factory.tasks.pick_place.plan import aim_cameras, compose, far_objects
+    from factory.tasks.pick_place.plan import aim_cameras, compose
 
     frozen = {part.obj.id} if not part.obj.is_static else set()
+    if chosen is not None:
+        return _set_up_at(
+            scene, assets_root, part, direction, chosen.spot, chosen.rig, frozen, freeze_beyond
+        )
     model = compose(scene, assets_root, RobotPlacement(0.0, 0.0, 0.0, 0.0), rig, frozen)
     jid = model.joint(part.joint_name).id
     lo, hi = (float(v) for v in model.jnt_range[jid])
@@ -746,6 +799,22 @@ def _setup_part(
     cams = aim_cameras(
         scene, assets_root, found, replace(rig, workspace=float(np.clip(ahead, 0.3, 0.8)))
     )
+    return _set_up_at(scene, assets_root, part, direction, found, cams, frozen, freeze_beyond)
+
+
+def _set_up_at(
+    scene: Scene,
+    assets_root: str | Path | None,
+    part: Part,
+    direction: str,
+    found: RobotPlacement,
+    cams: CameraRig,
+    frozen: set[str],
+    freeze_beyond: float,
+) -> ArticulatedSetup:
+    """The set-up with the robot at ``found`` and the cameras ``cams`` (the search's end)."""
+    from factory.tasks.pick_place.plan import compose, far_objects
+
     far = far_objects(scene, found, set(), freeze_beyond) | frozen
     model = compose(scene, assets_root, found, cams, far)
     jid = model.joint(part.joint_name).id
@@ -815,6 +884,7 @@ def setup_scene(
     open_to: float = OPEN_GOAL[1],
     round_trip: bool = False,
     spot_check: SpotCheck | None = None,
+    hint: SetupHint | None = None,
 ) -> ArticulatedSetup:
     """Chooses the part and the robot's base spot and composes the scene with the robot there.
 
@@ -837,15 +907,45 @@ def setup_scene(
             works inside and closes again).
         spot_check: a task's own test of a spot that passed the others (:data:`SpotCheck`:
             ``place_inside`` asks that the hand reach the interior behind a door).
+        hint: the choices of an earlier search with the same arguments
+            (:meth:`SetupHint.of`): the same set-up, composed without searching.
 
     Raises:
-        TaskError: no part, a named part missing, or no part reachable (with the reasons).
+        TaskError: no part, a named part missing, or no part reachable (with the reasons);
+            a ``hint`` whose part the scene lacks.
     """
     rig = rig or CameraRig()
     parts = choose_parts(scene, assets_root)
     ik = IKSolver()
     motion = ArticulatedMotion()
     why: Counter[str] = Counter()
+    if hint is not None:
+        match = [p for p in parts if p.key == hint.part]
+        if not match:
+            raise TaskError(
+                f"scene {scene.id!r}: its set-up record names part {hint.part!r}, which the "
+                f"scene lacks (its parts: {', '.join(p.key for p in parts) or 'none'}); "
+                "delete the run's cache/setups folder and re-run"
+            )
+        sc = replace(scene, objects=[o for o in scene.objects if o.id not in hint.cleared])
+        res = _setup_part(
+            sc,
+            assets_root,
+            match[0],
+            direction,
+            rig,
+            freeze_beyond,
+            ik,
+            motion,
+            why,
+            open_to,
+            round_trip,
+            spot_check,
+            chosen=hint,
+        )
+        assert isinstance(res, ArticulatedSetup)
+        res.cleared = hint.cleared
+        return res
     for part in parts[:max_parts]:
         sc, cleared = scene, set[str]()
         for _ in range(MAX_CLEARED + 1):
