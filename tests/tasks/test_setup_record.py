@@ -98,13 +98,13 @@ def test_an_unusable_scene_is_recorded_with_its_reason(tmp_path: Path) -> None:
 
     key = {"task": "open", "freeze_beyond": DemosConfig().freeze_beyond}
     with pytest.raises(TaskError) as again:
-        recorded_setup(tmp_path, sid, key, must_not_search)  # type: ignore[arg-type]
+        recorded_setup(tmp_path, sid, key, must_not_search, lambda s: {})
     assert str(again.value) == str(e.value)
 
 
 def _search_in_a_process(run: str, sid: str, marks: str) -> str:
     """A process's set-up through the record; appends 's' to ``marks`` when it searches."""
-    from factory.tasks.articulated.plan import setup_scene
+    from factory.tasks.articulated.plan import SetupHint, setup_scene
     from factory.tasks.articulated.setup_record import recorded_setup
 
     def search(hint):  # type: ignore[no-untyped-def]
@@ -117,9 +117,11 @@ def _search_in_a_process(run: str, sid: str, marks: str) -> str:
 
         store = RunStore(run)
         scene = ensure_assets(store.load_scene(sid), store.assets_dir)
-        return setup_scene(scene, store.assets_dir, "open", hint=hint)
+        given = None if hint is None else SetupHint.from_json(hint)
+        return setup_scene(scene, store.assets_dir, "open", hint=given)
 
-    return recorded_setup(run, sid, {"task": "open"}, search).part.key
+    hint_of = lambda s: SetupHint.of(s).to_json()  # noqa: E731
+    return recorded_setup(run, sid, {"task": "open"}, search, hint_of).part.key
 
 
 def test_processes_that_start_together_search_once(tmp_path: Path) -> None:
@@ -134,3 +136,35 @@ def test_processes_that_start_together_search_once(tmp_path: Path) -> None:
         keys = pool.starmap(_search_in_a_process, [(str(tmp_path), sid, str(marks))] * 3)
     assert len(set(keys)) == 1
     assert marks.read_text() == "s"
+
+
+@pytest.mark.parametrize("example", ["place_inside", "place_inside/kitchen_microwave_can_door"])
+def test_place_inside_hint_composes_the_searched_set_up(example: str, tmp_path: Path) -> None:
+    """``place_inside`` records its container (part and interior level) beside the articulated
+    choices: from the record, a drawer's and a door's set-up come out the same."""
+    from factory.store import RunStore
+    from factory.tasks.articulated.demos import ensure_assets
+    from factory.tasks.place_inside.plan import hint_of, setup_scene
+
+    if "/" in example:
+        src = Path(__file__).resolve().parents[2] / "factory" / "data" / "tasks" / example
+        src = src / "scene.json"
+    else:
+        found = get_task(example).example_scene_path()
+        assert found is not None
+        src = found
+    data = json.loads(src.read_text())
+    (tmp_path / "scenes" / data["id"]).mkdir(parents=True)
+    (tmp_path / "scenes" / data["id"] / "scene.json").write_text(src.read_text())
+    store = RunStore(tmp_path)
+    scene = ensure_assets(store.load_scene(data["id"]), store.assets_dir)
+    searched = setup_scene(scene, store.assets_dir)
+    hint = json.loads(json.dumps(hint_of(searched)))
+    composed = setup_scene(scene, store.assets_dir, hint=hint)
+    assert json.loads(json.dumps(hint_of(composed))) == hint
+    assert composed.cleared == searched.cleared and composed.top_z == searched.top_z
+    assert (composed.pick_body, composed.pick_adr) == (searched.pick_body, searched.pick_adr)
+    assert np.array_equal(composed.art.model.qpos0, searched.art.model.qpos0)
+    assert np.array_equal(composed.art.model.body_pos, searched.art.model.body_pos)
+    with pytest.raises(TaskError, match="delete the run's cache/setups folder"):
+        setup_scene(scene, store.assets_dir, hint={**hint, "support": "no_such_level"})

@@ -101,7 +101,7 @@ def scene_setup(
     import mujoco
 
     from factory.store import RunStore
-    from factory.tasks.articulated.plan import setup_scene
+    from factory.tasks.articulated.plan import SetupHint, setup_scene
     from factory.tasks.articulated.setup_record import recorded_setup
 
     store = RunStore(run_dir)
@@ -112,8 +112,13 @@ def scene_setup(
         scene_id,
         key,
         lambda hint: setup_scene(
-            scene, store.assets_dir, direction, freeze_beyond=dc.freeze_beyond, hint=hint
+            scene,
+            store.assets_dir,
+            direction,
+            freeze_beyond=dc.freeze_beyond,
+            hint=None if hint is None else SetupHint.from_json(hint),
         ),
+        lambda found: SetupHint.of(found).to_json(),
     )
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)

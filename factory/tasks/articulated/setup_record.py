@@ -5,10 +5,12 @@ process and each of the 15 planner processes, at the same moment. For the articu
 set-up is a search (parts, base spots, the whole motion planned from each, the cameras aimed):
 10-25 s of a core each on the busy node, 66 s for the first scene of the 2026-11-29 H200 run,
 sixteen times over. :func:`recorded_setup` lets the first process search, under a lock, and
-record its choices (:class:`~factory.tasks.articulated.plan.SetupHint`: part, objects cleared,
-base spot, cameras) in ``<run_dir>/cache/setups/<scene>-<key>.json``; the others wait for the
-lock, read the record and compose the same set-up without searching. A scene the search finds
-unusable is recorded too (its reason), so the others refuse it at once with the same message.
+record its choices (for ``open`` and ``close``
+:class:`~factory.tasks.articulated.plan.SetupHint`: part, objects cleared, base spot, cameras;
+``place_inside`` adds its container) in ``<run_dir>/cache/setups/<scene>-<key>.json``; the
+others wait for the lock, read the record and compose the same set-up without searching. A
+scene the search finds unusable is recorded too (its reason), so the others refuse it at once
+with the same message.
 
 The record's name holds a digest of everything the search depends on (the scene file, the
 task's settings, :data:`RECORD_VERSION`): another scene file or setting searches again. Where the
@@ -24,10 +26,9 @@ import json
 import logging
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from factory.errors import TaskError
-from factory.tasks.articulated.plan import ArticulatedSetup, SetupHint
 
 __all__ = ["RECORD_VERSION", "record_path", "recorded_setup"]
 
@@ -36,6 +37,8 @@ log = logging.getLogger(__name__)
 RECORD_VERSION = 1
 """Part of every record's key: raised when the search would choose otherwise for the same
 inputs (old records are then not read)."""
+
+SetupT = TypeVar("SetupT")
 
 
 def record_path(run_dir: str | Path, scene_id: str, key: dict[str, Any]) -> Path:
@@ -63,8 +66,9 @@ def recorded_setup(
     run_dir: str | Path,
     scene_id: str,
     key: dict[str, Any],
-    search: Callable[[SetupHint | None], ArticulatedSetup],
-) -> ArticulatedSetup:
+    search: Callable[[dict[str, Any] | None], SetupT],
+    hint_of: Callable[[SetupT], dict[str, Any]],
+) -> SetupT:
     """The scene's set-up: searched by the first process (``search(None)``) and recorded, or
     composed from the record (``search(hint)``).
 
@@ -73,16 +77,18 @@ def recorded_setup(
         key: the settings the search depends on besides the scene file (JSON values).
         search: sets the scene up, searching without a hint, composing the hint's choices with
             one.
+        hint_of: a set-up's choices (JSON values; e.g.
+            :meth:`~factory.tasks.articulated.plan.SetupHint.to_json`).
 
     Raises:
         TaskError: the scene cannot host the task (searched now or recorded so).
     """
     from factory.store import atomic_write_json
 
-    def from_record(record: dict[str, Any]) -> ArticulatedSetup:
+    def from_record(record: dict[str, Any]) -> SetupT:
         if record.get("error"):
             raise TaskError(record["error"])
-        return search(SetupHint.from_json(record["hint"]))
+        return search(record["hint"])
 
     try:
         path = record_path(run_dir, scene_id, key)
@@ -103,8 +109,8 @@ def recorded_setup(
             except TaskError as e:
                 atomic_write_json(path, {"schema_version": 1, "scene": scene_id, "error": str(e)})
                 raise
-            hint = SetupHint.of(setup).to_json()
-            atomic_write_json(path, {"schema_version": 1, "scene": scene_id, "hint": hint})
+            record = {"schema_version": 1, "scene": scene_id, "hint": hint_of(setup)}
+            atomic_write_json(path, record)
             return setup
     finally:
         lock.__exit__(None, None, None)

@@ -40,7 +40,8 @@ log = logging.getLogger(__name__)
 def scene_setup(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> PlaceInsideSetup:
     """A scene of a run composed with the robot in front of its container part as
     ``stage=demos`` records it (:func:`~factory.tasks.place_inside.plan.setup_scene`,
-    deterministic per scene; objects beyond ``demos.freeze_beyond`` static).
+    deterministic per scene; objects beyond ``demos.freeze_beyond`` static). The search runs
+    once per scene and run (:func:`~factory.tasks.articulated.setup_record.recorded_setup`).
 
     Raises:
         TaskError: no object to put away, or no container part the robot can work.
@@ -48,11 +49,20 @@ def scene_setup(run_dir: str | Path, scene_id: str, dc: DemosConfig) -> PlaceIns
     import mujoco
 
     from factory.store import RunStore
-    from factory.tasks.place_inside.plan import setup_scene
+    from factory.tasks.articulated.setup_record import recorded_setup
+    from factory.tasks.place_inside.plan import hint_of, setup_scene
 
     store = RunStore(run_dir)
     scene = ensure_assets(store.load_scene(scene_id), store.assets_dir)
-    setup = setup_scene(scene, store.assets_dir, freeze_beyond=dc.freeze_beyond)
+    setup = recorded_setup(
+        run_dir,
+        scene_id,
+        {"task": "place_inside", "freeze_beyond": dc.freeze_beyond},
+        lambda hint: setup_scene(
+            scene, store.assets_dir, freeze_beyond=dc.freeze_beyond, hint=hint
+        ),
+        hint_of,
+    )
     if not dc.sleep:
         setup.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     return setup

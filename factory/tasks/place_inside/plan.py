@@ -46,6 +46,7 @@ import zlib
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -82,6 +83,7 @@ from factory.tasks.articulated.plan import (
     ArticulatedSetup,
     HandleMotion,
     PlanFailure,
+    SetupHint,
     grasp_and_follow,
     grasps_in_link,
     initial_state,
@@ -244,20 +246,47 @@ class _CarriedSetup(ArticulatedSetup):
 
 
 def setup_scene(
-    scene: Scene, assets_root: str | Path, freeze_beyond: float = 1.0
+    scene: Scene,
+    assets_root: str | Path,
+    freeze_beyond: float = 1.0,
+    hint: dict[str, Any] | None = None,
 ) -> PlaceInsideSetup:
     """Chooses the container part, the pick object and the robot's base spot (module
     docstring), and composes the scene with the robot there.
 
+    Args:
+        hint: the choices of an earlier search with the same arguments (:func:`hint_of`):
+            the same set-up, composed without searching.
+
     Raises:
         TaskError: no pick object, no container part (none with an interior, too small) or
             none the robot can open (and, behind a door, push back) from a free base spot;
-            with the counts and, for the parts the instruction names, a reason each.
+            with the counts and, for the parts the instruction names, a reason each; a
+            ``hint`` whose container the scene lacks.
     """
     pick = pick_object(scene)
     why: Counter[str] = Counter()
     refusals: list[str] = []
     parts = container_parts(scene, assets_root, pick, why, refusals)
+    if hint is not None:
+        match = [
+            b
+            for b in parts
+            if b.part.key == hint["container"] and b.interior.support == hint["support"]
+        ]
+        art_hint = SetupHint.from_json(hint["articulated"])
+        out = (
+            _setup_container(scene, assets_root, pick, match[0], freeze_beyond, why, [], art_hint)
+            if match
+            else None
+        )
+        if out is None:
+            raise TaskError(
+                f"scene {scene.id!r}: its set-up record names container {hint['container']} "
+                f"({hint['support']}), which the scene does not offer as recorded; delete the "
+                "run's cache/setups folder and re-run"
+            )
+        return out
     for box in parts[:MAX_CONTAINERS]:
         out = _setup_container(scene, assets_root, pick, box, freeze_beyond, why, refusals)
         if out is not None:
@@ -284,9 +313,10 @@ def _setup_container(
     freeze_beyond: float,
     why: Counter[str],
     refusals: list[str],
+    hint: SetupHint | None = None,
 ) -> PlaceInsideSetup | None:
     """:func:`setup_scene` for one container: the set-up, or None (counted into ``why``, the
-    reason added to ``refusals``)."""
+    reason added to ``refusals``); with ``hint``, the articulated set-up composed from it."""
     from factory.tasks.articulated.plan import setup_scene as setup_part
 
     part, inner = box.part, box.interior
@@ -311,6 +341,7 @@ def _setup_container(
             open_to=DOOR_OPEN[1] if door else OPEN_GOAL[1],
             round_trip=door,
             spot_check=_InteriorReach(box, pick, top[1]) if door else None,
+            hint=hint,
         )
     except TaskError as e:
         log.info("scene %s: %s: %s", scene.id, part.key, e)
@@ -348,6 +379,17 @@ def _setup_container(
         list(out.cleared),
     )
     return out
+
+
+def hint_of(setup: PlaceInsideSetup) -> dict[str, Any]:
+    """A set-up's choices (JSON values), for :func:`setup_scene`'s ``hint``: the container
+    (part and interior support) and the articulated set-up's
+    (:class:`~factory.tasks.articulated.plan.SetupHint`)."""
+    return {
+        "container": setup.art.part.key,
+        "support": setup.interior.support,
+        "articulated": SetupHint.of(setup.art).to_json(),
+    }
 
 
 REACH_TILTS = (60.0, 30.0)
