@@ -14,7 +14,8 @@
 #
 # Use (repository root; run it in the background and watch LOG):
 #   source .gpu/env.sh; bash scripts/experiments/gpu_factory_checks.sh DIR [STEPS]
-# DIR gets bench.json, soak.json, pytest.log and a log per step; STEPS is a subset of
+# DIR gets bench.json, soak.json, pytest.log and a log per step (the bench's episodes are deleted
+# after it, its JSON kept: the soak needs the disk); STEPS is a subset of
 # "bench gpu soak" (default all three). Environment: CACHE (kernel cache, default
 # /tmp/warpcache, emptied before step 1), BENCH_RUN (the bench's run folder, default
 # runs/bench_demos), BENCH_ARGS (more bench_demos.py arguments, e.g. "--scenes 3"),
@@ -35,7 +36,10 @@ for step in $STEPS; do
       stamp "bench: start (empty kernel cache)"
       python3 scripts/bench_demos.py --executor warp --kernel-cache "$CACHE" \
         --run-dir "$BENCH_RUN" ${BENCH_ARGS:-} --out "$DIR/bench.json" >"$DIR/bench.log" 2>&1
-      stamp "bench: rc=$?" ;;
+      stamp "bench: rc=$?"
+      # its episodes (about 55 GB at the defaults) would leave the soak no room on a 64 GiB disk
+      rm -rf "$BENCH_RUN/episodes"
+      stamp "bench: episodes deleted ($(df -h --output=avail "$BENCH_RUN" | tail -1 | tr -d ' ') free)" ;;
     gpu)
       stamp "pytest -m gpu: start"
       WARP_CACHE_PATH=$CACHE python3 -m pytest -m gpu -q -p no:cacheprovider -ra \
