@@ -6,7 +6,7 @@ frame; collisions with the scene are checked by the caller in the composed model
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -123,6 +123,26 @@ class IKSolver:
             if q is not None and (accept is None or accept(q)):  # type: ignore[operator]
                 return q
         return None
+
+    def solutions(
+        self,
+        pose_tool_in_base: np.ndarray,
+        seeds: Sequence[np.ndarray] = (),
+        accept: object = None,
+        restarts: int | None = None,
+    ) -> Iterator[np.ndarray]:
+        """The joint positions (7,) reaching a tool pose from each start in turn, as
+        :meth:`solve` tries them (the seeds, the home pose, then ``restarts`` random ones,
+        ``cfg.restarts`` when None), those ``accept`` rejects skipped: several arm branches
+        of one pose, for a caller that needs more of the pose than reaching it (a straight
+        line out of it)."""
+        n = self.cfg.restarts if restarts is None else restarts
+        starts = [np.asarray(s, float) for s in seeds] + [HOME_QPOS]
+        for k in range(len(starts) + n):
+            q0 = starts[k] if k < len(starts) else self.rng.uniform(self._lo, self._hi)
+            q = self._attempt(pose_tool_in_base, q0)
+            if q is not None and (accept is None or accept(q)):  # type: ignore[operator]
+                yield q
 
     def tool_pose(self, q: np.ndarray) -> np.ndarray:
         """Forward kinematics: tool pose (4, 4) in the base frame at arm joints ``q`` (7,)."""

@@ -130,6 +130,13 @@ DOOR_OUT = 0.08
 near side), 1 cm above its place pose."""
 DOOR_RETREAT = 0.08
 """Behind a door, the open hand backs off this far (m) along its approach after the release."""
+DOOR_PLACE_RESTARTS = 12
+"""Behind a door, random IK starts tried for the place pose after the seeds (the default
+solve's 6: :class:`~factory.robots.ik.IKConfig`)."""
+DOOR_PLACE_BRANCHES = 3
+"""Behind a door, collision-free arm configurations at the place pose from which the straight
+slide out of the opening is tried (the first alone: its elbow often meets the open door on the
+way out)."""
 DOOR_GRASPS = GraspConfig(approaches=12, max_tilt_deg=91.0)
 """Object grasps behind a door: approaches every 30 deg about the closing axis, up to level,
 the most level first: the forearm must pass under the top of the opening (a microwave's cavity
@@ -793,6 +800,50 @@ class PlaceInsidePlanner:
             out.append(q)
         return np.array(out)
 
+    def _approach(
+        self, pre: np.ndarray, grasp: np.ndarray, seeds: list[np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The arm at the pre-grasp ``pre`` and at the grasp ``grasp`` (tool poses (4, 4),
+        world frame), the segment between them collision-free; None when not found. Behind a
+        door up to :data:`DOOR_PLACE_BRANCHES` pre-grasp branches from
+        :data:`DOOR_PLACE_RESTARTS` random starts more (the level approach to an object near
+        the top's front, the open door beside it); for a drawer the first branch."""
+        ck = self.checker
+        if not self.setup.behind_door:
+            q_pre = self._ik(pre, seeds)
+            q_grasp = None if q_pre is None else self._ik(grasp, [q_pre])
+            if q_pre is None or q_grasp is None or not ck.segment_valid(q_pre, q_grasp):
+                return None
+            return q_pre, q_grasp
+        base_inv = np.linalg.inv(self.setup.art.placement.matrix())
+        found = self.ik.solutions(base_inv @ pre, seeds, ck.valid, restarts=DOOR_PLACE_RESTARTS)
+        for q_pre in itertools.islice(found, DOOR_PLACE_BRANCHES):
+            q_grasp = self._ik(grasp, [q_pre])
+            if q_grasp is not None and ck.segment_valid(q_pre, q_grasp):
+                return q_pre, q_grasp
+        return None
+
+    def _slide_in(
+        self, place: np.ndarray, preplace: np.ndarray, seeds: list[np.ndarray]
+    ) -> np.ndarray | None:
+        """Behind a door, the arm configurations (k, 7) sliding the held object in from tool
+        pose ``preplace`` to ``place`` (4, 4, world frame) on the straight line
+        (:meth:`_line`, planned from ``place`` outwards); up to :data:`DOOR_PLACE_BRANCHES`
+        collision-free arm branches at ``place`` are tried, from ``seeds``, the ready and grasp
+        seeds, the home pose and :data:`DOOR_PLACE_RESTARTS` random starts (the first branch
+        IK finds inside the case often has its elbow against the open door or the opening's
+        frame, or leaves the line on the way out); None when none slides out."""
+        base_inv = np.linalg.inv(self.setup.art.placement.matrix())
+        starts = [*seeds, READY_QPOS, *GRASP_SEEDS]
+        found = self.ik.solutions(
+            base_inv @ place, starts, self.checker.valid, restarts=DOOR_PLACE_RESTARTS
+        )
+        for q_place in itertools.islice(found, DOOR_PLACE_BRANCHES):
+            way = self._line(place, preplace, q_place)
+            if way is not None:
+                return way[::-1]
+        return None
+
     def _pick_place(
         self,
         g: Grasp,
@@ -817,11 +868,11 @@ class PlaceInsidePlanner:
         ck.set_scene(qpos)
         ck.attach(None)
         ck.ignore_bodies([])
-        q_pre = self._ik(pre, [q_from, READY_QPOS])
-        q_grasp = None if q_pre is None else self._ik(grasp, [q_pre])
-        if q_pre is None or q_grasp is None or not ck.segment_valid(q_pre, q_grasp):
+        picked = self._approach(pre, grasp, [q_from, READY_QPOS])
+        if picked is None:
             counts["ik_failed"] += 1
             return None
+        q_pre, q_grasp = picked
         pose_obj_in_tool = np.linalg.inv(grasp) @ obj
         ck.attach(Attachment(s.pick_body, a, pose_obj_in_tool))
         ck.ignore_bodies([self.model.body(s.container.id).id])
@@ -842,11 +893,9 @@ class PlaceInsidePlanner:
             preplace = place.copy()
             preplace[:3, 3] += self.insert_offset()
             if s.behind_door:  # the arm's branch inside the case first, then the way in
-                q_place = self._ik(place, [q_lift, q_from, READY_QPOS, *GRASP_SEEDS])
-                way_in = None if q_place is None else self._line(place, preplace, q_place)
+                way_in = self._slide_in(place, preplace, [q_lift, q_from])
                 if way_in is None:
                     continue
-                way_in = way_in[::-1]
             else:
                 q_preplace = self._ik(preplace, [q_lift])
                 q_place = None if q_preplace is None else self._ik(place, [q_preplace])
