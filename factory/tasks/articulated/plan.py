@@ -919,19 +919,13 @@ def setup_scene(
     ik = IKSolver()
     motion = ArticulatedMotion()
     why: Counter[str] = Counter()
-    if hint is not None:
-        match = [p for p in parts if p.key == hint.part]
-        if not match:
-            raise TaskError(
-                f"scene {scene.id!r}: its set-up record names part {hint.part!r}, which the "
-                f"scene lacks (its parts: {', '.join(p.key for p in parts) or 'none'}); "
-                "delete the run's cache/setups folder and re-run"
-            )
-        sc = replace(scene, objects=[o for o in scene.objects if o.id not in hint.cleared])
-        res = _setup_part(
+
+    def set_up(sc: Scene, part: Part, chosen: SetupHint | None = None) -> ArticulatedSetup | str:
+        """:func:`_setup_part` of ``part`` in ``sc`` with this call's settings."""
+        return _setup_part(
             sc,
             assets_root,
-            match[0],
+            part,
             direction,
             rig,
             freeze_beyond,
@@ -941,28 +935,26 @@ def setup_scene(
             open_to,
             round_trip,
             spot_check,
-            chosen=hint,
+            chosen=chosen,
         )
+
+    if hint is not None:
+        match = [p for p in parts if p.key == hint.part]
+        if not match:
+            raise TaskError(
+                f"scene {scene.id!r}: its set-up record names part {hint.part!r}, which the "
+                f"scene lacks (its parts: {', '.join(p.key for p in parts) or 'none'}); "
+                "delete the run's cache/setups folder and re-run"
+            )
+        sc = replace(scene, objects=[o for o in scene.objects if o.id not in hint.cleared])
+        res = set_up(sc, match[0], chosen=hint)
         assert isinstance(res, ArticulatedSetup)
         res.cleared = hint.cleared
         return res
     for part in parts[:max_parts]:
         sc, cleared = scene, set[str]()
         for _ in range(MAX_CLEARED + 1):
-            res = _setup_part(
-                sc,
-                assets_root,
-                part,
-                direction,
-                rig,
-                freeze_beyond,
-                ik,
-                motion,
-                why,
-                open_to,
-                round_trip,
-                spot_check,
-            )
+            res = set_up(sc, part)
             if isinstance(res, ArticulatedSetup):
                 res.cleared = tuple(sorted(cleared))
                 return res
