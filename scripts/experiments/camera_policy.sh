@@ -17,8 +17,14 @@
 # With SECOND_GPU (a two-GPU machine), a second policy trains and is evaluated the same way at
 # the same time on that GPU: the other input kind (rgb beside rgbd), or a variant of the recipe
 # (SECOND_NAME=rgbd128 SECOND_INPUTS=rgbd SECOND_ARGS='train.options={diffusion: {resize_shape:
-# [128, 128]}}'): two recipes for the device time of one on a machine that counts in full. With EVAL_WARP=1 the policy and the
-# planner are evaluated again on the same configurations with eval.executor=warp (timed).
+# [128, 128]}}'): two recipes for the device time of one on a machine that counts in full.
+# With EVAL_WARP=1, as soon as the training ends (the GPU otherwise idle), the recorded episodes
+# of the first REPLAY_SCENES training kitchens are replayed and the policy is evaluated on the
+# same held-out configurations with eval.executor=warp (each timed; the replay first, so it
+# builds the kernels on a bare machine and the policy's figure is warm; WARP_PLANNER=1 adds the
+# planner); the CPU evaluations (the policy, the same replays) follow, for the agreement.
+# $OUT_DIR/gpu_free appears when this script no longer needs the GPU (another script on the
+# machine may wait for it: mobile_camera_policy.sh's TRAIN_AFTER).
 #
 # With VISION=perception (factory/policy/perception.py) the policy is a perception network and a
 # lerobot state policy; PERCEPTION_CHECK=3 then records 3 demos per held-out kitchen into a run of
@@ -55,7 +61,9 @@ SECOND_INPUTS=${SECOND_INPUTS:-$([ "$INPUTS" = rgb ] && echo rgbd || echo rgb)} 
 SECOND_NAME=${SECOND_NAME:-$SECOND_INPUTS}  # its name (policy/<name>, eval/<name>)
 SECOND_ARGS=${SECOND_ARGS:-}  # more train.* overrides of the second policy (shell-quoted words)
 SECOND_VISION=${SECOND_VISION:-$VISION}  # its train.vision
-EVAL_WARP=${EVAL_WARP:-}  # 1: evaluate the policy and the planner again on MuJoCo Warp
+EVAL_WARP=${EVAL_WARP:-}  # 1: replays and the policy on MuJoCo Warp too (header)
+REPLAY_SCENES=${REPLAY_SCENES:-3}  # with EVAL_WARP: training kitchens replayed on both executors
+WARP_PLANNER=${WARP_PLANNER:-}  # 1 (with EVAL_WARP): the planner on MuJoCo Warp as well
 PERCEPTION_CHECK=${PERCEPTION_CHECK:-}  # N (VISION=perception): N demos per held-out kitchen,
 # recorded after the evaluation into their own run, to measure the perception's errors there
 BENCH_STEPS=${BENCH_STEPS:-150}
@@ -70,8 +78,9 @@ DEMOS_ARGS=${DEMOS_ARGS-demos.appearance.scene_camera_pos=0.05 demos.appearance.
 COMMON="sim.backend=cpu demos.executor=cpu"
 PROMPT="a kitchen where the robot picks up a mug and puts it in the bowl"
 mkdir -p "$RUN" "$OUT_DIR"
-rm -f "$RUN/exit_status"
-trap 'echo $? > "$RUN/exit_status"' EXIT  # for whoever watches: the script ended, and how
+rm -f "$RUN/exit_status" "$OUT_DIR/gpu_free"
+trap 'echo $? > "$RUN/exit_status"; touch "$OUT_DIR/gpu_free"' EXIT  # for whoever watches:
+# the script ended, and how; and it no longer needs the GPU
 log() { echo "$(date +%T) camera: $*"; }
 pin() {  # pin <cores> <command...>: taskset where there are cores to spare
   if command -v taskset >/dev/null && [ "$JOBS" -gt 6 ]; then taskset -c "$1" "${@:2}"; else "${@:2}"; fi
@@ -177,6 +186,32 @@ for p in $POLICIES; do
   cp "$RUN/policy/$p/train.json" "$OUT_DIR/train-$p.json" || true
 done
 
+REPLAY_LIST=""
+if [ -n "$EVAL_WARP" ]; then  # the GPU's evaluations while nothing else uses it (header)
+  REPLAY_LIST=$($PY - "$RUN" "$REPLAY_SCENES" <<'EOF3'
+import json, sys
+from pathlib import Path
+scenes = json.loads((Path(sys.argv[1]) / "dataset/merged/meta/factory.json").read_text())["scenes"]
+print("[" + ",".join(sorted(scenes)[: int(sys.argv[2])]) + "]")
+EOF3
+)
+  warp_one() {  # warp_one <policy> <name> <more overrides...>: timed, on MuJoCo Warp
+    local t2
+    t2=$(date +%s)
+    $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" eval.executor=warp \
+      eval.name="$2" eval.device="$DEVICE" eval.videos=0 "${@:3}" > "$OUT_DIR/eval-$2.log" 2>&1 \
+      || log "   $2 on warp failed: $OUT_DIR/eval-$2.log"
+    echo "{\"policy\": \"$1\", \"name\": \"$2\", \"seconds\": $(( $(date +%s) - t2 ))}" \
+      > "$OUT_DIR/time-$2.json"
+    log "   $2 on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
+  }
+  log "4a. MuJoCo Warp: replay of $REPLAY_LIST, then $INPUTS on $EVAL_EPISODES per held-out kitchen"
+  warp_one replay replay-warp "eval.scenes=$REPLAY_LIST"
+  warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES"
+  [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES"
+fi
+touch "$OUT_DIR/gpu_free"  # the trainings and the GPU's evaluations are over
+
 log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
 pids=()
 for p in $POLICIES; do
@@ -184,6 +219,11 @@ for p in $POLICIES; do
   evaluate_one "$p" "$gpu" $(( EVAL_WORKERS / n_pol > 0 ? EVAL_WORKERS / n_pol : 1 )) &
   pids+=($!)
 done
+if [ -n "$REPLAY_LIST" ]; then  # the same replays on the CPU env
+  $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
+    "eval.scenes=$REPLAY_LIST" eval.workers=4 eval.batch=8 eval.videos=0 \
+    > "$OUT_DIR/eval-replay-cpu.log" 2>&1 || log "   the CPU replay failed"
+fi
 for pid in "${pids[@]}"; do wait "$pid" || log "   an evaluation failed (pid $pid)"; done
 log "   evaluated in $(( $(date +%s) - t1 )) s"
 wait "$PLANNER" || log "   the planner evaluation failed: $OUT_DIR/planner.log"
@@ -211,16 +251,6 @@ EOF2
   $PY scripts/perception_error.py --policy "$RUN/policy/$INPUTS" --dataset "$RUN/dataset/merged" \
     --out "$OUT_DIR/perception-error-train.json" >> "$OUT_DIR/heldout-frames.log" 2>&1 || true
   log "   perception errors: $OUT_DIR/perception-error-*.json"
-fi
-if [ -n "$EVAL_WARP" ]; then  # the same configurations on MuJoCo Warp (eval.executor=warp)
-  for p in "$INPUTS" planner; do
-    t2=$(date +%s)
-    $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$p" eval.executor=warp \
-      eval.name="$p-warp" eval.episodes_per_scene="$EVAL_EPISODES" eval.device="$DEVICE" \
-      eval.videos=0 > "$OUT_DIR/eval-$p-warp.log" 2>&1 || log "   $p on warp failed"
-    echo "{\"policy\": \"$p\", \"seconds\": $(( $(date +%s) - t2 ))}" > "$OUT_DIR/time-$p-warp.json"
-    log "   $p on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
-  done
 fi
 for d in "$RUN"/eval/*/; do
   [ -f "$d/results.json" ] && cp "$d/results.json" "$OUT_DIR/eval-$(basename "$d").json"

@@ -25,6 +25,10 @@
 #   SCENES=1 EPISODES=2 SIZE=32 TRAIN_MINUTES=0.2 STEPS=4 BATCH=2 EVAL_EPISODES=1 \
 #     CURVE_MINUTES=0 EVAL_MAX_STEPS=120 DEVICE=cpu RUN=/tmp/mobcam \
 #     bash scripts/experiments/mobile_camera_policy.sh
+# Beside camera_policy.sh on one machine: START_AFTER="<files>" waits for one of them before the
+# data (e.g. the other script's results/data.json: its data has had the cores; or its gpu_free,
+# which also appears if it stops), TRAIN_AFTER="<files>" before the training (its
+# results/gpu_free), each at most WAIT_MAX seconds.
 # Results: $OUT_DIR (data.json, the training log with its curve, train-<name>.json, the
 # evaluations eval-<name>.json and eval-planner.json, summary.json).
 set -euo pipefail
@@ -55,6 +59,9 @@ DEMOS_ARGS=${DEMOS_ARGS:-}  # more demos.* overrides (shell-quoted words)
 JOBS=${JOBS:-$(getconf _NPROCESSORS_ONLN)}
 EVAL_WORKERS=${EVAL_WORKERS:-$(( JOBS * 3 / 4 > 0 ? JOBS * 3 / 4 : 1 ))}
 PY=${PY:-python3}
+START_AFTER=${START_AFTER:-}  # a file to wait for before the data (header)
+TRAIN_AFTER=${TRAIN_AFTER:-}  # a file to wait for before the training (header)
+WAIT_MAX=${WAIT_MAX:-3600}  # seconds at most for each
 if [ -z "$EXECUTOR" ]; then  # warp where CUDA is (docs/DEMOS.md, "The GPU path"), else cpu
   EXECUTOR=$($PY -c "import torch; print('warp' if torch.cuda.is_available() else 'cpu')" \
     2>/dev/null || echo cpu)
@@ -66,6 +73,18 @@ rm -f "$RUN/exit_status"
 trap 'echo $? > "$RUN/exit_status"' EXIT  # for whoever watches: the script ended, and how
 log() { echo "$(date +%T) mobile camera: $*"; }
 
+wait_for() {  # wait_for "<files>": until one of them exists, at most WAIT_MAX seconds
+  [ -n "$1" ] || return 0
+  local waited=0 f
+  log "   waiting for $1"
+  while [ "$waited" -lt "$WAIT_MAX" ]; do
+    for f in $1; do [ ! -e "$f" ] || { log "   waited $waited s for $f"; return 0; }; done
+    sleep 5; waited=$(( waited + 5 ))
+  done
+  log "   gave up waiting after $waited s"
+}
+
+wait_for "$START_AFTER"
 t0=$(date +%s)
 log "1. $SCENES living rooms x $EPISODES demos, five cameras at $SIZE px ($EXECUTOR executor, $JOBS cores)"
 shards=$(( SCENES < JOBS ? SCENES : JOBS )) pids=()
@@ -102,6 +121,7 @@ $PY -m factory stage=eval run_dir="$RUN" $EVAL_COMMON eval.policy=planner eval.n
   > "$OUT_DIR/planner.log" 2>&1 &
 PLANNER=$!
 eval "train_extra=($TRAIN_ARGS)"
+wait_for "$TRAIN_AFTER"
 t1=$(date +%s)
 $PY -m factory stage=train run_dir="$RUN" $EVAL_COMMON train.name="$NAME" train.inputs="$INPUTS" \
   train.vision=end_to_end train.video_cache=memory \

@@ -138,8 +138,10 @@ def _eval(run: Path, executor: str, **ec) -> dict:
     return json.loads((run / "eval" / cfg.eval.name / "results.json").read_text())
 
 
-def test_eval_stage_on_warp(policy_run: Path, tmp_path: Path) -> None:
-    """``stage=eval eval.executor=warp`` with a trained RGB-D policy: the held-out kitchen's
+@pytest.mark.parametrize("vision", ["end_to_end", "perception"])
+def test_eval_stage_on_warp(policy_run: Path, tmp_path: Path, vision: str) -> None:
+    """``stage=eval eval.executor=warp`` with a trained RGB-D policy, lerobot's image encoder or
+    the perception network (which also reads the cameras' calibration): the held-out kitchen's
     episodes are the worlds of one MuJoCo Warp model (here 2, for 4 frames), observed through
     the batch renderer, with the CPU env's records."""
     from factory.policy.train_stage import run as train_stage
@@ -151,7 +153,13 @@ def test_eval_stage_on_warp(policy_run: Path, tmp_path: Path) -> None:
         stage="train",
         run_dir=str(run),
         train=TrainConfig(
-            name="warp_tiny", inputs="rgbd", steps=1, batch_size=2, threads=1, options=tiny
+            name="warp_tiny",
+            inputs="rgbd",
+            vision=vision,
+            steps=1,
+            batch_size=2,
+            threads=1,
+            options=tiny,
         ),
     )
     train_stage(StageContext(cfg, RunStore(run), Shard(0, 1)))
