@@ -64,6 +64,8 @@ SECOND_VISION=${SECOND_VISION:-$VISION}  # its train.vision
 EVAL_WARP=${EVAL_WARP:-}  # 1: replays and the policy on MuJoCo Warp too (header)
 REPLAY_SCENES=${REPLAY_SCENES:-3}  # with EVAL_WARP: training kitchens replayed on both executors
 WARP_PLANNER=${WARP_PLANNER:-}  # 1 (with EVAL_WARP): the planner on MuJoCo Warp as well
+WARP_WORKERS=${WARP_WORKERS:-3}  # processes driving the GPU for the policy (a scene each at a
+# time: one's host work overlaps another's launches); the replay builds the kernels in one
 PERCEPTION_CHECK=${PERCEPTION_CHECK:-}  # N (VISION=perception): N demos per held-out kitchen,
 # recorded after the evaluation into their own run, to measure the perception's errors there
 BENCH_STEPS=${BENCH_STEPS:-150}
@@ -206,9 +208,11 @@ EOF3
     log "   $2 on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
   }
   log "4a. MuJoCo Warp: replay of $REPLAY_LIST, then $INPUTS on $EVAL_EPISODES per held-out kitchen"
-  warp_one replay replay-warp "eval.scenes=$REPLAY_LIST"
-  warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES"
-  [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES"
+  warp_one replay replay-warp "eval.scenes=$REPLAY_LIST" eval.workers=1
+  warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES" \
+    eval.workers="$WARP_WORKERS"
+  [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES" \
+    eval.workers="$WARP_WORKERS"
 fi
 touch "$OUT_DIR/gpu_free"  # the trainings and the GPU's evaluations are over
 
