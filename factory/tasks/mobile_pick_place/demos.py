@@ -15,7 +15,8 @@ cameras then ``fisheye_front`` / ``fisheye_back``. Arrays: as the fixed task's (
 ``joint_pos``, ``gripper``, ``ee_pose``, ``rgb/<camera>``, ``depth/<camera>``), with ``action`` of
 11 columns (arm 7, gripper, base x, y, yaw) instead of 8, and in addition ``base_pose`` (F, 3),
 ``subtask`` (F,) int8 (index into ``SUBTASKS``) and ``subtask_done`` (F,) bool. There is no
-``env_state``.
+``env_state`` array: the export reads the objects' poses from ``state``
+(:mod:`factory.tasks.mobile_pick_place.dataset`).
 """
 
 from __future__ import annotations
