@@ -1,21 +1,23 @@
 """What the mobile pick-and-place task writes into its LeRobot datasets.
 
 A mobile episode (:mod:`factory.tasks.mobile_pick_place.demos`) has the fixed task's arrays but an
-``action`` of 11 columns, no ``env_state`` array, and in addition ``base_pose`` (F, 3),
-``subtask`` (F,) int8 and ``subtask_done`` (F,) bool; its cameras are the pinhole ones then
-``fisheye_front``/``fisheye_back`` (square images of the pinhole width, exported at their own
-size). Features of every frame (the export adds the cameras' videos and the instruction):
+``action`` of 11 columns (``env_state``: the place support is the target), and in addition
+``base_pose`` (F, 3), ``subtask`` (F,) int8 and ``subtask_done`` (F,) bool; its cameras are the
+pinhole ones then ``fisheye_front``/``fisheye_back`` (square images of the pinhole width,
+exported at their own size). Features of every frame (the export adds the cameras' videos and
+the instruction):
 
 * ``observation.state`` (11,) float32, in this order: 7 arm joints (rad), the gripper opening
   (m), the base's x, y (m, world frame) and yaw (rad, unwrapped): :data:`STATE_NAMES`;
 * ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
 * ``observation.environment_state`` (14,) float32: the fixed task's (same names and meaning):
   the pick object's position (m) and quaternion wxyz, then the place support's, world frame
-  (body frames), read from the recorded MuJoCo states
+  (body frames): the recorded ``env_state``, or for episodes recorded before it the free
+  bodies' poses in the MuJoCo states
   (:func:`factory.tasks.pick_place.dataset.environment_state`). The policies read them in the
   frame of the arm's base, which rides on the mobile base
   (:func:`factory.policy.inputs.env_features`); datasets exported before it lack the feature
-  and still load (``stage=dataset force=true`` adds it, no re-recording);
+  and still load (``stage=dataset force=true`` adds it);
 * ``action`` (11,) float32: the arm joint targets (rad), the gripper command (m) and the base
   target x, y (m) and yaw (rad): :data:`ACTION_NAMES`;
 * ``subtask_index`` (1,) int64: the frame's sub-task, an index into
