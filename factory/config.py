@@ -498,11 +498,13 @@ class TrainConfig:
             affine) and a random 90 % crop where the policy has one (diffusion).
         precision: ``auto`` (bf16 autocast on CUDA, fp32 on a CPU), ``bf16`` or ``fp32``; the
             weights, optimizer and checkpoints stay fp32.
-        aux_state: weight of an auxiliary loss for image policies of a fixed-base task: a small
-            head predicts the pick object's and target's poses (the dataset's environment
-            state, in the robot's base frame) from the image features, so that the encoder
-            learns where the objects are; the head is dropped from the policy (a plain lerobot
-            checkpoint). None: 1.0 for ``rgb``/``rgbd`` diffusion, 0 (off) otherwise.
+        aux_state: weight of an auxiliary loss for image policies of a dataset that records
+            the object poses (``observation.environment_state``: the fixed-base task's, and the
+            mobile task's exported since it has one): a small head predicts the pick object's
+            and target's poses (in the arm's base frame) from the image features, so that the
+            encoder learns where the objects are; the head is dropped from the policy (a plain
+            lerobot checkpoint). None: 1.0 for ``rgb``/``rgbd`` diffusion, 0 (off) otherwise
+            and without the poses.
         ema: decay of an exponential moving average of the weights, saved as the checkpoint's
             policy (the raw weights go to ``training_state`` for resuming). None: 0.999 for
             ``rgb``/``rgbd`` diffusion, 0 (off) otherwise.
@@ -521,11 +523,11 @@ class TrainConfig:
             samples and the gradients are averaged (:mod:`factory.policy.data_parallel`).
         options: policy config fields per type, e.g. ``{diffusion: {down_dims: [64, 128]}}``;
             applied to the type trained, others ignored.
-        vision: how an ``rgb``/``rgbd`` policy of the fixed-base task reads its cameras:
+        vision: how an ``rgb``/``rgbd`` policy reads its cameras:
             ``end_to_end`` (lerobot's image encoder inside the policy, trained by the policy's
             loss with ``aux_state``) or ``perception`` (a perception network predicts the object
             poses from the newest frame and lerobot's diffusion policy, the state recipe, acts
-            on them: :mod:`factory.policy.perception`).
+            on them: :mod:`factory.policy.perception`; the dataset must record the poses).
         perception_noise_m: ``vision=perception``: standard deviation (m, per axis) of the
             Gaussian offset added to each object's recorded position while the policy trains,
             so that it acts on a perception's errors.
@@ -535,7 +537,8 @@ class TrainConfig:
             whose pose is known enter the network as points in the robot's base frame, which
             its keypoints read: the wrist camera's (forward kinematics and depth) and, where
             the dataset has ``observation.camera_poses``, the left and right cameras' (their
-            recorded calibration; the env observes it too).
+            recorded calibration; the env observes it too). Mobile datasets have none: the
+            wrist camera's points only, the other cameras as images.
         perception_objects: with ``perception_points``, the objects' positions are read from
             the points under two keypoints per point camera, trained to find the pick object
             and the target at their projected pixels (a heatmap loss), weighted across cameras,

@@ -64,10 +64,10 @@ from factory.errors import StoreError
 log = logging.getLogger(__name__)
 
 FACTORY_META = "meta/factory.json"
-EXPORT_SCHEMA_VERSION = 5
+EXPORT_SCHEMA_VERSION = 6
 """Format of ``meta/factory.json`` and the features (3: ``observation.environment_state``;
 4: a mobile episode's entry in ``meta/factory.json`` holds its ``route``; 5:
-``observation.camera_poses``)."""
+``observation.camera_poses``; 6: mobile datasets' ``observation.environment_state``)."""
 VIDEO_FILE_MB = 4
 
 

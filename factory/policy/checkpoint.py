@@ -386,8 +386,10 @@ class LoadedPolicy:
                 )
                 poses = torch.from_numpy(got).to(self.device)
             with torch.inference_mode():
-                env = self.perception.predict(images.to(self.device), poses).float()
-            batch["observation.environment_state"] = env.to("cpu")
+                env = self.perception.predict(images.to(self.device), poses).float().to("cpu")
+            if self.spec.mobile:  # the sub-task one-hot follows the predicted values
+                env = torch.cat([env, batch["observation.environment_state"]], -1)
+            batch["observation.environment_state"] = env
         with torch.inference_mode():
             if chunk_starts(self._policy):
                 # this chunk's positions are relative to the tool's position now, its base

@@ -66,8 +66,17 @@ target (x over the room's 5 m) normalised to [-1, 1] is learned to a few per cen
 5-10 cm, ten times a frame's motion, so the base never comes to rest. Measured on 20 demos:
 teacher-forced world targets were 13 cm off in ``navigate_to_pick`` (docs/POLICY.md).
 
-There are no object poses in a mobile dataset, so ``state`` is proprioception and
-sub-task only (the policy cannot see where the object is).
+Mobile datasets exported with ``observation.environment_state`` (the fixed task's 14 world
+pose values; :mod:`factory.tasks.mobile_pick_place.dataset`) give ``state`` policies and
+``train.vision=perception`` the object poses too: the model's ``observation.environment_state``
+(28,) is then the 24 values above, in the frame of the arm's base, which rides on the mobile base
+(recovered per frame from the joints and the world tool pose as below, so the objects move in it
+as the base drives), followed by the sub-task one-hot (:attr:`InputSpec.mobile_poses`). A mobile
+perception network reads the pixels of the wrist camera as points (forward kinematics, with
+depth), the other cameras as images only (the head cameras' pose is not in the dataset, the
+fisheye cameras are no pinhole cameras). Mobile datasets exported before the feature have no
+object poses: ``state`` is proprioception and sub-task only (the policy cannot see where the
+object is), and ``train.vision=perception`` and ``train.aux_state`` need a re-export.
 
 Why the base frame: the dataset's poses are in the world frame, and every scene puts the robot
 at another spot and heading. The base pose is recovered per frame from what every observation
@@ -164,7 +173,7 @@ class InputSpec:
         perception: ``train.vision=perception`` (:mod:`factory.policy.perception`): the
             cameras are read by a perception network that predicts the environment state, and
             the lerobot policy reads the robot state and that environment state (its model
-            features are a state policy's).
+            features are a state policy's; a mobile one's add the sub-task one-hot).
         pose_cameras: the cameras of the dataset's :data:`CAMERA_POSES`, in its order, where
             the perception network reads that calibration (``rgbd``, ``train.perception_points``
             and one of them among ``cameras``); empty: not read.
@@ -173,6 +182,10 @@ class InputSpec:
             base-frame values (:func:`env_features`); n > 0: the dataset records its task's
             own environment state of n values, read as it is (e.g. the articulated tasks' part
             joint and handle in the robot's base frame).
+        poses: the dataset records the pick object's and the target's world poses
+            (``observation.environment_state`` of the fixed task's :data:`OBJECT_POSES_DIM`
+            values): what the auxiliary state loss (``train.aux_state``) and a perception
+            network learn, and what a mobile ``state`` policy reads.
     """
 
     inputs: str
@@ -184,6 +197,14 @@ class InputSpec:
     perception: bool = False
     pose_cameras: tuple[str, ...] = ()
     env_dim: int = 0
+    poses: bool = False
+
+    @property
+    def mobile_poses(self) -> bool:
+        """A mobile policy whose model ``observation.environment_state`` starts with the 24
+        object values (:func:`env_features`) before the sub-task one-hot: a perception policy
+        (predicted), or a ``state`` policy of a dataset with :attr:`poses` (recorded)."""
+        return self.mobile and (self.perception or (self.inputs == "state" and self.poses))
 
     @property
     def action_dim(self) -> int:
@@ -208,6 +229,8 @@ class InputSpec:
         h, w = self.image_size
         if self.mobile:
             out: dict[str, list[int]] = {STATE: [MOBILE_STATE_DIM], EE_POSE: [7], SUBTASK_KEY: [1]}
+            if self.mobile_poses and not self.perception:  # a perception predicts them
+                out[ENV_STATE] = [OBJECT_POSES_DIM]
         else:
             out = {STATE: [8], EE_POSE: [7]}
         if self.inputs == "state" and not self.mobile:
@@ -224,10 +247,13 @@ class InputSpec:
         """Model input key -> shape (lerobot's channel-first images); with ``perception``, the
         lerobot policy's inputs (the robot state and the predicted environment state)."""
         h, w = self.image_size
-        if self.perception:
-            return {STATE: [ROBOT_DIM], ENV_STATE: [ENV_DIM]}
         if self.mobile:
-            out: dict[str, list[int]] = {STATE: [MOBILE_ROBOT_DIM], ENV_STATE: [SUBTASK_DIM]}
+            env = (ENV_DIM if self.mobile_poses else 0) + SUBTASK_DIM
+            out: dict[str, list[int]] = {STATE: [MOBILE_ROBOT_DIM], ENV_STATE: [env]}
+            if self.perception:
+                return out
+        elif self.perception:
+            return {STATE: [ROBOT_DIM], ENV_STATE: [ENV_DIM]}
         else:
             out = {STATE: [ROBOT_DIM]}
         if self.inputs == "state" and not self.mobile:
@@ -240,10 +266,37 @@ class InputSpec:
         self, state: np.ndarray, ee_pose: np.ndarray, env_state: np.ndarray
     ) -> np.ndarray:
         """Model ``observation.environment_state`` (..., :data:`ENV_DIM` or ``env_dim``) from
-        the dataset's or env's state (..., 8), ee_pose (..., 7) and environment state."""
+        the dataset's or env's state (..., 8; a mobile one's (..., 11)), ee_pose (..., 7) and
+        environment state."""
         if self.env_dim:
             return np.asarray(env_state, np.float32)
         return env_features(state, ee_pose, env_state)
+
+    def mobile_env(
+        self,
+        subtask: Any,
+        state: np.ndarray,
+        ee_pose: np.ndarray | None = None,
+        env_state: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Model ``observation.environment_state`` of a mobile policy: the 24 object values of
+        the recorded poses (:meth:`env_model`) where given, then the sub-task one-hot.
+
+        Args:
+            subtask: sub-task indices (``subtask_index``), one per state row.
+            state: (..., 11) the dataset's or env's ``observation.state``.
+            ee_pose: (..., 7) world tool poses; env_state: (..., 14) the objects' world
+                poses; both None: the one-hot alone (a perception policy predicts the poses).
+
+        Returns:
+            (..., 28) or (..., 4) float32.
+        """
+        lead = np.asarray(state).shape[:-1]
+        onehot = subtask_onehot(subtask, lead)
+        if env_state is None or ee_pose is None:
+            return onehot
+        poses = self.env_model(state, ee_pose, env_state)
+        return np.concatenate([poses, onehot], axis=-1).astype(np.float32)
 
     def dataset_keys(self) -> list[str]:
         """Dataset features read for training (observations and the action)."""
@@ -261,7 +314,8 @@ def input_spec(
     """The inputs of a setting on a dataset with these features (``meta/info.json``).
 
     Args:
-        perception: ``train.vision=perception`` (image inputs of the fixed-base task).
+        perception: ``train.vision=perception`` (image inputs of a dataset with the object
+            poses: :attr:`InputSpec.poses`).
         cameras: ``train.cameras``: the cameras an image policy reads (None or empty: every
             camera the dataset records).
         points: ``train.perception_points``: a perception policy with depth reads the
@@ -303,12 +357,7 @@ def _input_spec(
             "train.vision=end_to_end"
         )
     if SUBTASK_KEY in features:
-        if perception:
-            raise PolicyError(
-                "train.vision=perception learns the object poses, which a mobile dataset does "
-                "not record: use train.vision=end_to_end"
-            )
-        return _mobile_spec(inputs, features, action)
+        return _mobile_spec(inputs, features, action, perception)
     need = [STATE, EE_POSE, ACTION]
     if inputs == "state" or perception:
         need.append(ENV_STATE)
@@ -317,8 +366,9 @@ def _input_spec(
         raise PolicyError(
             f"the dataset lacks {', '.join(missing)} (train.inputs={inputs}): {REFRESH}"
         )
+    poses = _records_poses(features)
     if inputs == "state":
-        return InputSpec("state", action=action, env_dim=_own_env_dim(features))
+        return InputSpec("state", action=action, env_dim=_own_env_dim(features), poses=poses)
     cams = tuple(c for c in CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
     if not cams:
         raise PolicyError(
@@ -334,7 +384,13 @@ def _input_spec(
             )
     shape = features[f"{IMAGE_PREFIX}{cams[0]}"]["shape"]
     size = (int(shape[0]), int(shape[1]))
-    return InputSpec(inputs, cams, size, action=action, perception=perception)
+    return InputSpec(inputs, cams, size, action=action, perception=perception, poses=poses)
+
+
+def _records_poses(features: Mapping[str, Any]) -> bool:
+    """Whether a dataset's ``observation.environment_state`` is the two objects' world poses
+    (:attr:`InputSpec.poses`)."""
+    return ENV_STATE in features and _own_env_dim(features) == 0
 
 
 def _own_env_dim(features: Mapping[str, Any]) -> int:
@@ -351,12 +407,15 @@ def _own_env_dim(features: Mapping[str, Any]) -> int:
     return 0 if width == OBJECT_POSES_DIM else width
 
 
-def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> InputSpec:
+def _mobile_spec(
+    inputs: str, features: Mapping[str, Any], action: str, perception: bool
+) -> InputSpec:
     """:func:`input_spec` of a mobile dataset (``subtask_index`` among its features).
 
     Raises:
-        PolicyError: the dataset lacks a feature or has another state/action layout, or its
-            cameras' images differ in size (lerobot's image policies need one size).
+        PolicyError: the dataset lacks a feature or has another state/action layout, its
+            cameras' images differ in size (lerobot's image policies need one size), or a
+            perception policy is asked of a dataset without the object poses.
     """
     need = [STATE, EE_POSE, ACTION, SUBTASK_KEY]
     missing = [k for k in need if k not in features]
@@ -371,8 +430,14 @@ def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> Input
                 f"the mobile dataset's {key} has {got} columns, expected {MOBILE_STATE_DIM} "
                 f"(arm 7, gripper, base x, y, yaw): {REFRESH}"
             )
+    poses = _records_poses(features)
+    if perception and not poses:
+        raise PolicyError(
+            "train.vision=perception learns the object poses, which this mobile dataset does "
+            f"not record (no {ENV_STATE}): {REFRESH}, or use train.vision=end_to_end"
+        )
     if inputs == "state":
-        return InputSpec("state", action=action, mobile=True)
+        return InputSpec("state", action=action, mobile=True, poses=poses)
     cams = tuple(c for c in MOBILE_CAMERAS if f"{IMAGE_PREFIX}{c}" in features)
     if not cams:
         raise PolicyError(
@@ -397,7 +462,9 @@ def _mobile_spec(inputs: str, features: Mapping[str, Any], action: str) -> Input
             "square): image policies need one size, so record the demos with "
             "demos.width equal to demos.height, or use train.inputs=state"
         )
-    return InputSpec(inputs, cams, sizes[cams[0]], action=action, mobile=True)
+    return InputSpec(
+        inputs, cams, sizes[cams[0]], action=action, mobile=True, perception=perception, poses=poses
+    )
 
 
 def spec_from_features(
@@ -422,7 +489,15 @@ def spec_from_features(
         shape = features[f"{IMAGE_PREFIX}{cams[0]}"]
         size = (int(shape[0]), int(shape[1]))
     return InputSpec(
-        inputs, cams, size, float(depth_max_m), action, mobile, perception, env_dim=env_dim
+        inputs,
+        cams,
+        size,
+        float(depth_max_m),
+        action,
+        mobile,
+        perception,
+        env_dim=env_dim,
+        poses=bool(env) and env_dim == 0,
     )
 
 
@@ -634,11 +709,13 @@ def base_poses(state: np.ndarray, ee_pose: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def env_features(state: np.ndarray, ee_pose: np.ndarray, env_state: np.ndarray) -> np.ndarray:
-    """Model ``observation.environment_state`` (..., 24) from the dataset's state (..., 8),
-    ee_pose (..., 7) and environment_state (..., 14): both objects' poses in the base frame,
-    then the offsets from the tool to each (base frame, m)."""
+    """Model ``observation.environment_state`` (..., 24) from the dataset's state (..., 8; a
+    mobile one's (..., 11), whose first 8 columns are the arm's), ee_pose (..., 7, world) and
+    environment_state (..., 14, world): both objects' poses in the arm's base frame, then the
+    offsets from the tool to each (base frame, m). The base frame is recovered per frame
+    (:func:`base_poses`), so on the mobile robot it follows the base."""
     lead = np.asarray(state).shape[:-1]
-    s = np.asarray(state, np.float64).reshape(-1, 8)
+    s = np.asarray(state, np.float64)[..., :8].reshape(-1, 8)
     ee = np.asarray(ee_pose, np.float64).reshape(-1, 7)
     env = np.asarray(env_state, np.float64).reshape(-1, 14)
     base_pos, base_rot = base_poses(s, ee)
@@ -778,7 +855,10 @@ def convert_sample(spec: InputSpec, item: Mapping[str, Any]) -> dict[str, Any]:
     state = item[STATE].numpy()
     out: dict[str, Any] = {STATE: torch.from_numpy(state_features(spec, state))}
     if spec.mobile:
-        out[ENV_STATE] = torch.from_numpy(subtask_onehot(item[SUBTASK_KEY], state.shape[:-1]))
+        poses = spec.mobile_poses and not spec.perception
+        ee = item[EE_POSE].numpy() if poses else None
+        env = item[ENV_STATE].numpy() if poses else None
+        out[ENV_STATE] = torch.from_numpy(spec.mobile_env(item[SUBTASK_KEY], state, ee, env))
     elif spec.inputs == "state":
         env = spec.env_model(state, item[EE_POSE].numpy(), item[ENV_STATE].numpy())
         out[ENV_STATE] = torch.from_numpy(env)
@@ -805,8 +885,11 @@ def convert_observation(spec: InputSpec, obs: Mapping[str, np.ndarray]) -> dict[
 
     state = np.asarray(obs[STATE], np.float32)
     out: dict[str, Any] = {STATE: torch.from_numpy(state_features(spec, state))}
-    if spec.mobile:
-        out[ENV_STATE] = torch.from_numpy(subtask_onehot(obs[SUBTASK_KEY], state.shape[:-1]))
+    if spec.mobile:  # a perception policy's poses are predicted (LoadedPolicy.act)
+        poses = spec.mobile_poses and not spec.perception
+        ee = np.asarray(obs[EE_POSE]) if poses else None
+        env = np.asarray(obs[ENV_STATE]) if poses else None
+        out[ENV_STATE] = torch.from_numpy(spec.mobile_env(obs[SUBTASK_KEY], state, ee, env))
     elif spec.inputs == "state":
         env = spec.env_model(state, np.asarray(obs[EE_POSE]), np.asarray(obs[ENV_STATE]))
         out[ENV_STATE] = torch.from_numpy(env)

@@ -61,7 +61,8 @@ STATE_DIFFUSION_LR = DIFFUSION_LR
 """The same, by its older name."""
 
 IMAGE_AUX_STATE = 1.0
-"""``train.aux_state`` of an image diffusion policy of a fixed-base task, when not set."""
+"""``train.aux_state`` of an image diffusion policy of a dataset with the object poses, when not
+set."""
 IMAGE_EMA = 0.999
 """``train.ema`` of an image diffusion policy, when not set."""
 
@@ -103,11 +104,13 @@ def resolve_precision(setting: str, device: str) -> str:
     return setting
 
 
-def resolve_aux_state(setting: float | None, policy: str, inputs: str, mobile: bool) -> float:
+def resolve_aux_state(setting: float | None, policy: str, inputs: str, poses: bool) -> float:
     """The weight of the auxiliary state loss (0: off): ``train.aux_state``, or
-    :data:`IMAGE_AUX_STATE` for an image diffusion policy of a fixed-base task. A mobile
-    dataset holds no object poses, so its policies have none."""
-    if mobile or not image_inputs(inputs):
+    :data:`IMAGE_AUX_STATE` for an image diffusion policy. Off without images and where the
+    dataset does not record the object poses it predicts (``poses``:
+    :attr:`~factory.policy.inputs.InputSpec.poses`; e.g. a mobile dataset exported before its
+    ``observation.environment_state``)."""
+    if not poses or not image_inputs(inputs):
         return 0.0
     if setting is None:
         return IMAGE_AUX_STATE if policy == "diffusion" else 0.0

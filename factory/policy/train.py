@@ -66,7 +66,6 @@ from factory.policy.inputs import (
     env_features,
     model_actions,
     state_features,
-    subtask_onehot,
 )
 from factory.policy.perception import CAMERA_POSE, camera_poses, point_cameras_of
 from factory.policy.recipe import (
@@ -229,8 +228,9 @@ class LowDimFrames:
             STATE: state_features(spec, state),
             ACTION: model_actions(column(ACTION), spec.action),
         }
-        if spec.mobile:
-            self.values[ENV_STATE] = subtask_onehot(column(SUBTASK_KEY), state.shape[:-1])
+        if spec.mobile:  # the sub-task one-hot, after the object values where read
+            ee, env = (column(EE_POSE), column(ENV_STATE)) if spec.mobile_poses else (None, None)
+            self.values[ENV_STATE] = spec.mobile_env(column(SUBTASK_KEY), state, ee, env)
         elif spec.inputs == "state" or spec.perception:
             self.values[ENV_STATE] = spec.env_model(state, column(EE_POSE), column(ENV_STATE))
         if aux:  # the auxiliary target: the environment state of the sample's frame
@@ -515,7 +515,7 @@ def model_stats(
     keys = [STATE, EE_POSE, ACTION]
     if spec.mobile:
         keys.append(SUBTASK_KEY)
-    elif spec.inputs == "state" or spec.perception:
+    if spec.mobile_poses or (not spec.mobile and (spec.inputs == "state" or spec.perception)):
         keys.append(ENV_STATE)
     rows = _low_dim(root, keys, episodes)
     if spec.action == "tool_rel" or spec.mobile:
@@ -527,8 +527,9 @@ def model_stats(
         ACTION: get_feature_stats(actions, axis=0, keepdims=False),
     }
     if spec.mobile:
-        onehot = subtask_onehot(rows[SUBTASK_KEY], rows[STATE].shape[:-1])
-        stats[ENV_STATE] = get_feature_stats(onehot, axis=0, keepdims=False)
+        ee, env = (rows[EE_POSE], rows[ENV_STATE]) if spec.mobile_poses else (None, None)
+        values = spec.mobile_env(rows[SUBTASK_KEY], rows[STATE], ee, env)
+        stats[ENV_STATE] = get_feature_stats(values, axis=0, keepdims=False)
     elif spec.inputs == "state" or spec.perception:
         env = spec.env_model(rows[STATE], rows[EE_POSE], rows[ENV_STATE])
         stats[ENV_STATE] = get_feature_stats(env, axis=0, keepdims=False)
@@ -709,7 +710,7 @@ class Trainer:
         self.aux_weight = 0.0
         if not spec.perception:
             setting = getattr(tc, "aux_state", 0.0)
-            self.aux_weight = resolve_aux_state(setting, tc.policy, spec.inputs, spec.mobile)
+            self.aux_weight = resolve_aux_state(setting, tc.policy, spec.inputs, spec.poses)
         self.ema_decay = resolve_ema(getattr(tc, "ema", 0.0), tc.policy, recipe_inputs)
         self.base, self.trainset = open_dataset(
             root,

@@ -229,11 +229,12 @@ def run(ctx: StageContext) -> dict[str, Any]:
         list(getattr(tc, "cameras", None) or []),
         bool(getattr(tc, "perception_points", True)),
     )
-    if spec.mobile and spec.inputs == "state":
+    if spec.mobile and spec.inputs == "state" and not spec.poses:
         log.warning(
-            "train %s: the mobile dataset has no object poses, so train.inputs=state reads the "
-            "robot, its base pose and the sub-task only (blind to the object): use "
-            "train.inputs=rgb or rgbd for a policy that can find it",
+            "train %s: the mobile dataset has no object poses (exported before its "
+            "observation.environment_state), so train.inputs=state reads the robot, its base "
+            "pose and the sub-task only (blind to the object): re-run stage=dataset "
+            "force=true, or use train.inputs=rgb or rgbd",
             tc.name,
         )
     device = resolve_device(tc.device)

@@ -20,6 +20,7 @@ from factory.demos.record.episodes import EpisodeStore
 from factory.errors import MixedLayoutError
 from factory.store import Shard
 from factory.tasks.mobile_pick_place.dataset import ACTION_NAMES, STATE_NAMES
+from factory.tasks.pick_place.dataset import ENV_STATE_NAMES as FIXED_ENV_NAMES
 
 CAMERAS = ["left", "right", "wrist", "fisheye_front", "fisheye_back"]
 HERE = Path(__file__).resolve().parent
@@ -37,7 +38,10 @@ def _module(path: Path, name: str) -> ModuleType:
 @pytest.mark.slow
 def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     """A recorded mobile episode -> stage=dataset -> LeRobotDataset with five cameras, the base
-    pose in the state, 11 action columns, sub-task labels and done flags; the card names them."""
+    pose in the state, 11 action columns, sub-task labels and done flags, and the objects' world
+    poses as the fixed task's ``observation.environment_state`` (equal to the bodies' poses of
+    the recorded MuJoCo states, and to what stores recorded before the ``env_state`` array
+    export); the card names them."""
     require_robot_models()
     for mod in ("ruckig", "ompl", "mink"):
         pytest.importorskip(mod)
@@ -78,7 +82,7 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
     info = json.loads((merged / "meta" / "info.json").read_text())
     assert info["robot_type"] == "franka_panda_omron"
     feats = info["features"]
-    assert "observation.environment_state" not in feats
+    assert feats["observation.environment_state"]["names"] == FIXED_ENV_NAMES
     assert feats["observation.state"]["names"] == STATE_NAMES
     assert feats["action"]["names"] == ACTION_NAMES
     assert feats["subtask_index"]["dtype"] == "int64" and feats["subtask_done"]["dtype"] == "bool"
@@ -109,6 +113,7 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
                 depth = unpack_depth_mm(item[f"observation.depth.{cam}"])
                 assert np.array_equal(depth, group[f"depth/{cam}"][f]), cam
     assert subtask == group["subtask"][:].tolist() and done == group["subtask_done"][:].tolist()
+    _check_object_poses(ds, store, eid, scene, run)
     # the sub-tasks in order, each with one done flag on its last frame
     assert (np.diff(subtask) >= 0).all() and sorted(set(subtask)) == list(range(len(SUBTASKS)))
     ends = np.flatnonzero(done)
@@ -126,7 +131,42 @@ def test_mobile_episode_exports(cli, tmp_path: Path) -> None:
         assert f"`{name}`" in card.text
     assert "0 = `navigate_to_pick`" in card.text and "`subtask_done`" in card.text
     assert "`base_x`, `base_y`, `base_yaw`" in card.text and "`fisheye_back`" in card.text
-    assert "`observation.environment_state`:**" not in card.text
+    assert "`observation.environment_state`:** the pick object's position" in card.text
+
+
+def _check_object_poses(ds: Any, store: EpisodeStore, eid: str, scene: Any, run: Path) -> None:
+    """The exported environment state at a few frames is the pick object's and the place
+    support's body poses in the scene's model set to the recorded MuJoCo state; the export of
+    a store without the ``env_state`` array (recorded before it) reads the same from the
+    states."""
+    import mujoco
+
+    from factory.demos.record.payload import STATE_SPEC
+    from factory.tasks.mobile_pick_place import mobile_setup
+    from factory.tasks.mobile_pick_place.dataset import columns
+
+    info, group = store.info(eid), store.arrays(eid)
+    setup = mobile_setup(scene)
+    m = setup.model
+    d = mujoco.MjData(m)
+    bodies = [m.body(info.pick_id).id, m.body(info.target_id).id]
+    assert info.target_id == setup.objects.place_support.id
+    n = info.n_frames
+    for f in sorted({0, n // 3, n // 2, n - 1}):
+        mujoco.mj_setState(m, d, np.asarray(group["state"][f], np.float64), STATE_SPEC)
+        mujoco.mj_kinematics(m, d)
+        want = np.concatenate([np.r_[d.xpos[b], d.xquat[b]] for b in bodies])
+        got = ds[f]["observation.environment_state"].numpy()
+        assert np.allclose(got, want, atol=1e-5), (f, got, want)
+    # the objects moved: the can from the table onto the desk
+    first, last = (ds[f]["observation.environment_state"].numpy() for f in (0, n - 1))
+    assert np.linalg.norm(first[:2] - last[:2]) > 1.0
+    assert np.allclose(first[7:], last[7:], atol=1e-3)
+    keys = ("state", "joint_pos", "gripper", "ee_pose", "action", "base_pose", "subtask")
+    old = {k: group[k] for k in (*keys, "subtask_done")}  # no env_state
+    scene_json = (run / "scenes" / scene.id / "scene.json").read_bytes()
+    recorded = np.asarray(group["env_state"][:], np.float32)
+    assert np.allclose(columns(info, old, scene_json)["observation.environment_state"], recorded)
 
 
 def test_mixed_layouts_refused(tmp_path: Path) -> None:
@@ -158,7 +198,6 @@ def _mobile_episode(fixed: ModuleType, eid: str, n: int, seed: int) -> tuple[Any
     """A synthetic mobile episode (the fixed helper's images and arrays, the mobile columns)
     with a route like ``MobilePlanner.route_record``'s."""
     info, arrays = fixed._episode(eid, "kitchen_pick_place", n, seed)
-    del arrays["env_state"]
     rng = np.random.default_rng(seed)
     arrays["action"] = rng.normal(size=(n, 11)).astype(np.float32)
     arrays["base_pose"] = rng.normal(size=(n, 3)).astype(np.float32)

@@ -84,6 +84,21 @@ def test_reset_is_the_demos_spawn_and_observes_as_recorded(demo: dict[str, Any])
     assert set(env.spec.keys()) == {"observation.state", "observation.ee_pose", "subtask_index"}
 
 
+def test_environment_state_is_observed_as_recorded(demo: dict[str, Any]) -> None:
+    """Asked for (``ObsSpec.env_state``), the env observes ``observation.environment_state``
+    (14: the pick object's and the place support's world poses) as the demo recorded it, at
+    the first frame and along a replay of the recorded actions."""
+    env = _env(demo, spec=ObsSpec(fps=FPS, cameras=(), env_state=True, task=TASK))
+    rec = demo["rec"]
+    assert env.spec.shapes()["observation.environment_state"] == ((14,), "float32")
+    obs, _ = env.reset(states=rec.state[:1])
+    assert np.allclose(obs["observation.environment_state"][0], rec.env_state[0], atol=1e-6)
+    for f in range(1, 6):
+        obs, *_ = env.step(rec.action[f - 1][None].astype(np.float32))
+        # the replay tracks the recording to millimetres (the controller, not the poses)
+        assert np.allclose(obs["observation.environment_state"][0], rec.env_state[f], atol=5e-3)
+
+
 def test_images_are_the_recordings(demo: dict[str, Any]) -> None:
     """The five cameras (two fisheye) through the recording's renderer: the same images and
     depth as ``render_frames`` draws for the same state."""

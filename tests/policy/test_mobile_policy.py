@@ -381,6 +381,174 @@ def test_mobile_eval_stage_end_to_end(tmp_path: Path) -> None:
     assert video.stat().st_size > 0
 
 
+def _living_room_helpers() -> Any:
+    """The living room of the demos' mobile tests (test folders are not packages)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "demos" / "test_mobile_pick_place.py"
+    spec = importlib.util.spec_from_file_location("_mobile_helpers", path)
+    assert spec is not None and spec.loader is not None
+    helpers = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(helpers)
+    return helpers
+
+
+SEEN_DEMOS: dict[str, Any] = {
+    "episodes_per_scene": 1,
+    "fps": 5.0,
+    "width": 32,
+    "height": 32,  # the fisheye images are 32 square: one size for image policies
+    "workers": 1,
+}
+
+
+@pytest.fixture(scope="module")
+def seen_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run of the hand-built living room with one mobile demo recorded with the five cameras
+    (RGB-D, 32 px) and exported: its dataset has ``observation.environment_state``."""
+    for mod in ("ruckig", "ompl", "mink"):
+        pytest.importorskip(mod)
+    from factory.config import DemosConfig
+    from factory.runner import run_stage
+    from factory.schema import scene_to_json
+
+    scene = _living_room_helpers()._living_room()
+    run = tmp_path_factory.mktemp("mobile_seen") / "run"
+    (run / "scenes" / scene.id).mkdir(parents=True)
+    (run / "scenes" / scene.id / "scene.json").write_text(scene_to_json(scene))
+    dc = DemosConfig(**SEEN_DEMOS)
+    assert run_stage("demos", _ctx(run, "demos", demos=dc))["episodes_stored"] == 1
+    run_stage("dataset", _ctx(run, "dataset", demos=dc))
+    return run
+
+
+def test_mobile_object_values_are_in_the_arm_base_frame(seen_run: Path) -> None:
+    """A mobile dataset's object poses become the fixed task's 24 model values in the frame
+    of the arm's base (the Panda's link0, riding on the mobile base): at a few frames they
+    equal the objects' positions in link0's frame of the recorded MuJoCo state; a state policy
+    reads them before the sub-task one-hot (28), a dataset without them gives the one-hot
+    alone and no auxiliary loss."""
+    import mujoco
+
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.demos.record.payload import STATE_SPEC
+    from factory.policy.inputs import ENV_DIM, env_features, input_spec
+    from factory.policy.recipe import resolve_aux_state
+    from factory.robots.mobile_panda import PREFIX
+    from factory.tasks.mobile_pick_place import mobile_setup
+
+    dataset = seen_run / "dataset" / "merged"
+    feats = _features(dataset)
+    spec = input_spec("state", feats)
+    assert spec.mobile and spec.poses and spec.mobile_poses
+    assert spec.raw_features()["observation.environment_state"] == [14]
+    assert spec.model_features()["observation.environment_state"] == [ENV_DIM + 4]
+    assert resolve_aux_state(None, "diffusion", "rgb", input_spec("rgb", feats).poses) == 1.0
+
+    store = EpisodeStore(seen_run / "episodes" / "shard-0.zarr")
+    (eid,) = store.episode_ids()
+    info, group = store.info(eid), store.arrays(eid)
+    setup = mobile_setup(_living_room_helpers()._living_room())
+    m = setup.model
+    d = mujoco.MjData(m)
+    link0 = m.body(f"{PREFIX}robot0_link0").id
+    bodies = [m.body(info.pick_id).id, m.body(info.target_id).id]
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ds = LeRobotDataset("factory/demos", root=dataset, video_backend="pyav")
+    n = info.n_frames
+    seen = []
+    for f in sorted({0, n // 4, n // 2, 3 * n // 4, n - 1}):
+        item = ds[f]
+        state = item["observation.state"].numpy()[None]
+        ee = item["observation.ee_pose"].numpy()[None]
+        env = item["observation.environment_state"].numpy()[None]
+        values = env_features(state, ee, env)[0]
+        mujoco.mj_setState(m, d, np.asarray(group["state"][f], np.float64), STATE_SPEC)
+        mujoco.mj_kinematics(m, d)
+        rot = d.xmat[link0].reshape(3, 3)
+        want = [rot.T @ (d.xpos[b] - d.xpos[link0]) for b in bodies]
+        tool = rot.T @ (d.site_xpos[setup.robot.site] - d.xpos[link0])
+        assert np.allclose(values[0:3], want[0], atol=2e-3), (f, values[0:3], want[0])
+        assert np.allclose(values[9:12], want[1], atol=2e-3), (f, values[9:12], want[1])
+        assert np.allclose(values[18:21], want[0] - tool, atol=2e-3)
+        assert np.allclose(values[21:24], want[1] - tool, atol=2e-3)
+        seen.append(want[1])
+    # the desk stands still in the world but moves in the arm's frame as the base drives
+    assert np.ptp(np.array(seen), axis=0).max() > 1.0
+
+    old = {k: v for k, v in feats.items() if k != "observation.environment_state"}
+    spec = input_spec("rgb", old)
+    assert not spec.poses and not input_spec("state", old).mobile_poses
+    assert resolve_aux_state(None, "diffusion", "rgb", spec.poses) == 0.0
+    with pytest.raises(PolicyError, match="stage=dataset force=true"):
+        input_spec("rgbd", old, perception=True)
+
+
+def _train_seen(run: Path, name: str, **kw: Any) -> dict[str, Any]:
+    """``stage=train`` of a tiny image policy (2 steps, batch 2, CPU) on ``seen_run``."""
+    from factory.config import DemosConfig
+    from factory.runner import run_stage
+
+    tc = TrainConfig(
+        name=name,
+        steps=2,
+        batch_size=2,
+        save_every=2,
+        log_every=1,
+        threads=1,
+        device="cpu",
+        options={"diffusion": {**TINY["diffusion"], "spatial_softmax_num_keypoints": 4}},
+        **kw,
+    )
+    return run_stage("train", _ctx(run, "train", demos=DemosConfig(**SEEN_DEMOS), train=tc))
+
+
+def test_mobile_image_policy_trains_with_the_aux_state_loss(seen_run: Path) -> None:
+    """``train.aux_state`` is on by default for a mobile image policy whose dataset records
+    the object poses: two steps log a finite auxiliary loss."""
+    out = _train_seen(seen_run, "aux", inputs="rgb")
+    assert out["steps"] == 2
+    log = seen_run / "policy" / "aux" / "train_log.jsonl"
+    lines = [json.loads(x) for x in log.read_text().splitlines()]
+    assert lines and all(np.isfinite(r["aux_loss"]) for r in lines)
+
+
+def test_mobile_perception_policy_trains_and_evaluates(
+    seen_run: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``train.vision=perception`` on a mobile dataset: the network reads the five cameras
+    (RGB-D; the wrist camera's pixels as points), the state policy reads the robot, the 24
+    object values and the sub-task; ``stage=eval task=mobile_pick_place`` rolls it out with
+    the network's predictions, the env never computing the objects' poses."""
+    from factory.config import DemosConfig, EvalConfig
+    from factory.policy.checkpoint import load_policy
+    from factory.runner import run_stage
+    from factory.tasks.mobile_pick_place import env as mobile_env
+
+    out = _train_seen(seen_run, "seen", inputs="rgbd", vision="perception")
+    assert out["steps"] == 2
+    log = seen_run / "policy" / "seen" / "train_log.jsonl"
+    lines = [json.loads(x) for x in log.read_text().splitlines()]
+    assert all(np.isfinite(r["perception_cm"]) for r in lines)
+    policy = load_policy("seen", seen_run, device="cpu")
+    assert policy.perception is not None and policy.perception.point_cameras == ["wrist"]
+    assert len(policy.perception.cameras) == 5
+    assert "observation.environment_state" not in policy.info.features
+    assert policy.info.policy_features["observation.environment_state"] == [28]
+
+    def no_poses(*args: Any) -> Any:
+        raise AssertionError("the env computed the objects' poses for a perception policy")
+
+    monkeypatch.setattr(mobile_env, "object_poses", no_poses)
+    ec = EvalConfig(
+        policy="seen", scenes="train", episodes_per_scene=1, max_steps=3, videos=0, device="cpu"
+    )
+    dc = DemosConfig(**SEEN_DEMOS)
+    result = run_stage("eval", _ctx(seen_run, "eval", demos=dc, eval=ec))
+    assert result["episodes"] == 1 and result["success_rate"] == 0.0
+
+
 def test_mobile_and_fixed_do_not_mix() -> None:
     """An evaluation is mobile by its task, dataset or policy; a fixed-base policy on a mobile
     dataset (or the reverse) is refused in one line."""

@@ -1,14 +1,23 @@
 """What the mobile pick-and-place task writes into its LeRobot datasets.
 
 A mobile episode (:mod:`factory.tasks.mobile_pick_place.demos`) has the fixed task's arrays but an
-``action`` of 11 columns, no ``env_state``, and in addition ``base_pose`` (F, 3),
-``subtask`` (F,) int8 and ``subtask_done`` (F,) bool; its cameras are the pinhole ones then
-``fisheye_front``/``fisheye_back`` (square images of the pinhole width, exported at their own
-size). Features of every frame (the export adds the cameras' videos and the instruction):
+``action`` of 11 columns (``env_state``: the place support is the target), and in addition
+``base_pose`` (F, 3), ``subtask`` (F,) int8 and ``subtask_done`` (F,) bool; its cameras are the
+pinhole ones then ``fisheye_front``/``fisheye_back`` (square images of the pinhole width,
+exported at their own size). Features of every frame (the export adds the cameras' videos and
+the instruction):
 
 * ``observation.state`` (11,) float32, in this order: 7 arm joints (rad), the gripper opening
   (m), the base's x, y (m, world frame) and yaw (rad, unwrapped): :data:`STATE_NAMES`;
 * ``observation.ee_pose`` (7,) float32: tool position (m) and quaternion wxyz, world frame;
+* ``observation.environment_state`` (14,) float32: the fixed task's (same names and meaning):
+  the pick object's position (m) and quaternion wxyz, then the place support's, world frame
+  (body frames): the recorded ``env_state``, or for episodes recorded before it the free
+  bodies' poses in the MuJoCo states
+  (:func:`factory.tasks.pick_place.dataset.environment_state`). The policies read them in the
+  frame of the arm's base, which rides on the mobile base
+  (:func:`factory.policy.inputs.env_features`); datasets exported before it lack the feature
+  and still load (``stage=dataset force=true`` adds it);
 * ``action`` (11,) float32: the arm joint targets (rad), the gripper command (m) and the base
   target x, y (m) and yaw (rad): :data:`ACTION_NAMES`;
 * ``subtask_index`` (1,) int64: the frame's sub-task, an index into
@@ -16,8 +25,8 @@ size). Features of every frame (the export adds the cameras' videos and the inst
   ``meta/factory.json`` under ``subtasks`` and on the dataset card);
 * ``subtask_done`` (1,) bool: true on the last frame of each sub-task.
 
-There is no ``observation.environment_state``. Per episode, ``meta/factory.json`` holds the
-navigation ``route`` the episode drove (``EpisodeInfo.route``: :mod:`factory.dataset.routes`).
+Per episode, ``meta/factory.json`` holds the navigation ``route`` the episode drove
+(``EpisodeInfo.route``: :mod:`factory.dataset.routes`).
 """
 
 from __future__ import annotations
@@ -50,6 +59,7 @@ def features() -> dict[str, dict[str, Any]]:
     return {
         "observation.state": fixed.vector(STATE_NAMES),
         "observation.ee_pose": fixed.vector(fixed.EE_POSE_NAMES),
+        fixed.ENV_STATE_KEY: fixed.vector(fixed.ENV_STATE_NAMES),
         "action": fixed.vector(ACTION_NAMES),
         SUBTASK_KEY: {"dtype": "int64", "shape": (1,), "names": None},
         DONE_KEY: {"dtype": "bool", "shape": (1,), "names": None},
@@ -78,11 +88,17 @@ def meta() -> dict[str, Any]:
     }
 
 
-def columns(info: Any, arrays: Any, scene_json: bytes = b"") -> dict[str, np.ndarray]:
+def columns(info: Any, arrays: Any, scene_json: bytes) -> dict[str, np.ndarray]:
     """The values of :func:`features` of one episode, (F, ...) each.
 
+    Args:
+        info: its ``EpisodeInfo`` (``pick_id``, ``target_id``: the place support, ``cleared``).
+        arrays: its stored arrays (zarr group).
+        scene_json: its scene's ``scene.json`` (where the objects' poses sit in the states).
+
     Raises:
-        StoreError: a sub-task label outside :data:`SUBTASKS`.
+        StoreError: a sub-task label outside :data:`SUBTASKS`, or states that do not hold the
+            objects' poses.
     """
     subtask = np.asarray(arrays["subtask"][:], np.int64)
     if subtask.size and (subtask.min() < 0 or subtask.max() >= len(SUBTASKS)):
@@ -96,6 +112,7 @@ def columns(info: Any, arrays: Any, scene_json: bytes = b"") -> dict[str, np.nda
     return {
         "observation.state": state,
         "observation.ee_pose": np.asarray(arrays["ee_pose"][:], np.float32),
+        fixed.ENV_STATE_KEY: fixed.environment_state(info, arrays, scene_json),
         "action": np.asarray(arrays["action"][:], np.float32),
         SUBTASK_KEY: subtask[:, None],
         DONE_KEY: np.asarray(arrays["subtask_done"][:], bool)[:, None],
@@ -137,7 +154,10 @@ def card(meta: dict[str, Any], cameras: list[str], rgb: dict[str, Any]) -> tuple
         "- **`observation.depth.<camera>`:** depth in millimetres (pinhole cameras: along the "
         "optical axis; fisheye cameras: along the ray), packed into a lossless RGB video: "
         f"{meta['depth_encoding']}. `factory.dataset.unpack_depth_mm` reads it back exactly.",
-        "- No `observation.environment_state` (object poses are in `extras/.../states.npz`)",
+        "- **`observation.environment_state`:** the pick object's position (m) and "
+        "quaternion (w, x, y, z), then the place support's, world frame (privileged state "
+        "for low-dimensional policies and perception training; the fixed-base datasets' "
+        "layout)",
         "- **`route`** (per episode, in `meta/factory.json` under `episodes[i].route`; "
         "`factory.dataset.episode_routes` reads them by episode index): the navigation route "
         "check's base poses the episode drove to, `pick_pose` and `place_pose` (x, y in m, "

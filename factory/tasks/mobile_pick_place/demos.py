@@ -14,8 +14,9 @@ pose (z = 0), ``phases`` the first frame of each phase (sub-tasks included), ``c
 cameras then ``fisheye_front`` / ``fisheye_back``. Arrays: as the fixed task's (``time``, ``state``,
 ``joint_pos``, ``gripper``, ``ee_pose``, ``rgb/<camera>``, ``depth/<camera>``), with ``action`` of
 11 columns (arm 7, gripper, base x, y, yaw) instead of 8, and in addition ``base_pose`` (F, 3),
-``subtask`` (F,) int8 (index into ``SUBTASKS``) and ``subtask_done`` (F,) bool. There is no
-``env_state``.
+``subtask`` (F,) int8 (index into ``SUBTASKS``), ``subtask_done`` (F,) bool and, as the fixed
+task's, ``env_state`` (F, 14): the pick object's and the place support's world poses (stores
+recorded before it have none: the export reads the poses of free bodies from ``state``).
 """
 
 from __future__ import annotations
@@ -154,6 +155,7 @@ class MobilePickPlaceScene(SimulatingScene):
             base_pose=rec.base_pose.astype(np.float32),
             subtask=rec.subtask.astype(np.int8),
             subtask_done=rec.subtask_done.astype(bool),
+            env_state=rec.env_state.astype(np.float32),
         )
         return meta, arrays
 

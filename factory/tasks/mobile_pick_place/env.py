@@ -25,7 +25,11 @@ sees and does in it is what the dataset recorded:
   (:func:`~factory.tasks.mobile_pick_place.execute.penetrations`);
 * observations keyed like the dataset's features: ``observation.state`` (11: arm joints, finger
   opening, base x, y, yaw), ``observation.ee_pose`` (7: tool position + quaternion wxyz, world),
-  ``subtask_index`` (1, int64), and per camera ``observation.images.<cam>`` /
+  ``subtask_index`` (1, int64), with ``env_state`` ``observation.environment_state`` (14: the
+  pick object's and the place support's position + quaternion wxyz, world; the dataset's
+  layout, :func:`~factory.demos.execute.cpu.object_poses`; asked for by state policies that
+  read it, never by a perception policy, which predicts it), and per camera
+  ``observation.images.<cam>`` /
   ``observation.depth.<cam>`` drawn by the demos'
   :class:`~factory.tasks.mobile_pick_place.execute.MobileRenderer` from the frame's state set into a
   fresh ``MjData`` (as ``render_frames``: the same images for the same state; fisheye images are
@@ -68,6 +72,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from factory.demos.execute.cpu import object_poses
 from factory.demos.record.payload import STATE_SPEC
 from factory.nav import BASE_COLLISION
 from factory.nav.task_poses import ARM_X, PICK_REACH, PLACE_REACH
@@ -87,6 +92,7 @@ from factory.tasks.mobile_pick_place.scene import (
     MobileSetup,
     body_box,
 )
+from factory.tasks.pick_place.dataset import ENV_STATE_KEY
 from factory.tasks.pick_place.objects import Outcome
 from factory.tasks.pick_place.plan import targets_to_ctrl
 
@@ -398,6 +404,8 @@ class MobileSim:
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, v.site_xmat[robot.site])
         obs["observation.ee_pose"][i] = np.concatenate([v.site_xpos[robot.site], quat])
+        if self.spec.env_state:
+            obs[ENV_STATE_KEY][i] = object_poses(v, (self.pick, self.place_support))
         z = float(v.qpos[self._obj_adr + 2])
         if action is None:
             self._progress[i] = _Progress(

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from factory.demos.execute.cpu import object_poses
 from factory.demos.record.frame_render import CameraStrip, encode_depth, size_offscreen
 from factory.demos.record.payload import STATE_SPEC
 from factory.nav import BASE_COLLISION
@@ -89,6 +90,9 @@ class MobileRecording:
             (m), yaw (rad).
         subtask: (F,) int8 label id (index into :data:`SUBTASKS`) of the frame's period.
         subtask_done: (F,) bool: true on the last frame of each sub-task.
+        env_state: (F, 14) the pick object's and the place support's position (m) and
+            quaternion wxyz, world frame (:func:`~factory.demos.execute.cpu.object_poses`:
+            the fixed task's ``env_state``).
         rgb: camera -> (F, H, W, 3) uint8; depth: camera -> (F, H, W) uint16 mm or float32 m.
         ctrl: (S, nu) the controls of every physics step simulated (S = (F - 1) x steps per
             frame): replaying them from ``state[0]`` reproduces the episode.
@@ -107,6 +111,7 @@ class MobileRecording:
     action: np.ndarray
     subtask: np.ndarray
     subtask_done: np.ndarray
+    env_state: np.ndarray = field(default_factory=lambda: np.zeros((0, 14)))
     rgb: dict[str, np.ndarray] = field(default_factory=dict)
     depth: dict[str, np.ndarray] = field(default_factory=dict)
     ctrl: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
@@ -281,6 +286,7 @@ def simulate(
         action=np.zeros((n_frames, 11)),
         subtask=np.zeros(n_frames, np.int8),
         subtask_done=np.zeros(n_frames, bool),
+        env_state=np.zeros((n_frames, 14)),
         ctrl=np.array(ctrl),
     )
     data = mujoco.MjData(model)
@@ -296,6 +302,7 @@ def simulate(
     supports = [model.body(objs.pick_support.id).id, model.body(objs.place_support.id).id]
     base_allowed = np.isin(model.geom_bodyid, [pick])
     arm_allowed = np.isin(model.geom_bodyid, [pick, *supports])
+    env_bodies = (pick, supports[1])
     worst_b = worst_a = 0.0
     quat = np.zeros(4)
 
@@ -309,6 +316,7 @@ def simulate(
         rec.gripper[f, 0] = float(fingers[0] - fingers[1])
         mujoco.mju_mat2Quat(quat, view.site_xmat[robot.site])
         rec.ee_pose[f] = np.concatenate([view.site_xpos[robot.site], quat])
+        rec.env_state[f] = object_poses(view, env_bodies)
         last = min((f + 1) * k, n_steps) - 1
         if targets is not None:
             rec.action[f] = targets[last]

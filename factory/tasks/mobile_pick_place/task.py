@@ -89,6 +89,13 @@ class MobilePickPlaceTask(Task):
     env_max_steps: ClassVar[int] = 1500
     robot_kind: ClassVar[str] = "mobile"
 
+    def env_state_dim(self) -> int:
+        """The pick object's and the place support's world poses: 14 (the fixed task's
+        layout)."""
+        from factory.tasks.pick_place.env import ENV_STATE_DIM
+
+        return ENV_STATE_DIM
+
     def fisheye_cameras(self) -> tuple[str, ...]:
         """``fisheye_front``, ``fisheye_back``."""
         from factory.tasks.mobile_pick_place.scene import FISHEYE_CAMERAS
