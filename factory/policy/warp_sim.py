@@ -40,6 +40,7 @@ from factory.demos.record.payload import STATE_SPEC
 from factory.errors import ConfigError, TaskError
 from factory.policy.batch_sim import BatchRules, BatchSim
 from factory.robots.panda import CAMERAS
+from factory.sim.kernel_preload import PreloadReport
 
 log = logging.getLogger(__name__)
 
@@ -157,8 +158,7 @@ class WarpBatchSim(BatchSim):
         self.images_cfg = RecordConfig(spec.fps, spec.width, spec.height, self._cams, "uint16_mm")
         log.info(
             "eval: MuJoCo Warp on %s: %d worlds, %d cameras, buffers of %d contacts and %d "
-            "constraint rows a world, set up in %.1f s; the first frame builds its kernels "
-            "(minutes on a machine without Warp's kernel cache)",
+            "constraint rows a world, set up in %.1f s",
             self.device,
             n,
             ncam,
@@ -166,6 +166,43 @@ class WarpBatchSim(BatchSim):
             self.njmax,
             time.perf_counter() - t0,
         )
+        self.preload = self._preload_kernels()
+
+    def _preload_kernels(self) -> PreloadReport:
+        """Compiles (or loads from Warp's kernel cache) the kernels of a frame's launches on
+        every core before the first frame (:func:`factory.sim.kernel_preload.preload`: a dry
+        trace of :meth:`_frame` on one world, then the modules in parallel); Warp would
+        otherwise compile them one after the other at the first launch (minutes on a machine
+        without its kernel cache). Returns what the preload did."""
+        from factory.demos.execute import warp_kernels as k
+        from factory.demos.execute.warp import render_context, trace_sim
+        from factory.sim.kernel_preload import preload
+
+        wp, mjw, model, spec = self.wp, self.mjw, self.model, self.spec
+        (frame_ctrl,) = self._kernels
+
+        def trace() -> None:
+            wp.launch(frame_ctrl, dim=1)
+            rc = None
+            if self._cams:
+                wp.launch(k.to_images, dim=1)
+                names = [CAMERAS[c] for c in self._cams]
+                rc = render_context(model, 1, (spec.width, spec.height), names)
+            trace_sim(wp, mjw, self.m, model, self._data, self.nconmax, self.njmax, rc)
+
+        with wp.ScopedDevice(self.device):
+            r = preload(wp, trace)
+        log.info(
+            "eval: MuJoCo Warp kernels: %d modules to load of the %d a frame launches, on %d "
+            "threads in %.1f s (trace %.1f s)%s",
+            r.compiled,
+            r.modules,
+            r.workers,
+            r.load_s,
+            r.trace_s,
+            f"; trace stopped early: {r.error}" if r.error else "",
+        )
+        return r
 
     def _sample_states(self) -> np.ndarray:
         """Initial configurations (k, nq) of a few seeds, to size the contact buffers."""

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from robot_models import require_robot_models
+from warp_modules import modules_compiled_after_preload
 
 if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
     require_robot_models()
@@ -108,6 +109,23 @@ def test_warp_env_tracks_the_cpu_env(policy_run: Path) -> None:
         assert db.dtype == np.uint16
         close = np.abs(da.astype(int) - db.astype(int)) < 50
         assert close.mean() > 0.8, (cam, close.mean())
+
+
+def test_warp_env_preloads_its_kernels(policy_run: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The env's MuJoCo Warp kernels (physics, renderer, the image and control kernels) are
+    loaded on every core before the first frame, from a dry trace of one frame on one world:
+    the trace runs through, and the frames after it compile no module it missed."""
+    late = modules_compiled_after_preload(monkeypatch)
+    jobs, _ = _replay_jobs(policy_run, 1, frames=2)
+    vec, _ = make_vec_env(policy_run, "kitchen_a", 1, SPEC, nthread=2, executor="warp")
+    try:
+        report = vec.sim.preload
+        assert report.error == "" and report.modules > 0
+        records, _ = run_batch(vec, jobs, scripted_actor(jobs))
+    finally:
+        vec.close()
+    assert [r["steps"] for r in records] == [2]
+    assert late == [], f"compiled after the preload: {late}"
 
 
 def test_eval_executor_settings() -> None:

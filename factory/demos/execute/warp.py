@@ -110,6 +110,30 @@ def check_strides(arrays: list[Any]) -> None:
             )
 
 
+def trace_sim(
+    wp: Any,
+    mjw: Any,
+    m: Any,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    nconmax: int,
+    njmax: int,
+    rc: Any = None,
+) -> None:
+    """MuJoCo Warp's launches of a call, on one world, for the trace of
+    :func:`factory.sim.kernel_preload.preload`: ``put_data`` (buffers of ``nconmax`` contacts
+    and ``njmax`` constraint rows, as the call's), ``forward``, ``reset_data``, ``step`` and,
+    with a render context ``rc`` (of one world, the call's cameras and size), the BVH refit
+    and the render. ``m`` is the device model of ``model``; nothing made is kept."""
+    d = mjw.put_data(model, data, nworld=1, nconmax=nconmax, njmax=njmax)
+    mjw.forward(m, d)
+    mjw.reset_data(m, d, reset=wp.zeros(1, dtype=bool))
+    mjw.step(m, d)
+    if rc is not None:
+        mjw.refit_bvh(m, d, rc)
+        mjw.render(m, d, rc)
+
+
 def launch_images(
     wp: Any,
     rc: Any,
@@ -524,14 +548,8 @@ class WarpExecutor:
                 wp.launch(kernel, dim=1)
             if looks:
                 wp.launch(k.set_looks, dim=1)
-            d = mjw.put_data(model, data, nworld=1, nconmax=nconmax, njmax=njmax)
-            mjw.forward(m, d)
-            mjw.reset_data(m, d, reset=wp.zeros(1, dtype=bool))
-            mjw.step(m, d)
-            if ncam:
-                rc = self._render_context(1)
-                mjw.refit_bvh(m, d, rc)
-                mjw.render(m, d, rc)
+            rc = self._render_context(1) if ncam else None
+            trace_sim(wp, mjw, m, model, data, nconmax, njmax, rc)
 
         r = preload(wp, trace, around_trace=DEVICE_LOCK)
         log.info(
