@@ -192,16 +192,7 @@ class WarpBatchSim(BatchSim):
 
         with wp.ScopedDevice(self.device):
             r = preload(wp, trace)
-        log.info(
-            "eval: MuJoCo Warp kernels: %d modules to load of the %d a frame launches, on %d "
-            "threads in %.1f s (trace %.1f s)%s",
-            r.compiled,
-            r.modules,
-            r.workers,
-            r.load_s,
-            r.trace_s,
-            f"; trace stopped early: {r.error}" if r.error else "",
-        )
+        log.info("eval: MuJoCo Warp kernels: %s", r.describe())
         return r
 
     def _sample_states(self) -> np.ndarray:

@@ -55,6 +55,14 @@ class PreloadReport:
     workers: int
     error: str = ""
 
+    def describe(self) -> str:
+        """One line for the log: what was loaded, on how many threads, in how long."""
+        early = f"; trace stopped early: {self.error}" if self.error else ""
+        return (
+            f"{self.compiled} modules to load of the {self.modules} launched, on {self.workers} "
+            f"threads in {self.load_s:.1f} s (trace {self.trace_s:.1f} s){early}"
+        )
+
 
 def _block_dim(ctx: Any, device: Any, block_dim: int | None) -> int:
     resolve = getattr(ctx, "_resolve_launch_block_dim", None)

@@ -381,14 +381,9 @@ class WarpRecordingRenderer:
         with wp.ScopedDevice(self.device):
             report = preload(wp, trace)
         log.info(
-            "warp recording renderer: kernels: %d modules to load of the %d a call launches, on "
-            "%d threads in %.1f s (%.1f s with the trace)%s",
-            report.compiled,
-            report.modules,
-            report.workers,
-            report.load_s,
+            "warp recording renderer: kernels: %s; %.1f s in all",
+            report.describe(),
             time.perf_counter() - t0,
-            f"; trace stopped early: {report.error}" if report.error else "",
         )
         return report
 

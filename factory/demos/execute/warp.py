@@ -552,17 +552,7 @@ class WarpExecutor:
             trace_sim(wp, mjw, m, model, data, nconmax, njmax, rc)
 
         r = preload(wp, trace, around_trace=DEVICE_LOCK)
-        log.info(
-            "demos %s: GPU kernels: %d modules to load of the %d the call launches, on %d "
-            "threads in %.1f s (trace %.1f s)%s",
-            self.setup.scene.id,
-            r.compiled,
-            r.modules,
-            r.workers,
-            r.load_s,
-            r.trace_s,
-            f"; trace stopped early: {r.error}" if r.error else "",
-        )
+        log.info("demos %s: GPU kernels: %s", self.setup.scene.id, r.describe())
         return r
 
     def _execute(
