@@ -18,11 +18,12 @@
 # the same time on that GPU: the other input kind (rgb beside rgbd), or a variant of the recipe
 # (SECOND_NAME=rgbd128 SECOND_INPUTS=rgbd SECOND_ARGS='train.options={diffusion: {resize_shape:
 # [128, 128]}}'): two recipes for the device time of one on a machine that counts in full.
-# With EVAL_WARP=1, as soon as the training ends (the GPU otherwise idle), the recorded episodes
-# of the first REPLAY_SCENES training kitchens are replayed and the policy is evaluated on the
-# same held-out configurations with eval.executor=warp (each timed; the replay first, so it
-# builds the kernels on a bare machine and the policy's figure is warm; WARP_PLANNER=1 adds the
-# planner); the CPU evaluations (the policy, the same replays) follow, for the agreement.
+# With EVAL_WARP=1, when the training ends, the recorded episodes of the first REPLAY_SCENES
+# training kitchens are replayed and the policy is evaluated on the same held-out
+# configurations with eval.executor=warp (each timed; the replay first, so the policy's figure
+# finds the physics kernels built; WARP_PLANNER=1 adds the planner), beside the CPU env's
+# evaluation of the policy and of the same replays (on the cores the Warp processes leave), for
+# the agreement: one session's device time holds both.
 # $OUT_DIR/gpu_free appears when this script no longer needs the GPU (another script on the
 # machine may wait for it: mobile_camera_policy.sh's TRAIN_AFTER).
 #
@@ -188,8 +189,16 @@ for p in $POLICIES; do
   cp "$RUN/policy/$p/train.json" "$OUT_DIR/train-$p.json" || true
 done
 
-REPLAY_LIST=""
-if [ -n "$EVAL_WARP" ]; then  # the GPU's evaluations while nothing else uses it (header)
+log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
+cpu_workers=$EVAL_WORKERS  # with EVAL_WARP, the cores the Warp evaluations' processes leave
+[ -z "$EVAL_WARP" ] || cpu_workers=$(( EVAL_WORKERS - WARP_WORKERS - 2 > 0 ? EVAL_WORKERS - WARP_WORKERS - 2 : 1 ))
+pids=()
+for p in $POLICIES; do
+  gpu=$(gpu_of "$p")
+  evaluate_one "$p" "$gpu" $(( cpu_workers / n_pol > 0 ? cpu_workers / n_pol : 1 )) &
+  pids+=($!)
+done
+if [ -n "$EVAL_WARP" ]; then  # the GPU's evaluations, beside the CPU's (header)
   REPLAY_LIST=$($PY - "$RUN" "$REPLAY_SCENES" <<'EOF3'
 import json, sys
 from pathlib import Path
@@ -197,14 +206,19 @@ scenes = json.loads((Path(sys.argv[1]) / "dataset/merged/meta/factory.json").rea
 print("[" + ",".join(sorted(scenes)[: int(sys.argv[2])]) + "]")
 EOF3
 )
+  # the same replays on the CPU env, on two cores
+  $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
+    "eval.scenes=$REPLAY_LIST" eval.workers=2 eval.batch=8 eval.videos=0 \
+    > "$OUT_DIR/eval-replay-cpu.log" 2>&1 &
+  pids+=($!)
   warp_one() {  # warp_one <policy> <name> <more overrides...>: timed, on MuJoCo Warp
     local t2
     t2=$(date +%s)
     $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" eval.executor=warp \
       eval.name="$2" eval.device="$DEVICE" eval.videos=0 "${@:3}" > "$OUT_DIR/eval-$2.log" 2>&1 \
       || log "   $2 on warp failed: $OUT_DIR/eval-$2.log"
-    echo "{\"policy\": \"$1\", \"name\": \"$2\", \"seconds\": $(( $(date +%s) - t2 ))}" \
-      > "$OUT_DIR/time-$2.json"
+    echo "{\"policy\": \"$1\", \"name\": \"$2\", \"seconds\": $(( $(date +%s) - t2 )), \
+\"beside\": \"the CPU evaluations\"}" > "$OUT_DIR/time-$2.json"
     log "   $2 on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
   }
   log "4a. MuJoCo Warp: replay of $REPLAY_LIST, then $INPUTS on $EVAL_EPISODES per held-out kitchen"
@@ -215,19 +229,6 @@ EOF3
     eval.workers="$WARP_WORKERS"
 fi
 touch "$OUT_DIR/gpu_free"  # the trainings and the GPU's evaluations are over
-
-log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
-pids=()
-for p in $POLICIES; do
-  gpu=$(gpu_of "$p")
-  evaluate_one "$p" "$gpu" $(( EVAL_WORKERS / n_pol > 0 ? EVAL_WORKERS / n_pol : 1 )) &
-  pids+=($!)
-done
-if [ -n "$REPLAY_LIST" ]; then  # the same replays on the CPU env
-  $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
-    "eval.scenes=$REPLAY_LIST" eval.workers=4 eval.batch=8 eval.videos=0 \
-    > "$OUT_DIR/eval-replay-cpu.log" 2>&1 || log "   the CPU replay failed"
-fi
 for pid in "${pids[@]}"; do wait "$pid" || log "   an evaluation failed (pid $pid)"; done
 log "   evaluated in $(( $(date +%s) - t1 )) s"
 wait "$PLANNER" || log "   the planner evaluation failed: $OUT_DIR/planner.log"
