@@ -5,7 +5,7 @@
 thread pool over simulations), with the demos' recording pieces: the robot's signals
 (:func:`~factory.demos.execute.cpu.robot_signals`), the recording cameras
 (:class:`~factory.demos.execute.cpu.FrameRenderer`), the objects' poses
-(:func:`~factory.demos.execute.cpu.object_poses`) and the robot's deepest contact with the
+(:func:`~factory.tasks.pick_place.objects.object_poses`) and the robot's deepest contact with the
 scene after each frame (:func:`~factory.demos.execute.cpu.robot_penetration`). What belongs to
 the task comes from its rules (:meth:`~factory.tasks.base.Task.env_rules`, e.g.
 :class:`~factory.tasks.pick_place.env.PickPlaceRules`): the initial configurations, the
@@ -25,12 +25,12 @@ import numpy as np
 from factory.demos.execute.cpu import (
     FrameRenderer,
     RecordConfig,
-    object_poses,
     robot_penetration,
     robot_signals,
 )
 from factory.demos.record.payload import STATE_SPEC
 from factory.robots.panda import CAMERAS
+from factory.tasks.pick_place.objects import object_poses
 
 if TYPE_CHECKING:
     from factory.tasks.pick_place.objects import Outcome

@@ -21,7 +21,7 @@ import numpy as np
 from factory.demos.record.frame_render import CameraStrip, size_offscreen
 from factory.demos.record.payload import STATE_SPEC
 from factory.robots.panda import CAMERAS, RobotIndex
-from factory.tasks.pick_place.objects import Outcome, check_success
+from factory.tasks.pick_place.objects import Outcome, check_success, object_poses
 from factory.tasks.pick_place.plan import EpisodePlan, SceneSetup, camera_calibration
 
 log = logging.getLogger(__name__)
@@ -64,7 +64,8 @@ class Recording:
         and quaternion (w, x, y, z) in the world frame; action: (F, 8) next arm joint targets
         (rad) and gripper command (m; negative squeezes); rgb: camera -> (F, H, W, 3) uint8;
         depth: camera -> (F, H, W) uint16 mm or float32 m; env_state: (F, 14) pick object
-        and target poses, see :func:`object_poses`; appearance: the episode's appearance
+        and target poses, see
+        :func:`~factory.tasks.pick_place.objects.object_poses`; appearance: the episode's appearance
         randomisation as recorded (an :class:`~factory.schema.episode.EpisodeAppearance`),
         ``None`` when none was applied; camera_poses, camera_fovy: the calibration of the
         recorded cameras fixed in the scene as their images were drawn (camera -> pose (12,)
@@ -149,12 +150,6 @@ def robot_penetration(
             continue
         worst = max(worst, -float(c.dist))
     return worst
-
-
-def object_poses(data: mujoco.MjData, bodies: tuple[int, int]) -> np.ndarray:
-    """The environment state (14,): position (m) and quaternion wxyz of the pick object, then
-    of the target, world frame (their bodies' frames; ``data`` needs current kinematics)."""
-    return np.concatenate([np.concatenate([data.xpos[b], data.xquat[b]]) for b in bodies])
 
 
 def new_recordings(n_frames: list[int], cfg: RecordConfig, nstate: int) -> list[Recording]:

@@ -27,7 +27,7 @@ sees and does in it is what the dataset recorded:
   opening, base x, y, yaw), ``observation.ee_pose`` (7: tool position + quaternion wxyz, world),
   ``subtask_index`` (1, int64), with ``env_state`` ``observation.environment_state`` (14: the
   pick object's and the place support's position + quaternion wxyz, world; the dataset's
-  layout, :func:`~factory.demos.execute.cpu.object_poses`; asked for by state policies that
+  layout, :func:`~factory.tasks.pick_place.objects.object_poses`; asked for by state policies that
   read it, never by a perception policy, which predicts it), and per camera
   ``observation.images.<cam>`` /
   ``observation.depth.<cam>`` drawn by the demos'
@@ -72,7 +72,6 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.demos.execute.cpu import object_poses
 from factory.demos.record.payload import STATE_SPEC
 from factory.nav import BASE_COLLISION
 from factory.nav.task_poses import ARM_X, PICK_REACH, PLACE_REACH
@@ -93,7 +92,7 @@ from factory.tasks.mobile_pick_place.scene import (
     body_box,
 )
 from factory.tasks.pick_place.dataset import ENV_STATE_KEY
-from factory.tasks.pick_place.objects import Outcome
+from factory.tasks.pick_place.objects import Outcome, object_poses
 from factory.tasks.pick_place.plan import targets_to_ctrl
 
 __all__ = [

@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from factory.demos.execute.cpu import object_poses
 from factory.demos.record.frame_render import CameraStrip, encode_depth, size_offscreen
 from factory.demos.record.payload import STATE_SPEC
 from factory.nav import BASE_COLLISION
@@ -37,7 +36,7 @@ from factory.tasks.mobile_pick_place.scene import (
     body_box,
     support_top,
 )
-from factory.tasks.pick_place.objects import Outcome
+from factory.tasks.pick_place.objects import Outcome, object_poses
 
 if TYPE_CHECKING:
     from factory.demos.record.rig import CameraRig
@@ -91,7 +90,7 @@ class MobileRecording:
         subtask: (F,) int8 label id (index into :data:`SUBTASKS`) of the frame's period.
         subtask_done: (F,) bool: true on the last frame of each sub-task.
         env_state: (F, 14) the pick object's and the place support's position (m) and
-            quaternion wxyz, world frame (:func:`~factory.demos.execute.cpu.object_poses`:
+            quaternion wxyz, world frame (:func:`~factory.tasks.pick_place.objects.object_poses`:
             the fixed task's ``env_state``).
         rgb: camera -> (F, H, W, 3) uint8; depth: camera -> (F, H, W) uint16 mm or float32 m.
         ctrl: (S, nu) the controls of every physics step simulated (S = (F - 1) x steps per

@@ -317,3 +317,9 @@ def check_success(
     if moved > settle_tol:
         return Outcome(False, "unstable", details)
     return Outcome(True, "", details)
+
+
+def object_poses(data: mujoco.MjData, bodies: tuple[int, int]) -> np.ndarray:
+    """The environment state (14,): position (m) and quaternion wxyz of the pick object, then
+    of the target, world frame (their bodies' frames; ``data`` needs current kinematics)."""
+    return np.concatenate([np.concatenate([data.xpos[b], data.xquat[b]]) for b in bodies])
