@@ -22,9 +22,10 @@ import logging
 import math
 import os
 import re
+import time
 from collections import Counter
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -120,12 +121,41 @@ def scripted_actor(jobs: list[Job]) -> Actor:
     return act
 
 
+@dataclass
+class BatchTiming:
+    """Where a batch's wall time went (s), summed over its frames.
+
+    Attributes:
+        frames: env steps taken (frames of the longest episode).
+        reset_s: the envs' reset (and the policy's).
+        step_s: ``env.step``: the controller and the physics of a frame; on MuJoCo Warp also
+            the frame's kinematics and camera rays (one CUDA graph launch, asynchronous: the
+            GPU's time shows where the host next waits for it, in ``observe_s``).
+        observe_s: ``env.observations``: the images and signals the actor reads, copied to
+            the host.
+        act_s: the actor (a trained policy's inference, or the scripted actions).
+        video_s: frames drawn for the rollout videos.
+    """
+
+    frames: int = 0
+    reset_s: float = 0.0
+    step_s: float = 0.0
+    observe_s: float = 0.0
+    act_s: float = 0.0
+    video_s: float = 0.0
+
+    def as_dict(self) -> dict[str, float]:
+        """Plain numbers (s rounded to ms) for JSON and logs."""
+        return {k: (round(v, 3) if isinstance(v, float) else v) for k, v in asdict(self).items()}
+
+
 def run_batch(
     env: PickPlaceVecEnv,
     jobs: list[Job],
     actor: Actor,
     video: Iterable[int] = (),
     reset: Callable[[], None] | None = None,
+    timing: BatchTiming | None = None,
 ) -> tuple[list[dict[str, Any]], dict[int, list[np.ndarray]]]:
     """Runs up to ``env.num_envs`` episodes of one scene together until all have ended.
 
@@ -135,10 +165,13 @@ def run_batch(
         actor: what acts (see :data:`Actor`); its actions for finished envs are ignored.
         video: indices into ``jobs`` whose frames are rendered for a video.
         reset: called after the envs are reset (e.g. the policy's ``reset``).
+        timing: filled with where the time went (:class:`BatchTiming`), when given.
 
     Returns:
         one record per job (in order) and the video frames by job index.
     """
+    t = timing if timing is not None else BatchTiming()
+    clock = time.perf_counter
     n = len(jobs)
     ids = list(range(n))
     limits = [j.max_steps for j in jobs]
@@ -149,6 +182,7 @@ def run_batch(
         if jobs[i].failure:
             records[i] = _record(jobs[i], False, jobs[i].failure, 0)
     if runnable:
+        t0 = clock()
         sel = [jobs[i] for i in runnable]
         if all(j.state is not None for j in sel):
             states = np.stack([j.state for j in sel])  # type: ignore[misc]
@@ -159,19 +193,31 @@ def run_batch(
             )
         if reset is not None:
             reset()
+        t1 = clock()
+        t.reset_s += t1 - t0
         for i in frames:
             frames[i].append(env.render(i))
+        t.video_s += clock() - t1
         while not env.done[runnable].all():
+            t0 = clock()
             obs = env.observations()
+            t1 = clock()
             actions = np.asarray(actor(obs, env.steps), np.float32)
             if len(actions) < env.num_envs:
                 pad = np.zeros((env.num_envs - len(actions), actions.shape[1]), np.float32)
                 actions = np.concatenate([actions, pad])
             running = ~env.done
+            t2 = clock()
             env.step(actions)
+            t3 = clock()
             for i in frames:
                 if running[i]:
                     frames[i].append(env.render(i))
+            t.observe_s += t1 - t0
+            t.act_s += t2 - t1
+            t.step_s += t3 - t2
+            t.video_s += clock() - t3
+            t.frames += 1
         for i in runnable:
             r = env.result(i)
             records[i] = _record(jobs[i], r["success"], r["reason"], r["steps"], r.get("record"))

@@ -302,7 +302,13 @@ def run(ctx: StageContext) -> dict[str, Any]:
         summarize,
     )
     from factory.policy.eval_task import evaluated_task
-    from factory.policy.eval_units import UnitSettings, make_units, run_units
+    from factory.policy.eval_units import (
+        UnitSettings,
+        log_unit_timing,
+        make_units,
+        run_units,
+        sum_timings,
+    )
     from factory.policy.obs_spec import obs_spec_of_dataset, obs_spec_of_demos
 
     t0 = time.perf_counter()
@@ -410,6 +416,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     want_videos = max(0, ec.videos - have_videos)
     cores = os.cpu_count() or 1
     skipped: dict[str, str] = {}
+    timings: list[dict[str, float]] = []
     all_keys = {j.key for j in jobs}
     todo_total = sum(1 for j in jobs if j.key not in done)
     log.info(
@@ -463,6 +470,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
                 append_records(episodes_path, res.records)
                 for r in res.records:
                     done[record_key(r)] = r
+                if res.timing:
+                    log_unit_timing(name, res.scene, res.timing)
+                    timings.append(res.timing)
             bar.update(res.episodes)
     records = [r for k, r in done.items() if k in all_keys]
     results = summarize(
@@ -477,6 +487,8 @@ def run(ctx: StageContext) -> dict[str, Any]:
             "max_steps": max_steps,
             "controller": "interpolate" if ec.interpolate else "hold",
             "seed_root": ec.seed,
+            "executor": executor,
+            "timing_this_call": sum_timings(timings),
             **task.eval_notes(),
             "seed_rule": "replay: the recorded episodes' seeds"
             if kind == "replay"

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import time
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -85,12 +86,18 @@ class Unit:
 
 @dataclass
 class UnitResult:
-    """What a unit gave: records of its episodes, or why its scene cannot host the task."""
+    """What a unit gave: records of its episodes, or why its scene cannot host the task.
+
+    ``timing``: where its wall time went (s): ``setup_s`` (the env made or reused, with its
+    kernels on MuJoCo Warp; the planner's plans), then :class:`~factory.policy.eval.BatchTiming`'s
+    fields, ``episodes`` and ``worlds`` (the env's simulations).
+    """
 
     scene: str
     records: list[dict[str, Any]] = field(default_factory=list)
     skipped: str = ""
     episodes: int = 0
+    timing: dict[str, float] = field(default_factory=dict)
 
 
 def make_units(
@@ -181,10 +188,18 @@ class UnitRunner:
 
     def run(self, unit: Unit) -> UnitResult:
         """Runs one unit; a scene that cannot host the task gives ``skipped``."""
-        from factory.policy.eval import plan_actions, run_batch, scripted_actor, slug, write_video
+        from factory.policy.eval import (
+            BatchTiming,
+            plan_actions,
+            run_batch,
+            scripted_actor,
+            slug,
+            write_video,
+        )
         from factory.tasks import get_task
 
         s = self.s
+        t0 = time.perf_counter()
         try:
             env, planner = self._env_for(unit.scene, unit.size)
             if s.kind == "replay":
@@ -206,20 +221,66 @@ class UnitRunner:
                 else:
                     j.failure = f"plan:{res.reason}"
         video = list(range(unit.videos))
+        setup_s = time.perf_counter() - t0
+        timing = BatchTiming()
         if self.policy is not None:
             policy = self.policy
 
             def actor(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
                 return np.asarray(policy.act(obs), np.float32)
 
-            records, frames = run_batch(env, batch, actor, video, policy.reset)
+            records, frames = run_batch(env, batch, actor, video, policy.reset, timing)
         else:
-            records, frames = run_batch(env, batch, scripted_actor(batch), video)
+            records, frames = run_batch(env, batch, scripted_actor(batch), video, timing=timing)
         for i, fr in frames.items():
             if len(fr) > 1:
                 clip = f"{slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
                 write_video(s.videos_dir / f"{clip}.mp4", fr, s.spec.fps)
-        return UnitResult(unit.scene, records, episodes=len(batch))
+        times = {
+            "setup_s": round(setup_s, 3),
+            **timing.as_dict(),
+            "episodes": len(batch),
+            "worlds": int(env.num_envs),
+        }
+        return UnitResult(unit.scene, records, episodes=len(batch), timing=times)
+
+
+# ---- where the time went
+
+TIMED = ("setup_s", "reset_s", "step_s", "observe_s", "act_s", "video_s")
+"""The seconds of :attr:`UnitResult.timing`, in the order they are logged."""
+
+
+def log_unit_timing(name: str, scene: str, timing: dict[str, float]) -> None:
+    """One line per finished unit: its episodes, frames and where its seconds went."""
+    total = sum(float(timing.get(k, 0.0)) for k in TIMED)
+    parts = ", ".join(f"{k[:-2]} {float(timing.get(k, 0.0)):.1f}" for k in TIMED)
+    log.info(
+        "eval %s: scene %s: %d episode(s) on %d world(s), %d frames in %.1f s (%s s)",
+        name,
+        scene,
+        int(timing.get("episodes", 0)),
+        int(timing.get("worlds", 0)),
+        int(timing.get("frames", 0)),
+        total,
+        parts,
+    )
+
+
+def sum_timings(timings: list[dict[str, float]]) -> dict[str, float]:
+    """The units' timings summed (seconds of every process together, not wall time): what
+    ``results.json`` keeps as ``timing_this_call`` (empty when no unit ran in this call)."""
+    if not timings:
+        return {}
+    keys = (*TIMED, "frames", "episodes")
+    out: dict[str, float] = {k: 0.0 for k in keys}
+    for t in timings:
+        for k in keys:
+            out[k] += float(t.get(k, 0.0))
+    return {
+        "units": len(timings),
+        **{k: (int(v) if k in ("frames", "episodes") else round(v, 3)) for k, v in out.items()},
+    }
 
 
 # ---- worker processes

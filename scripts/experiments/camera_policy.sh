@@ -20,8 +20,9 @@
 # [128, 128]}}'): two recipes for the device time of one on a machine that counts in full.
 # With EVAL_WARP=1, when the training ends, the recorded episodes of the first REPLAY_SCENES
 # training kitchens are replayed and the policy is evaluated on the same held-out
-# configurations with eval.executor=warp (each timed; the replay first, so the policy's figure
-# finds the physics kernels built; WARP_PLANNER=1 adds the planner), beside the CPU env's
+# configurations with eval.executor=warp (each timed, the policy first: the env preloads its
+# kernels, and results.json's timing_this_call and the log's per-scene lines say where the time
+# went; WARP_PLANNER=1 adds the planner), beside the CPU env's
 # evaluation of the policy and of the same replays (on the cores the Warp processes leave), for
 # the agreement: one session's device time holds both.
 # $OUT_DIR/gpu_free appears when this script no longer needs the GPU (another script on the
@@ -221,10 +222,10 @@ EOF3
 \"beside\": \"the CPU evaluations\"}" > "$OUT_DIR/time-$2.json"
     log "   $2 on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
   }
-  log "4a. MuJoCo Warp: replay of $REPLAY_LIST, then $INPUTS on $EVAL_EPISODES per held-out kitchen"
-  warp_one replay replay-warp "eval.scenes=$REPLAY_LIST" eval.workers=1
+  log "4a. MuJoCo Warp: $INPUTS on $EVAL_EPISODES per held-out kitchen, then replay of $REPLAY_LIST"
   warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS"
+  warp_one replay replay-warp "eval.scenes=$REPLAY_LIST" eval.workers=1
   [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS"
 fi

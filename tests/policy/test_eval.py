@@ -52,6 +52,13 @@ def test_replay_every_recorded_episode(policy_run: Path, pcli, n_recorded: int) 
     assert all(s < EVAL_SEED_OFFSET for s in r["seeds"]["kitchen_a"])  # the demos' own seeds
     lines = read_records(policy_run / "eval" / "replay" / "episodes.jsonl")
     assert len(lines) == n_recorded and all(x["episode_id"] for x in lines)
+    # where the time went: the frames stepped and the seconds of each part, logged per unit
+    t = r["timing_this_call"]
+    assert r["executor"] == "cpu" and t["episodes"] == n_recorded and t["units"] >= 1
+    assert t["frames"] > 20 and t["step_s"] > 0 and t["video_s"] > 0 and t["observe_s"] >= 0
+    assert "eval replay: scene kitchen_a:" in out.stderr + out.stdout or any(
+        "eval replay: scene kitchen_a:" in f.read_text() for f in (policy_run / "logs").glob("*")
+    )
     videos = sorted((policy_run / "eval" / "replay" / "videos").glob("*.mp4"))
     assert len(videos) == 2
     import av
