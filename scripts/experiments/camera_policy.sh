@@ -68,6 +68,9 @@ REPLAY_SCENES=${REPLAY_SCENES:-3}  # with EVAL_WARP: training kitchens replayed 
 WARP_PLANNER=${WARP_PLANNER:-}  # 1 (with EVAL_WARP): the planner on MuJoCo Warp as well
 WARP_WORKERS=${WARP_WORKERS:-3}  # processes driving the GPU for the policy (a scene each at a
 # time: one's host work overlaps another's launches); the replay builds the kernels in one
+EXPORT_PARTS=${EXPORT_PARTS:-}  # e.g. 15M: once trained, $OUT_DIR/policy-<name>.tar.partNN, the
+# policy's pretrained_model (with the perception's files) and train.json in pieces of that size,
+# for a machine whose files come back one size-limited file at a time (cat the parts, untar)
 PERCEPTION_CHECK=${PERCEPTION_CHECK:-}  # N (VISION=perception): N demos per held-out kitchen,
 # recorded after the evaluation into their own run, to measure the perception's errors there
 BENCH_STEPS=${BENCH_STEPS:-150}
@@ -188,6 +191,12 @@ log "   trained in $(( $(date +%s) - t1 )) s"
 for p in $POLICIES; do
   cp "$RUN/policy/$p/train_log.jsonl" "$OUT_DIR/train_log-$p.jsonl" || true
   cp "$RUN/policy/$p/train.json" "$OUT_DIR/train-$p.json" || true
+  if [ -n "$EXPORT_PARTS" ] && [ -e "$RUN/policy/$p/checkpoints/last/pretrained_model" ]; then
+    last=$(readlink -f "$RUN/policy/$p/checkpoints/last")
+    tar -chf - -C "$RUN/policy/$p" train.json "checkpoints/$(basename "$last")/pretrained_model" \
+      | split -b "$EXPORT_PARTS" -d -a 2 - "$OUT_DIR/policy-$p.tar.part" \
+      || log "   exporting $p failed"
+  fi
 done
 
 log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
