@@ -623,6 +623,13 @@ class EvalConfig:
             cameras drawn by its batch renderer; one worker process and ``eval.batch`` all
             of a scene's episodes unless set; the task's checks stay the CPU's:
             :mod:`factory.policy.warp_sim`).
+        ensemble: temporal ensembling of a trained diffusion policy's chunks
+            (:class:`factory.policy.checkpoint.ChunkEnsemble`): a chunk every frame, the
+            frame's action the mean of every kept chunk's prediction for it weighted
+            ``exp(-k * age)``, oldest first. None: on with ``k = 0.1`` where it applies
+            (diffusion, ``tool`` or ``joint`` actions, not the mobile robot), else off; a
+            negative value: off (``n_action_steps`` actions of each chunk, lerobot's way);
+            ``k >= 0``: on with this ``k`` (refused where it does not apply).
     """
 
     policy: str = ""
@@ -641,6 +648,7 @@ class EvalConfig:
     name: str = ""
     out: str = ""
     executor: str = "cpu"
+    ensemble: float | None = None
 
 
 @dataclass

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import shutil
 import time
@@ -61,6 +62,9 @@ def check_config(ec: Any) -> None:
         raise ConfigError(
             f"eval.executor={ec.executor!r} is unknown: use one of {', '.join(EXECUTORS)}"
         )
+    ensemble = getattr(ec, "ensemble", None)
+    if ensemble is not None and not math.isfinite(float(ensemble)):
+        raise ConfigError(f"eval.ensemble must be a finite number or null, got {ensemble}")
     scenes = ec.scenes
     if isinstance(scenes, str):
         if scenes not in ("heldout", "train"):
@@ -203,12 +207,12 @@ def _check_policy_exists(ref: str, run_dir: Path) -> None:
     )
 
 
-def _load_trained(ref: str, run_dir: Path, device: str) -> Any:
+def _load_trained(ref: str, run_dir: Path, device: str, ensemble: float | None) -> Any:
     try:
         from factory.policy.checkpoint import load_policy
     except ImportError as e:  # pragma: no cover - the module is part of the package
         raise PolicyError(f"trained policies cannot be loaded here ({e})") from None
-    return load_policy(ref, run_dir, device)
+    return load_policy(ref, run_dir, device, ensemble)
 
 
 def _check_features(info: Any, spec: Any) -> None:
@@ -263,6 +267,7 @@ def _identity(
         "max_steps": ec.max_steps,
         "interpolate": ec.interpolate,
         "dataset": str(dataset),
+        "ensemble": getattr(policy, "ensemble", None),
     }
 
 
@@ -324,7 +329,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     kind = ref if ref in KINDS else "trained"
     policy = None
     if kind == "trained":
-        policy = _load_trained(ref, run_dir, ec.device)
+        policy = _load_trained(ref, run_dir, ec.device, getattr(ec, "ensemble", None))
         name = slug(policy.info.name)
         dataset = Path(ec.dataset or policy.info.dataset)
         train_scenes = list(policy.info.scenes)
@@ -452,6 +457,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         reseed_stride=RESEED_STRIDE,
         task=task.name,
         executor=executor,
+        ensemble=policy.ensemble if policy is not None else None,
     )
     with tqdm(
         total=len(jobs),
@@ -486,6 +492,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
             "scenes_skipped": skipped,
             "max_steps": max_steps,
             "controller": "interpolate" if ec.interpolate else "hold",
+            "ensemble": policy.ensemble if policy is not None else None,
             "seed_root": ec.seed,
             "executor": executor,
             "timing_this_call": sum_timings(timings),

@@ -47,6 +47,8 @@ class UnitSettings:
         reseed_stride: stride of :func:`usable_seed`'s retries.
         task: the evaluated task (a registered name).
         executor: the env's simulation, ``cpu`` or ``warp`` (``eval.executor``).
+        ensemble: a trained policy's temporal ensembling ``k`` as resolved where it was
+            loaded first (None: off).
     """
 
     run_dir: Path
@@ -62,6 +64,7 @@ class UnitSettings:
     reseed_stride: int
     task: str
     executor: str = "cpu"
+    ensemble: float | None = None
 
 
 @dataclass
@@ -297,7 +300,10 @@ def _init_worker(settings: UnitSettings, torch_threads: int) -> None:
         torch.set_num_threads(max(1, torch_threads))
         from factory.policy.checkpoint import load_policy
 
-        policy = load_policy(settings.policy_ref, settings.run_dir, settings.device)
+        k = settings.ensemble
+        policy = load_policy(
+            settings.policy_ref, settings.run_dir, settings.device, -1.0 if k is None else k
+        )
     _RUNNER = UnitRunner(settings, policy)
 
 
