@@ -363,9 +363,12 @@ class ChunkEnsemble:
         observations of one frame; updates the policy's observation queues."""
         import torch
         from lerobot.policies.utils import populate_queues
+        from lerobot.utils.constants import OBS_IMAGES
 
         p = self.policy
         batch = {k: v for k, v in batch.items() if k != "action"}
+        if p.config.image_features:  # lerobot's select_action: the cameras as one key first
+            batch[OBS_IMAGES] = torch.stack([batch[k] for k in p.config.image_features], dim=-4)
         p._queues = populate_queues(p._queues, batch)
         chunk = p.predict_action_chunk(batch)  # (n, steps, A)
         self._chunks.append((self._t, chunk))

@@ -20,7 +20,7 @@ class _Chunks:
     """A stand-in for lerobot's DiffusionPolicy that predicts the given chunks in turn."""
 
     def __init__(self, chunks: list[Any]) -> None:
-        self.config = SimpleNamespace(horizon=4, n_obs_steps=2, n_action_steps=2)
+        self.config = SimpleNamespace(horizon=4, n_obs_steps=2, n_action_steps=2, image_features={})
         self._queues = {"observation.state": deque(maxlen=2), "action": deque(maxlen=2)}
         self._chunks = iter(chunks)
         self.seen: list[int] = []
