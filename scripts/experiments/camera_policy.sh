@@ -68,6 +68,8 @@ REPLAY_SCENES=${REPLAY_SCENES:-3}  # with EVAL_WARP: training kitchens replayed 
 WARP_PLANNER=${WARP_PLANNER:-}  # 1 (with EVAL_WARP): the planner on MuJoCo Warp as well
 WARP_WORKERS=${WARP_WORKERS:-3}  # processes driving the GPU for the policy (a scene each at a
 # time: one's host work overlaps another's launches); the replay builds the kernels in one
+ENSEMBLE_AB=${ENSEMBLE_AB:-}  # 1: the final evaluation also without temporal ensembling
+# (eval.ensemble=-1, eval/<inputs>-plain), on the same configurations, beside the default
 EXPORT_PARTS=${EXPORT_PARTS:-}  # e.g. 15M: once trained, $OUT_DIR/policy-<name>.tar.partNN, the
 # policy's pretrained_model (with the perception's files) and train.json in pieces of that size,
 # for a machine whose files come back one size-limited file at a time (cat the parts, untar)
@@ -169,12 +171,12 @@ train_one() {  # train_one <name> <visible GPUs or empty>
     train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
     eval.workers="$curve_workers" eval.batch=8 eval.device="$DEVICE" "${extra[@]}"
 }
-evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers>
+evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers> [overrides...]
   local gpu_env=()
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
   "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
     eval.episodes_per_scene="$EVAL_EPISODES" eval.device="$DEVICE" eval.videos=2 \
-    eval.workers="$3" eval.batch=8
+    eval.workers="$3" eval.batch=8 "${@:4}"
 }
 gpu_of() {  # the GPU a policy uses: empty (the default) without SECOND_GPU
   if [ -z "$SECOND_GPU" ]; then echo ""; elif [ "$1" = "$INPUTS" ]; then echo 0; else echo "$SECOND_GPU"; fi
@@ -203,11 +205,18 @@ log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
 cpu_workers=$EVAL_WORKERS  # with EVAL_WARP, the cores the Warp evaluations' processes leave
 [ -z "$EVAL_WARP" ] || cpu_workers=$(( EVAL_WORKERS - WARP_WORKERS - 2 > 0 ? EVAL_WORKERS - WARP_WORKERS - 2 : 1 ))
 pids=()
+n_eval=$n_pol
+[ -z "$ENSEMBLE_AB" ] || n_eval=$(( n_pol + 1 ))
 for p in $POLICIES; do
   gpu=$(gpu_of "$p")
-  evaluate_one "$p" "$gpu" $(( cpu_workers / n_pol > 0 ? cpu_workers / n_pol : 1 )) &
+  evaluate_one "$p" "$gpu" $(( cpu_workers / n_eval > 0 ? cpu_workers / n_eval : 1 )) &
   pids+=($!)
 done
+if [ -n "$ENSEMBLE_AB" ]; then  # the same policy and configurations without the ensembling
+  evaluate_one "$INPUTS" "$(gpu_of "$INPUTS")" $(( cpu_workers / n_eval > 0 ? cpu_workers / n_eval : 1 )) \
+    eval.ensemble=-1 eval.name="$INPUTS-plain" > "$OUT_DIR/eval-$INPUTS-plain.log" 2>&1 &
+  pids+=($!)
+fi
 if [ -n "$EVAL_WARP" ]; then  # the GPU's evaluations, beside the CPU's (header)
   REPLAY_LIST=$($PY - "$RUN" "$REPLAY_SCENES" <<'EOF3'
 import json, sys
