@@ -69,6 +69,7 @@ def grasp_anatomy(
         "closes": len(onsets),
         "closed": bool(len(onsets)),
     }
+    out.update(release_anatomy(ee, env, grip_cmd, fps))
     raw = grip_cmd if raw_grip is None else raw_grip
     out["grip_raw_min"] = float(raw.min())
     # commands strictly between open and the squeeze: the policy's hesitation
@@ -105,6 +106,203 @@ def grasp_anatomy(
     out["grip_block_mean"] = float(block.mean())
     out["grip_block_max"] = float(block.max())
     return out
+
+
+def tilt_deg(quat: np.ndarray) -> float:
+    """The angle (deg) between a body's up axis (quaternion w, x, y, z) and the world's."""
+    from factory.policy.inputs import quat_to_mat
+
+    r = quat_to_mat(np.asarray(quat, np.float64))
+    return float(np.degrees(np.arccos(np.clip(r[2, 2], -1.0, 1.0))))
+
+
+def release_anatomy(
+    ee: np.ndarray, env: np.ndarray, grip_cmd: np.ndarray, fps: float
+) -> dict[str, Any]:
+    """Where the object was when the hand let go of it.
+
+    The carrying stretch is the first closed stretch of the gripper command during which the
+    pick object rose at least :data:`LIFT_M` above its start; the release is the frame its
+    first open command was issued from (the last closed frame ``m``; ``grip_cmd[m + 1]`` is
+    open). At ``m``: the object's horizontal offset from the target's centre (world, body
+    origins: the object's bottom centre, the target's origin), its height above the target's
+    origin, its tilt (deg from upright) and the tool's speed over the frame before ``m``
+    (m/s). The same measures at the last frame (``final_*``).
+    """
+    out: dict[str, Any] = {
+        "final_xy_to_target_m": float(np.linalg.norm(env[-1, 0:2] - env[-1, 7:9])),
+        "final_z_above_target_m": float(env[-1, 2] - env[-1, 9]),
+        "final_tilt_deg": tilt_deg(env[-1, 3:7]),
+    }
+    closed = grip_cmd < CLOSE_BELOW
+    z0 = env[0, 2]
+    t = 0
+    n = len(closed)
+    while t < n:
+        if not closed[t]:
+            t += 1
+            continue
+        s = t
+        while t < n and closed[t]:
+            t += 1
+        if env[s:t, 2].max() - z0 < LIFT_M:
+            continue
+        out["released"] = t < n
+        if t >= n:
+            return out
+        m = t - 1
+        out.update(
+            release_frame=int(m),
+            release_xy_to_target_m=float(np.linalg.norm(env[m, 0:2] - env[m, 7:9])),
+            release_z_above_target_m=float(env[m, 2] - env[m, 9]),
+            release_tilt_deg=tilt_deg(env[m, 3:7]),
+            release_speed_ms=float(np.linalg.norm(ee[m, :3] - ee[m - 1, :3]) * fps),
+        )
+        return out
+    return out
+
+
+class _LoggingEnv:
+    """A batched env that keeps every env's frames (state, tool pose, object poses, executed
+    gripper command) for :func:`grasp_anatomy`; everything else goes to the env."""
+
+    def __init__(self, env: Any) -> None:
+        self._env = env
+        self.logs: dict[int, dict[str, list[Any]]] = {}
+
+    def __getattr__(self, k: str) -> Any:
+        return getattr(self._env, k)
+
+    def _keep(self, i: int, obs: dict[str, np.ndarray], grip: float) -> None:
+        from factory.policy.inputs import EE_POSE, ENV_STATE, STATE
+
+        lg = self.logs[i]
+        lg["state"].append(np.asarray(obs[STATE][i], np.float64)[:8].copy())
+        lg["ee"].append(np.asarray(obs[EE_POSE][i], np.float64).copy())
+        lg["env"].append(np.asarray(obs[ENV_STATE][i], np.float64).copy())
+        lg["grip"].append(float(grip))
+
+    def reset(self, *args: Any, ids: Any = None, **kw: Any) -> Any:
+        from factory.robots.panda import GRIP_OPEN
+
+        out = self._env.reset(*args, ids=ids, **kw)
+        obs = self._env.observations()
+        for i in range(self._env.num_envs) if ids is None else ids:
+            self.logs[int(i)] = {"state": [], "ee": [], "env": [], "grip": []}
+            self._keep(int(i), obs, GRIP_OPEN)
+        return out
+
+    def step(self, actions: np.ndarray) -> Any:
+        running = np.array(~np.asarray(self._env.done))
+        out = self._env.step(actions)
+        obs = self._env.observations()
+        for i in np.flatnonzero(running):
+            if int(i) in self.logs:
+                self._keep(int(i), obs, float(actions[i, 7]))
+        return out
+
+
+def _stage_eval(a: argparse.Namespace, argv: list[str]) -> int:
+    """``python -m factory stage=eval <argv>`` in this process (``eval.workers=1``), every
+    rollout's frames kept: one line of grasp and release anatomy per episode in ``--out``
+    (the same rollouts as the stage's ``episodes.jsonl``)."""
+    import factory.policy.eval as fe
+    from factory.__main__ import main as factory_main
+
+    meta = json.loads((Path(a.run) / "dataset" / "merged" / "meta" / "info.json").read_text())
+    fps = float(meta["fps"])
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fh = out.open("a")
+    orig = fe.run_batch
+
+    def run_batch(env: Any, jobs: list[Any], actor: Any, *rest: Any, **kw: Any) -> Any:
+        proxy = _LoggingEnv(env)
+        records, frames = orig(proxy, jobs, actor, *rest, **kw)
+        for i, job in enumerate(jobs):
+            lg = proxy.logs.get(i)
+            if lg is None or len(lg["state"]) < 2:
+                continue
+            r = env.result(i)
+            rec: dict[str, Any] = {
+                "scene": job.scene,
+                "index": job.index,
+                "seed": int(job.seed),
+                "success": bool(r["success"]),
+                "reason": "" if r["success"] else (r["reason"] or "timeout"),
+                "steps": int(r["steps"]),
+                "details": r.get("details", {}),
+            }
+            rec.update(
+                grasp_anatomy(
+                    np.stack(lg["state"]),
+                    np.stack(lg["ee"]),
+                    np.stack(lg["env"]),
+                    np.asarray(lg["grip"]),
+                    fps,
+                )
+            )
+            fh.write(json.dumps(rec) + "\n")
+        fh.flush()
+        return records, frames
+
+    fe.run_batch = run_batch
+    try:
+        return int(factory_main(argv))
+    finally:
+        fh.close()
+
+
+RELEASE_KEYS = (
+    "release_xy_to_target_m",
+    "release_speed_ms",
+    "release_z_above_target_m",
+    "release_tilt_deg",
+    "final_xy_to_target_m",
+    "final_z_above_target_m",
+    "final_tilt_deg",
+)
+TILTED_DEG = 10.0
+"""An object more than this from upright counts as tilted."""
+
+
+def release_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Medians (and quartiles) of the release measures of ``rows``, with how many were
+    released and tilted at the release."""
+    rel = [r for r in rows if "release_frame" in r]
+    out: dict[str, Any] = {
+        "n": len(rows),
+        "with_release": len(rel),
+        "carried_never_released": sum(1 for r in rows if r.get("released") is False),
+        "tilted_at_release": sum(1 for r in rel if r["release_tilt_deg"] > TILTED_DEG),
+        "tilted_at_end": sum(1 for r in rows if r.get("final_tilt_deg", 0.0) > TILTED_DEG),
+    }
+    for k in RELEASE_KEYS:
+        v = np.asarray([r[k] for r in rows if k in r], np.float64)
+        if len(v):
+            q = np.percentile(v, [25, 50, 75])
+            out[k] = {
+                "median": round(float(q[1]), 4),
+                "q25_q75": [round(float(x), 4) for x in (q[0], q[2])],
+            }
+    radius = [
+        r["details"]["target_radius_m"] for r in rows if "target_radius_m" in r.get("details", {})
+    ]
+    if radius:
+        out["target_radius_m_median"] = round(float(np.median(radius)), 4)
+    return out
+
+
+def _summary(paths: list[str]) -> None:
+    """Prints the release anatomy of jsonl files by outcome (JSON)."""
+    res: dict[str, Any] = {}
+    for p in paths:
+        rows = [json.loads(x) for x in Path(p).read_text().splitlines() if x.strip()]
+        groups: dict[str, list[dict[str, Any]]] = {"all": rows}
+        for r in rows:
+            groups.setdefault("success" if r["success"] else r["reason"], []).append(r)
+        res[p] = {k: release_summary(v) for k, v in groups.items()}
+    print(json.dumps(res, indent=1))
 
 
 def _demos(run: Path, out: Path) -> None:
@@ -297,9 +495,9 @@ def _rollouts(a: argparse.Namespace) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--run", required=True)
+    ap.add_argument("--run", default="")
     ap.add_argument("--policy", default="state_cpu")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", default="")
     ap.add_argument("--episodes", type=int, default=20)
     ap.add_argument("--scenes", default="", help="comma-separated ids (default: held out)")
     ap.add_argument("--max-steps", type=int, default=0)
@@ -316,7 +514,20 @@ def main() -> None:
     ap.add_argument("--zero-noise", action="store_true")
     ap.add_argument("--fixed-noise", action="store_true", help="one noise draw per episode")
     ap.add_argument("--dump", action="store_true", help="each episode's frames as .npz")
-    a = ap.parse_args()
+    ap.add_argument(
+        "--stage-eval",
+        action="store_true",
+        help="run python -m factory stage=eval with the remaining arguments, anatomy to --out",
+    )
+    ap.add_argument("--summary", nargs="+", help="release anatomy of these jsonl files")
+    a, rest = ap.parse_known_args()
+    if a.summary:
+        _summary(a.summary)
+        return
+    if a.stage_eval:
+        sys.exit(_stage_eval(a, rest))
+    if rest:
+        ap.error(f"unrecognized arguments: {' '.join(rest)}")
     if a.demos:
         _demos(Path(a.run), Path(a.out))
     else:
