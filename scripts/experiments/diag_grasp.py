@@ -202,6 +202,34 @@ class _LoggingEnv:
         return out
 
 
+def rollout_record(
+    scene: str,
+    index: int,
+    seed: int,
+    result: dict[str, Any],
+    lg: dict[str, list[Any]],
+    fps: float,
+    raw: np.ndarray | None = None,
+    **extra: Any,
+) -> dict[str, Any]:
+    """One rollout's line: the env's verdict, ``extra`` fields, then :func:`grasp_anatomy` of
+    its kept frames (``lg``: state, ee, env, grip lists; ``raw``: the policy's raw gripper
+    commands, where kept)."""
+    ok = bool(result["success"])
+    rec: dict[str, Any] = {
+        "scene": scene,
+        "index": index,
+        "seed": int(seed),
+        "success": ok,
+        "reason": "" if ok else (result["reason"] or "timeout"),
+        "steps": int(result["steps"]),
+        **extra,
+    }
+    frames = [np.stack(lg[k]) for k in ("state", "ee", "env")]
+    rec.update(grasp_anatomy(*frames, np.asarray(lg["grip"]), fps, raw))
+    return rec
+
+
 def _stage_eval(a: argparse.Namespace, argv: list[str]) -> int:
     """``python -m factory stage=eval <argv>`` in this process (``eval.workers=1``), every
     rollout's frames kept: one line of grasp and release anatomy per episode in ``--out``
@@ -224,23 +252,8 @@ def _stage_eval(a: argparse.Namespace, argv: list[str]) -> int:
             if lg is None or len(lg["state"]) < 2:
                 continue
             r = env.result(i)
-            rec: dict[str, Any] = {
-                "scene": job.scene,
-                "index": job.index,
-                "seed": int(job.seed),
-                "success": bool(r["success"]),
-                "reason": "" if r["success"] else (r["reason"] or "timeout"),
-                "steps": int(r["steps"]),
-                "details": r.get("details", {}),
-            }
-            rec.update(
-                grasp_anatomy(
-                    np.stack(lg["state"]),
-                    np.stack(lg["ee"]),
-                    np.stack(lg["env"]),
-                    np.asarray(lg["grip"]),
-                    fps,
-                )
+            rec = rollout_record(
+                job.scene, job.index, job.seed, r, lg, fps, details=r.get("details", {})
             )
             fh.write(json.dumps(rec) + "\n")
         fh.flush()
@@ -463,24 +476,15 @@ def _rollouts(a: argparse.Namespace) -> None:
             for i in range(n):
                 r = env.result(i)
                 lg = logs[i]
-                rec: dict[str, Any] = {
-                    "scene": scene,
-                    "index": i,
-                    "seed": int(seeds[i]),
-                    "success": bool(r["success"]),
-                    "reason": "" if r["success"] else (r["reason"] or "timeout"),
-                    "steps": int(r["steps"]),
-                    "planned": plans[i] is not None if a.planner else None,
-                }
-                rec.update(
-                    grasp_anatomy(
-                        np.stack(lg["state"]),
-                        np.stack(lg["ee"]),
-                        np.stack(lg["env"]),
-                        np.asarray(lg["grip"]),
-                        fps,
-                        np.asarray(lg["raw"]),
-                    )
+                rec = rollout_record(
+                    scene,
+                    i,
+                    seeds[i],
+                    r,
+                    lg,
+                    fps,
+                    raw=np.asarray(lg["raw"]),
+                    planned=plans[i] is not None if a.planner else None,
                 )
                 fh.write(json.dumps(rec) + "\n")
                 if a.dump:
