@@ -23,8 +23,10 @@
 # configurations with eval.executor=warp (each timed, the policy first: the env preloads its
 # kernels, and results.json's timing_this_call and the log's per-scene lines say where the time
 # went; WARP_PLANNER=1 adds the planner), beside the CPU env's
-# evaluation of the policy and of the same replays (on the cores the Warp processes leave), for
-# the agreement: one session's device time holds both.
+# evaluation of the policy and of the same replays (on the cores the Warp processes leave: the CPU
+# env's evaluations are pinned off the first 2 x WARP_WORKERS cores and, on a two-GPU machine
+# without SECOND_GPU, run their policies on GPU 1), for the agreement: one session's device time
+# holds both.
 # $OUT_DIR/gpu_free appears when this script no longer needs the GPU (another script on the
 # machine may wait for it: mobile_camera_policy.sh's TRAIN_AFTER).
 #
@@ -70,6 +72,10 @@ WARP_WORKERS=${WARP_WORKERS:-3}  # processes driving the GPU for the policy (a s
 # time: one's host work overlaps another's launches); the replay builds the kernels in one
 ENSEMBLE_AB=${ENSEMBLE_AB:-}  # 1: the final evaluation also without temporal ensembling
 # (eval.ensemble=-1, eval/<inputs>-plain), on the same configurations, beside the default
+ENSEMBLE_KS=${ENSEMBLE_KS:-$([ -n "$ENSEMBLE_AB" ] && echo -1 || true)}  # eval.ensemble
+# values evaluated beside the default (e.g. "-1 0.3": eval/<inputs>-plain, eval/<inputs>-k0.3)
+KS_EPISODES=${KS_EPISODES:-$EVAL_EPISODES}  # their configurations per held-out kitchen (the
+# first of the default's: the same seeds)
 EXPORT_PARTS=${EXPORT_PARTS:-}  # e.g. 15M: once trained, $OUT_DIR/policy-<name>.tar.partNN, the
 # policy's pretrained_model (with the perception's files) and train.json in pieces of that size,
 # for a machine whose files come back one size-limited file at a time (cat the parts, untar)
@@ -171,12 +177,12 @@ train_one() {  # train_one <name> <visible GPUs or empty>
     train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
     eval.workers="$curve_workers" eval.batch=8 eval.device="$DEVICE" "${extra[@]}"
 }
-evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers> [overrides...]
+evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers> <episodes> [overrides...]
   local gpu_env=()
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
-  "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
-    eval.episodes_per_scene="$EVAL_EPISODES" eval.device="$DEVICE" eval.videos=2 \
-    eval.workers="$3" eval.batch=8 "${@:4}"
+  pin "$CPU_PIN" "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
+    eval.episodes_per_scene="$4" eval.device="$DEVICE" eval.videos=2 \
+    eval.workers="$3" eval.batch=8 "${@:5}"
 }
 gpu_of() {  # the GPU a policy uses: empty (the default) without SECOND_GPU
   if [ -z "$SECOND_GPU" ]; then echo ""; elif [ "$1" = "$INPUTS" ]; then echo 0; else echo "$SECOND_GPU"; fi
@@ -204,19 +210,42 @@ done
 log "4. final evaluation: $EVAL_EPISODES per held-out kitchen"
 cpu_workers=$EVAL_WORKERS  # with EVAL_WARP, the cores the Warp evaluations' processes leave
 [ -z "$EVAL_WARP" ] || cpu_workers=$(( EVAL_WORKERS - WARP_WORKERS - 2 > 0 ? EVAL_WORKERS - WARP_WORKERS - 2 : 1 ))
+CPU_PIN=0-$(( JOBS - 1 ))  # with EVAL_WARP on a machine with cores to spare, the CPU env's
+# evaluations keep off the Warp processes' cores (the first WARP_WORKERS x 2) and, on a
+# two-GPU machine, run their policies on the other GPU: the Warp timing is not the CPU's
+EVAL_GPU_OF_CPU=""
+if [ -n "$EVAL_WARP" ] && [ "$JOBS" -gt $(( WARP_WORKERS * 2 + 4 )) ]; then
+  CPU_PIN=$(( WARP_WORKERS * 2 ))-$(( JOBS - 1 ))
+  cpu_workers=$(( JOBS - WARP_WORKERS * 2 - 2 ))  # a worker per core left, less the replay's 2
+  if [ -z "$SECOND_GPU" ] && [ "$(nvidia-smi -L 2>/dev/null | wc -l)" -gt 1 ]; then EVAL_GPU_OF_CPU=1; fi
+fi
+log "   CPU env evaluations on cores $CPU_PIN${EVAL_GPU_OF_CPU:+, their policies on GPU $EVAL_GPU_OF_CPU}"
 pids=()
-n_eval=$n_pol
-[ -z "$ENSEMBLE_AB" ] || n_eval=$(( n_pol + 1 ))
+ks_list=()
+for k in $ENSEMBLE_KS; do ks_list+=("$k"); done
+n_eval=$(( n_pol + ${#ks_list[@]} ))
+share=$(( cpu_workers / n_eval > 0 ? cpu_workers / n_eval : 1 ))
 for p in $POLICIES; do
   gpu=$(gpu_of "$p")
-  evaluate_one "$p" "$gpu" $(( cpu_workers / n_eval > 0 ? cpu_workers / n_eval : 1 )) &
+  [ -z "$EVAL_GPU_OF_CPU" ] || gpu=$EVAL_GPU_OF_CPU
+  workers=$share
+  # the default evaluation has the most episodes: its share of the workers by its episodes
+  [ ${#ks_list[@]} = 0 ] || workers=$(( cpu_workers * EVAL_EPISODES / (EVAL_EPISODES * n_pol + KS_EPISODES * ${#ks_list[@]}) ))
+  [ "$workers" -gt 0 ] || workers=1
+  evaluate_one "$p" "$gpu" "$workers" "$EVAL_EPISODES" &
   pids+=($!)
 done
-if [ -n "$ENSEMBLE_AB" ]; then  # the same policy and configurations without the ensembling
-  evaluate_one "$INPUTS" "$(gpu_of "$INPUTS")" $(( cpu_workers / n_eval > 0 ? cpu_workers / n_eval : 1 )) \
-    eval.ensemble=-1 eval.name="$INPUTS-plain" > "$OUT_DIR/eval-$INPUTS-plain.log" 2>&1 &
+for k in "${ks_list[@]}"; do  # the same policy and configurations with other ensembling
+  name="$INPUTS-k$k"
+  [ "$k" != -1 ] || name="$INPUTS-plain"
+  gpu=$(gpu_of "$INPUTS")
+  [ -z "$EVAL_GPU_OF_CPU" ] || gpu=$EVAL_GPU_OF_CPU
+  workers=$(( cpu_workers * KS_EPISODES / (EVAL_EPISODES * n_pol + KS_EPISODES * ${#ks_list[@]}) ))
+  [ "$workers" -gt 0 ] || workers=1
+  evaluate_one "$INPUTS" "$gpu" "$workers" "$KS_EPISODES" eval.ensemble="$k" eval.name="$name" \
+    > "$OUT_DIR/eval-$name.log" 2>&1 &
   pids+=($!)
-fi
+done
 if [ -n "$EVAL_WARP" ]; then  # the GPU's evaluations, beside the CPU's (header)
   REPLAY_LIST=$($PY - "$RUN" "$REPLAY_SCENES" <<'EOF3'
 import json, sys
@@ -226,7 +255,7 @@ print("[" + ",".join(sorted(scenes)[: int(sys.argv[2])]) + "]")
 EOF3
 )
   # the same replays on the CPU env, on two cores
-  $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
+  pin "$CPU_PIN" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
     "eval.scenes=$REPLAY_LIST" eval.workers=2 eval.batch=8 eval.videos=0 \
     > "$OUT_DIR/eval-replay-cpu.log" 2>&1 &
   pids+=($!)
