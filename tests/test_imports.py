@@ -18,6 +18,7 @@ FLOORS: dict[str, int] = {
     "store": 1,
     "context": 1,
     "console": 1,
+    "cores": 1,
     "summary": 1,
     "tasks": 1,
     "tasks.base": 1,

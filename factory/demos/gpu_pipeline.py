@@ -51,9 +51,9 @@ def writer_count() -> int:
     overlaps (8 writers took 38 s for a scene's 1,536 episodes). Threads do not help: zarr runs
     every write of a process on one event loop, about 3 times the cost of the compression
     itself (0.25 s per 65 MB episode on one core)."""
-    import os
+    from factory.cores import usable_cores
 
-    return max(2, min(14, (os.cpu_count() or 2) - 2))
+    return max(2, min(14, usable_cores() - 2))
 
 
 def spread(slots: list[int], workers: int) -> list[list[int]]:

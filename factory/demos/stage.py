@@ -16,7 +16,6 @@ and the run goes on. Re-running skips stored episodes, so an interrupted run res
 from __future__ import annotations
 
 import logging
-import os
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -28,6 +27,7 @@ import numpy as np
 
 from factory.config import DemosConfig
 from factory.context import StageContext
+from factory.cores import usable_cores
 from factory.demos.cpu_items import run_item, run_item_logged
 from factory.demos.record.disk_room import DiskFull, DiskRoom
 from factory.demos.record.slots import StageEnv, WorkItem, episode_id
@@ -146,7 +146,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         todo = [k for k in range(dc.episodes_per_scene) if episode_id(sid, k) not in stored]
         for start in range(0, len(todo), dc.batch):
             items.append(WorkItem(sid, tuple(todo[start : start + dc.batch])))
-    cores = os.cpu_count() or 1
+    cores = usable_cores()
     executor = resolve_executor(dc.executor)
     if executor == "warp":
         workers = dc.workers or max(1, cores - 1)

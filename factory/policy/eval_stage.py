@@ -25,7 +25,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 import shutil
 import time
 from dataclasses import replace
@@ -35,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from factory.context import StageContext
+from factory.cores import usable_cores
 from factory.errors import ConfigError, PolicyError, StoreError, TaskError
 from factory.store import atomic_write_json
 
@@ -419,7 +419,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
     videos_dir = out / "videos"
     have_videos = len(list(videos_dir.glob("*.mp4"))) if videos_dir.is_dir() else 0
     want_videos = max(0, ec.videos - have_videos)
-    cores = os.cpu_count() or 1
+    cores = usable_cores()
     skipped: dict[str, str] = {}
     timings: list[dict[str, float]] = []
     all_keys = {j.key for j in jobs}

@@ -23,12 +23,45 @@ import time
 from pathlib import Path
 from typing import Any
 
+from factory.errors import PolicyError
 from factory.policy.checkpoint import PRETRAINED
 
 log = logging.getLogger(__name__)
 
 CURVE = "curve"
 """Folder of the learning-curve evaluations under ``policy/<name>/``."""
+
+
+def curve_gpu(device: str, visible: str | None) -> tuple[str | None, str]:
+    """The GPU of the curve's evaluations: ``eval.device=cuda:<i>`` (e.g. ``cuda:1`` on a
+    two-GPU machine, the training on GPU 0) becomes ``CUDA_VISIBLE_DEVICES`` of the evaluation's
+    processes (the ``i``-th of the training's visible devices) and ``cuda`` in them, so that the
+    evaluations' inference does not time-slice the training's GPU.
+
+    Args:
+        device: ``eval.device``.
+        visible: the training process's ``CUDA_VISIBLE_DEVICES`` (None: unset, every GPU).
+
+    Returns:
+        ``(CUDA_VISIBLE_DEVICES for the evaluation or None to keep it, its eval.device)``.
+
+    Raises:
+        PolicyError: an index the visible devices do not have (names them).
+    """
+    if not device.startswith("cuda:"):
+        return None, device
+    index = device.split(":", 1)[1]
+    if not index.isdigit():
+        raise PolicyError(f"eval.device={device}: expected cuda:<index>, e.g. cuda:1")
+    if visible is None:
+        return index, "cuda"
+    ids = [v.strip() for v in visible.split(",") if v.strip()]
+    if int(index) >= len(ids):
+        raise PolicyError(
+            f"eval.device={device} but CUDA_VISIBLE_DEVICES={visible} shows {len(ids)} GPU(s): "
+            f"use cuda:0..cuda:{len(ids) - 1}"
+        )
+    return ids[int(index)], "cuda"
 
 
 def _evaluate(cfg: Any, log_path: str) -> None:
@@ -44,6 +77,10 @@ def _evaluate(cfg: Any, log_path: str) -> None:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
         stream=sys.stderr,
     )
+    visible, device = curve_gpu(cfg.eval.device, os.environ.get("CUDA_VISIBLE_DEVICES"))
+    if visible is not None:  # before anything initialises CUDA: the workers inherit it
+        os.environ["CUDA_VISIBLE_DEVICES"] = visible
+        cfg = dataclasses.replace(cfg, eval=dataclasses.replace(cfg.eval, device=device))
     from factory.context import StageContext
     from factory.policy.eval_stage import run
     from factory.sim.gl import configure_gl
@@ -73,6 +110,7 @@ class LearningCurve:
     """
 
     def __init__(self, cfg: Any, out: Path, every_minutes: float, episodes: int) -> None:
+        curve_gpu(cfg.eval.device, os.environ.get("CUDA_VISIBLE_DEVICES"))  # fails here, early
         self.cfg = cfg
         self.root = out / CURVE
         self.every = 60.0 * every_minutes

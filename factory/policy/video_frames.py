@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from factory.cores import usable_cores
 from factory.errors import PolicyError
 
 log = logging.getLogger(__name__)
@@ -123,7 +124,7 @@ def decode_videos(base: Any, keys: list[str], workers: int = 0) -> dict[str, np.
             out[key][start : start + length] = clip
 
     items = list(jobs)
-    count = min(workers or os.cpu_count() or 1, len(items)) or 1
+    count = min(workers or usable_cores(), len(items)) or 1
     if count > 1 and n * len(keys) >= PROCESS_MIN_FRAMES:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
-import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -31,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from factory.assets import AssetLibrary
+from factory.cores import usable_cores
 from factory.scenes.brain_steps import AgentConfig, Brain, BrainState, Trace, brief, task_kind
 from factory.scenes.placement import SceneState
 from factory.scenes.request import style_of
@@ -170,21 +170,13 @@ def merge_rooms(works: list[RoomWork], before: list[set[str]]) -> list[SceneObje
     return out
 
 
-def cpu_cores() -> int:
-    """CPU cores this process may run on (its affinity where the system tells it)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
-
-
 def default_workers(rooms: int) -> int:
     """Worker processes for a home of ``rooms`` rooms: one per room up to the CPU cores (the
     rooms run here, one after the other, with one core or inside a daemonic process, which may
     not start processes)."""
     if multiprocessing.current_process().daemon:
         return 1
-    return max(1, min(rooms, cpu_cores()))
+    return max(1, min(rooms, usable_cores()))
 
 
 class _Rooms:
@@ -250,7 +242,7 @@ def generate_home(
     workers = default_workers(n) if workers is None else max(1, min(workers, n))
     if multiprocessing.current_process().daemon:
         workers = 1  # a daemonic process may not start processes
-    chunk = max(1, cpu_cores() // workers)
+    chunk = max(1, usable_cores() // workers)
     style = style_of(request)
     works = [
         RoomWork(

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import functools
 import logging
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from factory.assets import AssetLibrary
+from factory.cores import usable_cores
 from factory.errors import ConfigError, FactoryError
 from factory.scenes.critics import visual_critic
 from factory.scenes.placement import SceneState, place_floor, place_on, place_wall
@@ -96,7 +96,7 @@ class ToolSession:
         if critic_scope not in SCOPES:
             raise ConfigError(f"critic scope {critic_scope!r} must be one of {', '.join(SCOPES)}")
         self.critic_scope = critic_scope
-        self.critic_chunk = critic_chunk or os.cpu_count() or 1
+        self.critic_chunk = critic_chunk or usable_cores()
         self.state: SceneState | None = None
 
     # ---- helpers

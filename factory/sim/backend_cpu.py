@@ -6,7 +6,6 @@ tests check. Different models of one layout run together through ``Batch.set_mod
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Sequence
 
@@ -14,6 +13,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
+from factory.cores import usable_cores
 from factory.sim.backend import Rollout, check_qpos, nonfinite_rows
 
 _BAD_WARNINGS = {
@@ -36,7 +36,7 @@ class CpuBackend:
     name = "cpu"
 
     def __init__(self, nthread: int = 0, chunk: int = 4096) -> None:
-        self.nthread = nthread or (os.cpu_count() or 1)
+        self.nthread = nthread or usable_cores()
         self.chunk = chunk
 
     def settle(

@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
+
+from factory.cores import usable_cores
 
 log = logging.getLogger(__name__)
 
@@ -166,10 +167,7 @@ def preload(
     a lock) is held during the trace only, not during the load.
     """
     if workers is None:
-        try:
-            workers = len(os.sched_getaffinity(0))
-        except AttributeError:  # pragma: no cover - not Linux
-            workers = os.cpu_count() or 1
+        workers = usable_cores()
     t0 = time.perf_counter()
     error = ""
     with around_trace or contextlib.nullcontext(), dry_launches(wp) as found:

@@ -22,7 +22,6 @@ from __future__ import annotations
 import copy
 import logging
 import math
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,6 +29,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from factory.cores import usable_cores
 from factory.errors import ConfigError
 from factory.sim.backend import Backend, get_backend
 
@@ -294,7 +294,7 @@ def body_penetration(
                         depth[i, jj] = pen[c]
                         pairs[i][jj] = f"{name(int(mine[c]))}|{name(int(other[c]))}"
 
-    threads = max(1, min(8, os.cpu_count() or 1, n // 256))
+    threads = max(1, min(8, usable_cores(), n // 256))
     if threads == 1:
         chunk(0, n)
     else:  # mj_forward releases the GIL: chunks of candidates run side by side

@@ -165,7 +165,15 @@ $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=planner eval.episod
   eval.name=planner eval.workers=3 eval.batch=8 eval.videos=0 > "$OUT_DIR/planner.log" 2>&1 &
 PLANNER=$!
 n_pol=$(echo $POLICIES | wc -w)
-curve_workers=$(( EVAL_WORKERS / 2 / n_pol > 0 ? EVAL_WORKERS / 2 / n_pol : 1 ))
+# the curve: a held-out kitchen's episodes in one batch, one process each (each process a CUDA
+# context: fewer contexts time-slice the training's GPU less; 2026-11-29, 2 x H200: 13.2 steps/s
+# alone, 5-7 while 12 curve processes ran on the same GPU) and, on a two-GPU machine without
+# SECOND_GPU, on GPU 1 (eval.device=cuda:1: factory/policy/learning_curve.py)
+curve_workers=$HELDOUT_SCENES
+curve_device=$DEVICE
+if [ -z "$SECOND_GPU" ] && [ "$DEVICE" != cpu ] && [ "$(nvidia-smi -L 2>/dev/null | wc -l)" -gt 1 ]; then
+  curve_device=cuda:1
+fi
 train_one() {  # train_one <name> <visible GPUs or empty>
   local gpu_env=() extra=() inputs=$1 vision=$VISION
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
@@ -175,12 +183,12 @@ train_one() {  # train_one <name> <visible GPUs or empty>
     train.steps="$STEPS" train.batch_size="$BATCH" train.max_minutes="$TRAIN_MINUTES" \
     train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
     train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
-    eval.workers="$curve_workers" eval.batch=8 eval.device="$DEVICE" "${extra[@]}"
+    eval.workers="$curve_workers" eval.batch="$CURVE_EPISODES" eval.device="$curve_device" "${extra[@]}"
 }
 evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers> <episodes> [overrides...]
   local gpu_env=()
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
-  pin "$CPU_PIN" "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
+  pin "${EVAL_CORES:-$CPU_PIN}" "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
     eval.episodes_per_scene="$4" eval.device="$DEVICE" eval.videos=2 \
     eval.workers="$3" eval.batch=8 "${@:5}"
 }
@@ -220,6 +228,15 @@ if [ -n "$EVAL_WARP" ] && [ "$JOBS" -gt $(( WARP_WORKERS * 2 + 4 )) ]; then
   if [ -z "$SECOND_GPU" ] && [ "$(nvidia-smi -L 2>/dev/null | wc -l)" -gt 1 ]; then EVAL_GPU_OF_CPU=1; fi
 fi
 log "   CPU env evaluations on cores $CPU_PIN${EVAL_GPU_OF_CPU:+, their policies on GPU $EVAL_GPU_OF_CPU}"
+NEXT_CORE=${CPU_PIN%-*}
+take_cores() {  # take_cores <n>: EVAL_CORES, the next n cores of CPU_PIN ("a-b"): each
+  # evaluation its own, so that those running at once (each sizing its workers' threads from its
+  # affinity, factory/cores.py) do not oversubscribe the machine; the whole range once used up
+  local hi=${CPU_PIN#*-} a=$NEXT_CORE
+  if [ $(( a + $1 - 1 )) -gt "$hi" ]; then EVAL_CORES=$CPU_PIN; return; fi
+  NEXT_CORE=$(( a + $1 ))
+  EVAL_CORES="$a-$(( a + $1 - 1 ))"
+}
 pids=()
 ks_list=()
 for k in $ENSEMBLE_KS; do ks_list+=("$k"); done
@@ -232,6 +249,7 @@ for p in $POLICIES; do
   # the default evaluation has the most episodes: its share of the workers by its episodes
   [ ${#ks_list[@]} = 0 ] || workers=$(( cpu_workers * EVAL_EPISODES / (EVAL_EPISODES * n_pol + KS_EPISODES * ${#ks_list[@]}) ))
   [ "$workers" -gt 0 ] || workers=1
+  take_cores "$workers"
   evaluate_one "$p" "$gpu" "$workers" "$EVAL_EPISODES" &
   pids+=($!)
 done
@@ -242,6 +260,7 @@ for k in "${ks_list[@]}"; do  # the same policy and configurations with other en
   [ -z "$EVAL_GPU_OF_CPU" ] || gpu=$EVAL_GPU_OF_CPU
   workers=$(( cpu_workers * KS_EPISODES / (EVAL_EPISODES * n_pol + KS_EPISODES * ${#ks_list[@]}) ))
   [ "$workers" -gt 0 ] || workers=1
+  take_cores "$workers"
   evaluate_one "$INPUTS" "$gpu" "$workers" "$KS_EPISODES" eval.ensemble="$k" eval.name="$name" \
     > "$OUT_DIR/eval-$name.log" 2>&1 &
   pids+=($!)
@@ -255,7 +274,8 @@ print("[" + ",".join(sorted(scenes)[: int(sys.argv[2])]) + "]")
 EOF3
 )
   # the same replays on the CPU env, on two cores
-  pin "$CPU_PIN" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
+  take_cores 2
+  pin "$EVAL_CORES" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy=replay eval.name=replay-cpu \
     "eval.scenes=$REPLAY_LIST" eval.workers=2 eval.batch=8 eval.videos=0 \
     > "$OUT_DIR/eval-replay-cpu.log" 2>&1 &
   pids+=($!)
