@@ -774,22 +774,24 @@ def relative_to(actions: np.ndarray, tool_now: np.ndarray) -> np.ndarray:
 class ToolActionTracker:
     """Turns predicted tool poses into the env's joint targets, one batch of envs at a time.
 
-    Each env's target is reached by differential IK (mink, joint limits kept) started at that
-    env's previous joint command (at an episode's start: its measured joints), so the arm
-    follows the predicted tool path smoothly, as the demos' planner moved it.
+    Each env's target is reached by differential IK (joint limits kept) started at that env's
+    previous joint command (at an episode's start: its measured joints), so the arm follows the
+    predicted tool path smoothly, as the demos' planner moved it. The whole batch moves in one
+    :class:`~factory.robots.ik_batch.BatchTracker` call (the step mink's tracker takes, one
+    linear solve for all envs instead of a QP per env: 90 worlds cost about what 20 did).
 
     Args:
-        iters: IK steps per action at most (each a small QP).
+        iters: IK steps per action at most.
     """
 
     def __init__(self, iters: int = 20) -> None:
         self.iters = iters
         self._solver: Any = None
-        self._prev: dict[int, np.ndarray] = {}
+        self._prev: np.ndarray | None = None  # (n, 7) the last commands; NaN rows: none yet
 
     def reset(self) -> None:
         """New episodes: forget the previous commands."""
-        self._prev.clear()
+        self._prev = None
 
     def joints(
         self, tool: np.ndarray, state: np.ndarray, origin: np.ndarray | None = None
@@ -802,23 +804,24 @@ class ToolActionTracker:
             origin: ``tool_rel``: the tool positions (n, 3) the positions are relative to.
         """
         if self._solver is None:
-            from factory.robots.ik import IKConfig, IKSolver
+            from factory.robots.ik import IKConfig
+            from factory.robots.ik_batch import BatchTracker
 
-            self._solver = IKSolver(IKConfig(max_iters=self.iters, pos_tol=5e-4, rot_tol_deg=0.5))
+            self._solver = BatchTracker(
+                IKConfig(max_iters=self.iters, pos_tol=5e-4, rot_tol_deg=0.5)
+            )
         tool = np.array(tool, np.float64, copy=True)
         if origin is not None:
             tool[:, :3] += np.asarray(origin, np.float64)
-        rot = rot6d_to_mat(tool[:, 3:9])
-        out = np.zeros((len(tool), 8), np.float32)
-        for i in range(len(tool)):
-            target = np.eye(4)
-            target[:3, :3], target[:3, 3] = rot[i], tool[i, :3]
-            seed = self._prev.get(i)
-            if seed is None:
-                seed = np.asarray(state[i, :7], np.float64)
-            q = self._solver.track(target, seed)
-            self._prev[i] = q
-            out[i, :7], out[i, 7] = q, tool[i, 9]
+        n = len(tool)
+        measured = np.asarray(state, np.float64)[:, :7]
+        if self._prev is None or len(self._prev) != n:
+            self._prev = np.full((n, 7), np.nan)
+        seed = np.where(np.isnan(self._prev), measured, self._prev)
+        q = self._solver.track(tool[:, :3], rot6d_to_mat(tool[:, 3:9]), seed)
+        self._prev = q
+        out = np.zeros((n, 8), np.float32)
+        out[:, :7], out[:, 7] = q, tool[:, 9]
         return out
 
 
