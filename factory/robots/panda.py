@@ -384,6 +384,11 @@ class FingerTargets:
         half = float(np.clip(opening / 2, -SQUEEZE, PANDA.finger_max))
         return np.array([half, -half])
 
+    def gripper_ctrls(self, openings: np.ndarray) -> np.ndarray:
+        """:meth:`gripper_ctrl` of many openings at once: (T,) m -> (T, 2)."""
+        half = np.clip(np.asarray(openings, float) / 2, -SQUEEZE, PANDA.finger_max)
+        return np.stack([half, -half], axis=-1)
+
     def finger_pos(self, opening: float) -> np.ndarray:
         """Finger joint positions (2,) for a total opening (m), within the joint range."""
         half = float(np.clip(opening / 2, 0.0, PANDA.finger_max))

@@ -139,17 +139,17 @@ def robot_signals(
 def robot_penetration(
     model: mujoco.MjModel, data: mujoco.MjData, robot_geom: np.ndarray, allowed: np.ndarray
 ) -> float:
-    """Deepest contact between a robot geom and a scene geom not in ``allowed`` (m)."""
-    worst = 0.0
-    for c in data.contact[: data.ncon]:
-        g1, g2 = int(c.geom[0]), int(c.geom[1])
-        if robot_geom[g1] == robot_geom[g2]:
-            continue
-        other = g2 if robot_geom[g1] else g1
-        if allowed[other]:
-            continue
-        worst = max(worst, -float(c.dist))
-    return worst
+    """Deepest contact between a robot geom and a scene geom not in ``allowed`` (m; 0 where
+    none penetrates), over the contacts' arrays at once."""
+    n = int(data.ncon)
+    if n == 0:
+        return 0.0
+    geom = np.asarray(data.contact.geom)[:n]
+    dist = np.asarray(data.contact.dist)[:n]
+    first = robot_geom[geom[:, 0]]
+    other = np.where(first, geom[:, 1], geom[:, 0])
+    hit = (first != robot_geom[geom[:, 1]]) & ~allowed[other]
+    return max(0.0, float(-dist[hit].min())) if hit.any() else 0.0
 
 
 def new_recordings(n_frames: list[int], cfg: RecordConfig, nstate: int) -> list[Recording]:

@@ -884,6 +884,6 @@ def targets_to_ctrl(
     lead = -model.actuator_biasprm[robot.ctrl_arm, 2] / model.actuator_gainprm[robot.ctrl_arm, 0]
     ctrl = np.zeros((len(arm), model.nu))
     ctrl[:, robot.ctrl_arm] = arm + lead * vel
-    ctrl[:, robot.ctrl_fingers] = np.stack([robot.gripper_ctrl(float(o)) for o in grip])
+    ctrl[:, robot.ctrl_fingers] = robot.gripper_ctrls(np.asarray(grip, float).reshape(-1))
     lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
     return np.clip(ctrl, lo, hi)
