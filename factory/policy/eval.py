@@ -156,6 +156,7 @@ def run_batch(
     video: Iterable[int] = (),
     reset: Callable[[], None] | None = None,
     timing: BatchTiming | None = None,
+    progress: Callable[[BatchTiming], None] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[int, list[np.ndarray]]]:
     """Runs up to ``env.num_envs`` episodes of one scene together until all have ended.
 
@@ -166,6 +167,8 @@ def run_batch(
         video: indices into ``jobs`` whose frames are rendered for a video.
         reset: called after the envs are reset (e.g. the policy's ``reset``).
         timing: filled with where the time went (:class:`BatchTiming`), when given.
+        progress: called with the timing so far after every frame (it decides how often to
+            tell anyone).
 
     Returns:
         one record per job (in order) and the video frames by job index.
@@ -218,6 +221,8 @@ def run_batch(
             t.step_s += t3 - t2
             t.video_s += clock() - t3
             t.frames += 1
+            if progress is not None:
+                progress(t)
         for i in runnable:
             r = env.result(i)
             records[i] = _record(jobs[i], r["success"], r["reason"], r["steps"], r.get("record"))

@@ -13,8 +13,10 @@ it over the cores.
 
 from __future__ import annotations
 
+import json
 import logging
 import multiprocessing
+import os
 import time
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -156,9 +158,10 @@ def check_base(scene: str, recorded: dict[str, float] | None, placement: Any) ->
 class UnitRunner:
     """Runs units in one process, keeping the env of the last scene and size."""
 
-    def __init__(self, settings: UnitSettings, policy: Any = None) -> None:
+    def __init__(self, settings: UnitSettings, policy: Any = None, inline: bool = False) -> None:
         self.s = settings
         self.policy = policy
+        self.inline = inline  # in the main process: log the progress too (no one else will)
         self._env: Any = None
         self._planner: Any = None
         self._key: tuple[str, int] | None = None
@@ -226,15 +229,29 @@ class UnitRunner:
         video = list(range(unit.videos))
         setup_s = time.perf_counter() - t0
         timing = BatchTiming()
+        report = UnitProgress(
+            progress_path(s.videos_dir, unit),
+            unit,
+            int(env.num_envs),
+            setup_s,
+            s.max_steps,
+            log_as=s.videos_dir.parent.name if self.inline else None,
+        )
+        report.write(timing)
         if self.policy is not None:
             policy = self.policy
 
             def actor(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
                 return np.asarray(policy.act(obs), np.float32)
 
-            records, frames = run_batch(env, batch, actor, video, policy.reset, timing)
+            records, frames = run_batch(
+                env, batch, actor, video, policy.reset, timing, report.maybe_write
+            )
         else:
-            records, frames = run_batch(env, batch, scripted_actor(batch), video, timing=timing)
+            records, frames = run_batch(
+                env, batch, scripted_actor(batch), video, timing=timing, progress=report.maybe_write
+            )
+        report.close()
         for i, fr in frames.items():
             if len(fr) > 1:
                 clip = f"{slug(batch[i].episode_id or batch[i].scene)}-{batch[i].seed}"
@@ -246,6 +263,92 @@ class UnitRunner:
             "worlds": int(env.num_envs),
         }
         return UnitResult(unit.scene, records, episodes=len(batch), timing=times)
+
+
+# ---- progress of running units
+
+PROGRESS_EVERY_S = 20.0
+"""How often a running unit rewrites its progress file (s)."""
+PROGRESS_LOG_EVERY_S = 60.0
+"""How often the main process logs the running units' progress (s)."""
+
+
+def progress_path(videos_dir: Path, unit: Unit) -> Path:
+    """``<eval out>/progress/<scene>-<first episode index>.json``: a running unit's file."""
+    first = unit.jobs[0].index if unit.jobs else 0
+    return videos_dir.parent / "progress" / f"{unit.scene}-{first}.json"
+
+
+class UnitProgress:
+    """A running unit's progress file: its frames so far and where their time went, rewritten
+    atomically every :data:`PROGRESS_EVERY_S` and removed when the unit ends (its line in the
+    log then says the same), so that a unit that never ends still says where it is."""
+
+    def __init__(
+        self,
+        path: Path,
+        unit: Unit,
+        worlds: int,
+        setup_s: float,
+        max_steps: int,
+        log_as: str | None = None,
+    ) -> None:
+        self.path = path
+        self.log_as = log_as  # also log the file every PROGRESS_LOG_EVERY_S under this name
+        self._logged = time.perf_counter()
+        self.head = {
+            "schema_version": 1,
+            "scene": unit.scene,
+            "episodes": len(unit.jobs),
+            "worlds": worlds,
+            "max_frames": int(max_steps),
+            "setup_s": round(setup_s, 3),
+            "pid": os.getpid(),
+        }
+        self._last = 0.0
+
+    def write(self, timing: Any) -> None:
+        from factory.store import atomic_write_json
+
+        self._last = time.perf_counter()
+        try:
+            atomic_write_json(self.path, {**self.head, **timing.as_dict(), "at": time.time()})
+        except OSError as e:  # progress is a courtesy: never the unit's failure
+            log.debug("eval: progress file %s: %s", self.path, e)
+
+    def maybe_write(self, timing: Any) -> None:
+        now = time.perf_counter()
+        if now - self._last >= PROGRESS_EVERY_S:
+            self.write(timing)
+        if self.log_as is not None and now - self._logged >= PROGRESS_LOG_EVERY_S:
+            self._logged = now
+            self.write(timing)
+            log_progress(self.log_as, self.path.parent, only=self.path)
+
+    def close(self) -> None:
+        self.path.unlink(missing_ok=True)
+
+
+def log_progress(name: str, folder: Path, only: Path | None = None) -> None:
+    """One line per running unit (its progress file in ``folder``, or ``only`` that one):
+    frames so far and where their seconds went."""
+    found = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    for path in [only] if only is not None else found:
+        try:
+            p = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        parts = ", ".join(f"{k[:-2]} {float(p.get(k, 0.0)):.1f}" for k in TIMED)
+        log.info(
+            "eval %s: scene %s running: frame %d of at most %d on %d world(s), %.0f s ago (%s s)",
+            name,
+            p.get("scene", "?"),
+            int(p.get("frames", 0)),
+            int(p.get("max_frames", 0)),
+            int(p.get("worlds", 0)),
+            max(0.0, time.time() - float(p.get("at", time.time()))),
+            parts,
+        )
 
 
 # ---- where the time went
@@ -326,7 +429,7 @@ def run_units(
         cores: CPU cores to share among the workers' torch threads.
     """
     if workers <= 1 or len(units) <= 1:
-        runner = UnitRunner(settings, policy)
+        runner = UnitRunner(settings, policy, inline=True)
         try:
             for unit in units:
                 yield runner.run(unit)
@@ -343,9 +446,14 @@ def run_units(
         initargs=(settings, max(1, cores // workers)),
     ) as pool:
         pending: set[Future[UnitResult]] = {pool.submit(_run_in_worker, u) for u in units}
+        progress = settings.videos_dir.parent / "progress"
         try:
             while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                done, pending = wait(
+                    pending, timeout=PROGRESS_LOG_EVERY_S, return_when=FIRST_COMPLETED
+                )
+                if not done:
+                    log_progress(progress.parent.name, progress)
                 for fut in done:
                     yield fut.result()
         finally:

@@ -59,6 +59,8 @@ def test_replay_every_recorded_episode(policy_run: Path, pcli, n_recorded: int) 
     assert "eval replay: scene kitchen_a:" in out.stderr + out.stdout or any(
         "eval replay: scene kitchen_a:" in f.read_text() for f in (policy_run / "logs").glob("*")
     )
+    # the units' progress files are gone with their units
+    assert not list((policy_run / "eval" / "replay" / "progress").glob("*.json"))
     videos = sorted((policy_run / "eval" / "replay" / "videos").glob("*.mp4"))
     assert len(videos) == 2
     import av
@@ -234,3 +236,34 @@ def test_replay_of_a_generated_kitchen(pcli, tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr[-3000:]
     r = _results(run, "replay")
     assert r["episodes"] == 5 and r["success_rate"] >= 0.98, r  # every one
+
+
+def test_unit_progress_file_and_its_log_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A running unit's progress file (rewritten as frames pass, logged in the main process,
+    removed at the end): what a unit that never ends still tells."""
+    import logging
+
+    from factory.policy import eval_units
+    from factory.policy.eval import BatchTiming, Job
+    from factory.policy.eval_units import Unit, UnitProgress, progress_path
+
+    monkeypatch.setattr(eval_units, "PROGRESS_EVERY_S", 0.0)
+    monkeypatch.setattr(eval_units, "PROGRESS_LOG_EVERY_S", 0.0)
+    unit = Unit("kitchen_x", [Job(scene="kitchen_x", index=30, seed=1)], size=90)
+    path = progress_path(tmp_path / "eval" / "mine" / "videos", unit)
+    assert path == tmp_path / "eval" / "mine" / "progress" / "kitchen_x-30.json"
+    report = UnitProgress(path, unit, 90, 12.5, 684, log_as="mine")
+    timing = BatchTiming(frames=7, step_s=1.5, act_s=4.25)
+    with caplog.at_level(logging.INFO, logger="factory.policy.eval_units"):
+        report.maybe_write(timing)
+    got = json.loads(path.read_text())
+    assert got["schema_version"] == 1 and got["frames"] == 7 and got["worlds"] == 90
+    assert got["setup_s"] == 12.5 and got["act_s"] == 4.25 and got["max_frames"] == 684
+    assert "eval mine: scene kitchen_x running: frame 7 of at most 684 on 90 world(s)" in (
+        caplog.text
+    )
+    assert "act 4.2" in caplog.text or "act 4.3" in caplog.text
+    report.close()
+    assert not path.exists()
