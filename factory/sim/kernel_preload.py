@@ -47,6 +47,7 @@ class PreloadReport:
         workers: threads of the load.
         error: why the trace stopped early ("" if it ran through): the variants found until
             then were loaded; the rest compile at their first launch.
+        wait_s: seconds waited for another process's preload (:func:`cache_lock`).
     """
 
     modules: int
@@ -55,14 +56,52 @@ class PreloadReport:
     load_s: float
     workers: int
     error: str = ""
+    wait_s: float = 0.0
 
     def describe(self) -> str:
         """One line for the log: what was loaded, on how many threads, in how long."""
         early = f"; trace stopped early: {self.error}" if self.error else ""
+        waited = (
+            f"; waited {self.wait_s:.1f} s for another process's preload"
+            if self.wait_s >= 0.5
+            else ""
+        )
         return (
             f"{self.compiled} modules to load of the {self.modules} launched, on {self.workers} "
-            f"threads in {self.load_s:.1f} s (trace {self.trace_s:.1f} s){early}"
+            f"threads in {self.load_s:.1f} s (trace {self.trace_s:.1f} s){waited}{early}"
         )
+
+
+LOCK_NAME = "factory-preload.lock"
+"""The file in Warp's kernel cache folder that one preload at a time holds while it loads."""
+
+
+@contextlib.contextmanager
+def cache_lock(wp: Any) -> Iterator[float]:
+    """Held while a preload loads its modules, across the processes of one machine that share
+    Warp's kernel cache: the first compiles on every core, the next ones then read what it
+    compiled from the cache instead of compiling the same modules at once with the same cores
+    (three evaluation processes on a bare machine did). Yields the seconds waited for it;
+    without a cache folder or ``fcntl`` (not POSIX), no lock."""
+    folder = getattr(getattr(wp, "config", None), "kernel_cache_dir", None)
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield 0.0
+        return
+    if not folder:
+        yield 0.0
+        return
+    import os
+
+    t0 = time.perf_counter()
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, LOCK_NAME), "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield time.perf_counter() - t0
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
 
 
 def _block_dim(ctx: Any, device: Any, block_dim: int | None) -> int:
@@ -164,7 +203,8 @@ def preload(
     ``trace`` must repeat the launches of the real path (same model, options and block sizes;
     the number of worlds may be smaller) and keep nothing it makes. An exception in it is
     logged and ends the trace; what it found by then is still loaded. ``around_trace`` (e.g.
-    a lock) is held during the trace only, not during the load.
+    a lock) is held during the trace only, not during the load; the load holds
+    :func:`cache_lock` (one process of the machine at a time).
     """
     if workers is None:
         workers = usable_cores()
@@ -182,10 +222,14 @@ def preload(
         for module, device, bd in found.values()
         if (device.context, bd) not in getattr(module, "execs", {})
     ]
-    t1 = time.perf_counter()
     n = max(1, min(workers, len(todo)))
+    waited = 0.0
+    t1 = time.perf_counter()
     if todo:
-        with ThreadPoolExecutor(max_workers=n) as pool:
-            for f in [pool.submit(m.load, d, block_dim=bd) for m, d, bd in todo]:
-                f.result()
-    return PreloadReport(len(found), len(todo), trace_s, time.perf_counter() - t1, n, error)
+        with cache_lock(wp) as waited:
+            t1 = time.perf_counter()
+            with ThreadPoolExecutor(max_workers=n) as pool:
+                for f in [pool.submit(m.load, d, block_dim=bd) for m, d, bd in todo]:
+                    f.result()
+    load_s = time.perf_counter() - t1
+    return PreloadReport(len(found), len(todo), trace_s, load_s, n, error, waited)

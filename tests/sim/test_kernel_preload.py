@@ -123,3 +123,29 @@ def test_other_threads_launch_for_real_during_a_trace() -> None:
     assert a.numpy().tolist() == [1.0] * 4  # the trace's did not
     assert report.modules == 1 and held == [True] and not lock.locked()
     assert wp.launch is real
+
+
+def test_cache_lock_serialises_the_loads_of_two_processes(tmp_path) -> None:
+    """A second process's preload waits while another holds the kernel cache's lock, and says
+    how long it waited; without a cache folder there is no lock."""
+    import subprocess
+    import sys
+    import time
+    from types import SimpleNamespace
+
+    from factory.sim.kernel_preload import LOCK_NAME, cache_lock
+
+    holder = (
+        "import fcntl, sys, time\n"
+        f"f = open({str(tmp_path / LOCK_NAME)!r}, 'a'); fcntl.flock(f, fcntl.LOCK_EX)\n"
+        "print('held', flush=True); time.sleep(1.5)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "held"
+    fake = SimpleNamespace(config=SimpleNamespace(kernel_cache_dir=str(tmp_path)))
+    t0 = time.perf_counter()
+    with cache_lock(fake) as waited:
+        assert waited >= 0.8 and time.perf_counter() - t0 >= 0.8
+    proc.wait(timeout=30)
+    with cache_lock(SimpleNamespace(config=SimpleNamespace(kernel_cache_dir=None))) as waited:
+        assert waited == 0.0
