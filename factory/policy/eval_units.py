@@ -394,8 +394,40 @@ def sum_timings(timings: list[dict[str, float]]) -> dict[str, float]:
 _RUNNER: UnitRunner | None = None
 
 
-def _init_worker(settings: UnitSettings, torch_threads: int) -> None:
+def worker_gpus(device: str, visible: str | None) -> list[str]:
+    """The GPUs a pool of evaluation workers spreads over, one each in turn: the visible ones
+    (``CUDA_VISIBLE_DEVICES``, else every GPU torch counts) when ``device`` is ``auto`` or
+    ``cuda`` and there are several; else none (every worker keeps the parent's view): each
+    worker process is a CUDA context, and contexts on one GPU take turns on it.
+
+    Args:
+        device: ``eval.device``.
+        visible: the parent's ``CUDA_VISIBLE_DEVICES`` (None: unset).
+    """
+    if device not in ("auto", "cuda"):
+        return []
+    if visible is not None:
+        ids = [v.strip() for v in visible.split(",") if v.strip()]
+    else:
+        try:
+            import torch
+
+            count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        except ImportError:  # pragma: no cover - torch is a dependency of the policies
+            count = 0
+        ids = [str(i) for i in range(count)]
+    return ids if len(ids) > 1 else []
+
+
+def _init_worker(
+    settings: UnitSettings, torch_threads: int, gpus: list[str], started: Any = None
+) -> None:
     global _RUNNER
+    if gpus and started is not None:  # this worker's GPU, before anything initialises CUDA
+        with started.get_lock():
+            k = started.value
+            started.value += 1
+        os.environ["CUDA_VISIBLE_DEVICES"] = gpus[k % len(gpus)]
     policy = None
     if settings.kind == "trained":
         import torch
@@ -437,13 +469,23 @@ def run_units(
             runner.close()
         return
     workers = min(workers, len(units))
-    log.info("eval: %d unit(s) over %d worker processes", len(units), workers)
+    gpus = (
+        worker_gpus(settings.device, os.environ.get("CUDA_VISIBLE_DEVICES"))
+        if settings.kind == "trained" or settings.executor == "warp"  # the kinds that use one
+        else []
+    )
+    log.info(
+        "eval: %d unit(s) over %d worker processes%s",
+        len(units),
+        workers,
+        f", each on one of GPUs {','.join(gpus)} in turn" if gpus else "",
+    )
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(
         max_workers=workers,
         mp_context=ctx,
         initializer=_init_worker,
-        initargs=(settings, max(1, cores // workers)),
+        initargs=(settings, max(1, cores // workers), gpus, ctx.Value("i", 0)),
     ) as pool:
         pending: set[Future[UnitResult]] = {pool.submit(_run_in_worker, u) for u in units}
         progress = settings.videos_dir.parent / "progress"

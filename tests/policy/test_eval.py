@@ -267,3 +267,39 @@ def test_unit_progress_file_and_its_log_line(
     assert "act 4.2" in caplog.text or "act 4.3" in caplog.text
     report.close()
     assert not path.exists()
+
+
+@pytest.mark.parametrize(
+    ("device", "visible", "want"),
+    [
+        ("auto", "0,1", ["0", "1"]),
+        ("cuda", "GPU-a, GPU-b, GPU-c", ["GPU-a", "GPU-b", "GPU-c"]),
+        ("auto", "1", []),  # one GPU: every worker on it
+        ("cpu", "0,1", []),
+        ("cuda:1", "0,1", []),  # a GPU named: kept
+        ("auto", "", []),
+    ],
+)
+def test_worker_gpus(device: str, visible: str, want: list[str]) -> None:
+    """Evaluation workers spread over the visible GPUs, one each in turn."""
+    from factory.policy.eval_units import worker_gpus
+
+    assert worker_gpus(device, visible) == want
+
+
+def test_each_worker_takes_the_next_gpu(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pool's initializer gives the k-th worker the (k mod n)-th GPU, before CUDA starts."""
+    import multiprocessing
+    import os
+    from types import SimpleNamespace
+
+    from factory.policy import eval_units
+
+    started = multiprocessing.get_context("spawn").Value("i", 0)
+    settings = SimpleNamespace(kind="planner")
+    seen = []
+    for _ in range(3):
+        monkeypatch.delenv("CUDA_VISIBLE_DEVICES", raising=False)
+        eval_units._init_worker(settings, 1, ["4", "7"], started)  # type: ignore[arg-type]
+        seen.append(os.environ["CUDA_VISIBLE_DEVICES"])
+    assert seen == ["4", "7", "4"]
