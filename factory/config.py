@@ -630,6 +630,8 @@ class EvalConfig:
             (diffusion, ``tool`` or ``joint`` actions, not the mobile robot), else off; a
             negative value: off (``n_action_steps`` actions of each chunk, lerobot's way);
             ``k >= 0``: on with this ``k`` (refused where it does not apply).
+        ensemble_every: with ensembling, a new chunk every this many frames (1: every frame;
+            m: about m times less inference, the kept chunks still averaged every frame).
     """
 
     policy: str = ""
@@ -649,6 +651,7 @@ class EvalConfig:
     out: str = ""
     executor: str = "cpu"
     ensemble: float | None = None
+    ensemble_every: int = 1
 
 
 @dataclass

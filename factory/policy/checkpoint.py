@@ -342,14 +342,22 @@ class ChunkEnsemble:
     Args:
         policy: a lerobot ``DiffusionPolicy`` (its ``config.n_action_steps`` is set to the
             chunk's full length, so call this before its ``reset``).
-        k: the weights' decay per frame of age (0: plain mean).
+        k: the weights' decay per kept chunk (0: plain mean).
+        every: a new chunk every ``every`` frames (1: every frame); the frames between take
+            the weighted mean of the chunks kept, so inference runs ``every`` times less.
     """
 
-    def __init__(self, policy: Any, k: float) -> None:
+    def __init__(self, policy: Any, k: float, every: int = 1) -> None:
         cfg = policy.config
         cfg.n_action_steps = cfg.horizon - cfg.n_obs_steps + 1
+        if every < 1 or every > cfg.n_action_steps:
+            raise PolicyError(
+                f"eval.ensemble_every={every}: a new chunk every 1 to {cfg.n_action_steps} "
+                "frames (the chunk's length)"
+            )
         self.policy = policy
         self.k = float(k)
+        self.every = int(every)
         self._chunks: list[tuple[int, Any]] = []
         self._t = 0
 
@@ -370,8 +378,9 @@ class ChunkEnsemble:
         if p.config.image_features:  # lerobot's select_action: the cameras as one key first
             batch[OBS_IMAGES] = torch.stack([batch[k] for k in p.config.image_features], dim=-4)
         p._queues = populate_queues(p._queues, batch)
-        chunk = p.predict_action_chunk(batch)  # (n, steps, A)
-        self._chunks.append((self._t, chunk))
+        if self._t % self.every == 0 or not self._chunks:
+            chunk = p.predict_action_chunk(batch)  # (n, steps, A)
+            self._chunks.append((self._t, chunk))
         self._chunks = [(t, c) for t, c in self._chunks if self._t - t < c.shape[1]]
         preds = torch.stack([c[:, self._t - t] for t, c in self._chunks])  # oldest first
         w = torch.exp(-self.k * torch.arange(len(preds), dtype=preds.dtype, device=preds.device))
@@ -399,6 +408,7 @@ class LoadedPolicy:
         postprocessor: Any,
         device: str,
         ensemble: float | None = None,
+        ensemble_every: int = 1,
     ) -> None:
         from factory.policy.inputs import ToolActionTracker, spec_from_features
 
@@ -418,7 +428,10 @@ class LoadedPolicy:
         self._post = postprocessor
         self._checked = False
         self.ensemble = ensemble
-        self._ensemble = ChunkEnsemble(policy, ensemble) if ensemble is not None else None
+        self.ensemble_every = ensemble_every if ensemble is not None else 1
+        self._ensemble = (
+            ChunkEnsemble(policy, ensemble, ensemble_every) if ensemble is not None else None
+        )
         if self._ensemble is not None:
             policy.reset()  # the queues of the longer chunks
 
@@ -554,7 +567,11 @@ def _check_mobile_layout(info: TrainInfo, cfg: Any, path: Path) -> None:
 
 
 def load_policy(
-    ref: str, run_dir: Path | None, device: str = "auto", ensemble: float | None = -1.0
+    ref: str,
+    run_dir: Path | None,
+    device: str = "auto",
+    ensemble: float | None = -1.0,
+    ensemble_every: int = 1,
 ) -> LoadedPolicy:
     """Loads a trained policy with lerobot's ``from_pretrained`` and its processors.
 
@@ -566,6 +583,8 @@ def load_policy(
         device: ``auto`` (CUDA when present), ``cpu``, ``cuda``.
         ensemble: temporal ensembling (``eval.ensemble``, :func:`resolve_ensemble`): None
             (on where it applies), negative (off: the policy's own chunks) or its ``k``.
+        ensemble_every: with ensembling, a new chunk every this many frames
+            (``eval.ensemble_every``).
 
     Raises:
         PolicyError: nothing loadable, not written by ``stage=train``, or unreadable; an
@@ -616,8 +635,11 @@ def load_policy(
         info.steps,
         path,
         dev,
-        "" if k is None else f", temporal ensembling k={k:g}",
+        ""
+        if k is None
+        else f", temporal ensembling k={k:g}"
+        + (f", a chunk every {ensemble_every} frames" if ensemble_every > 1 else ""),
     )
-    loaded = LoadedPolicy(info, path, policy, pre, post, dev, k)
+    loaded = LoadedPolicy(info, path, policy, pre, post, dev, k, ensemble_every)
     loaded.perception = perception
     return loaded

@@ -65,6 +65,11 @@ def check_config(ec: Any) -> None:
     ensemble = getattr(ec, "ensemble", None)
     if ensemble is not None and not math.isfinite(float(ensemble)):
         raise ConfigError(f"eval.ensemble must be a finite number or null, got {ensemble}")
+    every = getattr(ec, "ensemble_every", 1)
+    if not isinstance(every, int) or isinstance(every, bool) or every < 1:
+        raise ConfigError(
+            f"eval.ensemble_every={every!r}: a whole number of frames >= 1 (1: a chunk every frame)"
+        )
     scenes = ec.scenes
     if isinstance(scenes, str):
         if scenes not in ("heldout", "train"):
@@ -207,12 +212,14 @@ def _check_policy_exists(ref: str, run_dir: Path) -> None:
     )
 
 
-def _load_trained(ref: str, run_dir: Path, device: str, ensemble: float | None) -> Any:
+def _load_trained(
+    ref: str, run_dir: Path, device: str, ensemble: float | None, every: int = 1
+) -> Any:
     try:
         from factory.policy.checkpoint import load_policy
     except ImportError as e:  # pragma: no cover - the module is part of the package
         raise PolicyError(f"trained policies cannot be loaded here ({e})") from None
-    return load_policy(ref, run_dir, device, ensemble)
+    return load_policy(ref, run_dir, device, ensemble, every)
 
 
 def _check_features(info: Any, spec: Any) -> None:
@@ -268,6 +275,10 @@ def _identity(
         "interpolate": ec.interpolate,
         "dataset": str(dataset),
         "ensemble": getattr(policy, "ensemble", None),
+        # only when set: earlier evaluations' folders keep resuming
+        **(
+            {"ensemble_every": every} if (every := getattr(policy, "ensemble_every", 1)) > 1 else {}
+        ),
     }
 
 
@@ -329,7 +340,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
     kind = ref if ref in KINDS else "trained"
     policy = None
     if kind == "trained":
-        policy = _load_trained(ref, run_dir, ec.device, getattr(ec, "ensemble", None))
+        policy = _load_trained(
+            ref, run_dir, ec.device, getattr(ec, "ensemble", None), getattr(ec, "ensemble_every", 1)
+        )
         name = slug(policy.info.name)
         dataset = Path(ec.dataset or policy.info.dataset)
         train_scenes = list(policy.info.scenes)
@@ -458,6 +471,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         task=task.name,
         executor=executor,
         ensemble=policy.ensemble if policy is not None else None,
+        ensemble_every=policy.ensemble_every if policy is not None else 1,
     )
     with tqdm(
         total=len(jobs),
@@ -493,6 +507,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
             "max_steps": max_steps,
             "controller": "interpolate" if ec.interpolate else "hold",
             "ensemble": policy.ensemble if policy is not None else None,
+            "ensemble_every": policy.ensemble_every if policy is not None else 1,
             "seed_root": ec.seed,
             "executor": executor,
             "timing_this_call": sum_timings(timings),

@@ -51,6 +51,7 @@ class UnitSettings:
         executor: the env's simulation, ``cpu`` or ``warp`` (``eval.executor``).
         ensemble: a trained policy's temporal ensembling ``k`` as resolved where it was
             loaded first (None: off).
+        ensemble_every: with ensembling, a new chunk every this many frames.
     """
 
     run_dir: Path
@@ -67,6 +68,7 @@ class UnitSettings:
     task: str
     executor: str = "cpu"
     ensemble: float | None = None
+    ensemble_every: int = 1
 
 
 @dataclass
@@ -437,7 +439,11 @@ def _init_worker(
 
         k = settings.ensemble
         policy = load_policy(
-            settings.policy_ref, settings.run_dir, settings.device, -1.0 if k is None else k
+            settings.policy_ref,
+            settings.run_dir,
+            settings.device,
+            -1.0 if k is None else k,
+            settings.ensemble_every,
         )
     _RUNNER = UnitRunner(settings, policy)
 

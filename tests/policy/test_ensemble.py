@@ -53,6 +53,27 @@ def test_ensemble_averages_the_kept_chunks_oldest_first() -> None:
     assert float(ens.select_action(obs)[0, 0]) == pytest.approx(30.0)
 
 
+def test_ensemble_every_other_frame_predicts_half_as_often() -> None:
+    """``eval.ensemble_every=2``: a chunk on frames 0, 2, 4; every frame the weighted mean of the
+    chunks kept, the observation queues filled every frame."""
+    a = torch.tensor([[[0.0], [1.0], [2.0]]])
+    b = torch.tensor([[[10.0], [11.0], [12.0]]])
+    c = torch.tensor([[[20.0], [21.0], [22.0]]])
+    policy = _Chunks([a, b, c])
+    ens = ChunkEnsemble(policy, k=1.0, every=2)
+    obs = {"observation.state": torch.zeros(1, 5), "action": None}
+    w = math.exp(-1.0)
+    got = [float(ens.select_action(obs)[0, 0]) for _ in range(5)]
+    assert got[0] == pytest.approx(0.0)
+    assert got[1] == pytest.approx(1.0)  # a alone, no new chunk
+    assert got[2] == pytest.approx((2.0 + w * 10.0) / (1 + w))
+    assert got[3] == pytest.approx(11.0)  # a has ended
+    assert got[4] == pytest.approx((12.0 + w * 20.0) / (1 + w))
+    assert len(policy.seen) == 3 and len(policy._queues["observation.state"]) == 2
+    with pytest.raises(PolicyError, match="ensemble_every=4"):
+        ChunkEnsemble(_Chunks([]), k=0.1, every=4)  # longer than a chunk (3 frames)
+
+
 def _info(policy_type: str = "diffusion", action: str = "tool") -> TrainInfo:
     return TrainInfo(
         name="p",
@@ -77,3 +98,14 @@ def test_ensemble_setting_resolves_per_policy() -> None:
     assert resolve_ensemble(0.5, _info()) == 0.5
     with pytest.raises(PolicyError, match=r"eval\.ensemble=-1"):
         resolve_ensemble(0.1, _info(action="tool_rel"))
+
+
+@pytest.mark.parametrize("every", [0, -2, 1.5, True])
+def test_ensemble_every_refused(every: Any) -> None:
+    from factory.config import EvalConfig
+    from factory.errors import ConfigError
+    from factory.policy.eval_stage import check_config
+
+    with pytest.raises(ConfigError, match=r"eval\.ensemble_every="):
+        check_config(EvalConfig(ensemble_every=every))
+    check_config(EvalConfig(ensemble_every=3))
