@@ -76,6 +76,8 @@ ENSEMBLE_KS=${ENSEMBLE_KS:-$([ -n "$ENSEMBLE_AB" ] && echo -1 || true)}  # eval.
 # values evaluated beside the default (e.g. "-1 0.3": eval/<inputs>-plain, eval/<inputs>-k0.3)
 KS_EPISODES=${KS_EPISODES:-$EVAL_EPISODES}  # their configurations per held-out kitchen (the
 # first of the default's: the same seeds)
+EVAL_ARGS=${EVAL_ARGS:-}  # more eval.* overrides of every final evaluation of the policy, CPU
+# and Warp (shell-quoted words), e.g. eval.ensemble_every=2
 EXPORT_PARTS=${EXPORT_PARTS:-}  # e.g. 15M: once trained, $OUT_DIR/policy-<name>.tar.partNN, the
 # policy's pretrained_model (with the perception's files) and train.json in pieces of that size,
 # for a machine whose files come back one size-limited file at a time (cat the parts, untar)
@@ -190,8 +192,9 @@ evaluate_one() {  # evaluate_one <inputs> <visible GPUs or empty> <workers> <epi
   [ -z "$2" ] || gpu_env=(env CUDA_VISIBLE_DEVICES="$2")
   pin "${EVAL_CORES:-$CPU_PIN}" "${gpu_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" \
     eval.episodes_per_scene="$4" eval.device="$DEVICE" eval.videos=2 \
-    eval.workers="$3" eval.batch=8 "${@:5}"
+    eval.workers="$3" eval.batch=8 "${eval_extra[@]}" "${@:5}"
 }
+eval "eval_extra=($EVAL_ARGS)"
 gpu_of() {  # the GPU a policy uses: empty (the default) without SECOND_GPU
   if [ -z "$SECOND_GPU" ]; then echo ""; elif [ "$1" = "$INPUTS" ]; then echo 0; else echo "$SECOND_GPU"; fi
 }
@@ -291,7 +294,7 @@ EOF3
   }
   log "4a. MuJoCo Warp: $INPUTS on $EVAL_EPISODES per held-out kitchen, then replay of $REPLAY_LIST"
   warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES" \
-    eval.workers="$WARP_WORKERS"
+    eval.workers="$WARP_WORKERS" "${eval_extra[@]}"
   warp_one replay replay-warp "eval.scenes=$REPLAY_LIST" eval.workers=1
   [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS"
