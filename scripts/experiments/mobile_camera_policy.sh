@@ -126,6 +126,9 @@ $PY -m factory stage=eval run_dir="$RUN" $EVAL_COMMON eval.policy=planner eval.n
   > "$OUT_DIR/planner.log" 2>&1 &
 PLANNER=$!
 eval "train_extra=($TRAIN_ARGS)"
+curve_device=$DEVICE  # the curve's inference on GPU 1 of a two-GPU machine, off the training's
+# GPU (camera_policy.sh's reason: each curve process time-slices the GPU it runs on)
+if [ "$DEVICE" != cpu ] && [ "$(nvidia-smi -L 2>/dev/null | wc -l)" -gt 1 ]; then curve_device=cuda:1; fi
 wait_for "$TRAIN_AFTER"
 t1=$(date +%s)
 $PY -m factory stage=train run_dir="$RUN" $EVAL_COMMON train.name="$NAME" train.inputs="$INPUTS" \
@@ -134,7 +137,7 @@ $PY -m factory stage=train run_dir="$RUN" $EVAL_COMMON train.name="$NAME" train.
   train.device="$DEVICE" train.save_every=1000 train.log_every=100 \
   train.eval_every_minutes="$CURVE_MINUTES" train.eval_episodes="$CURVE_EPISODES" \
   eval.workers=$(( EVAL_WORKERS / 2 > 0 ? EVAL_WORKERS / 2 : 1 )) eval.batch=8 \
-  eval.device="$DEVICE" "${train_extra[@]}" || log "   the training failed"
+  eval.device="$curve_device" "${train_extra[@]}" || log "   the training failed"
 t_train=$(date +%s)
 log "   trained in $(( t_train - t1 )) s"
 cp "$RUN/policy/$NAME/train_log.jsonl" "$OUT_DIR/train_log-$NAME.jsonl" || true
