@@ -624,14 +624,17 @@ class EvalConfig:
             of a scene's episodes unless set; the task's checks stay the CPU's:
             :mod:`factory.policy.warp_sim`).
         ensemble: temporal ensembling of a trained diffusion policy's chunks
-            (:class:`factory.policy.checkpoint.ChunkEnsemble`): a chunk every frame, the
-            frame's action the mean of every kept chunk's prediction for it weighted
+            (:class:`factory.policy.checkpoint.ChunkEnsemble`): a chunk every
+            ``ensemble_every`` frames, each frame's action the mean of every kept chunk's
+            prediction for it weighted
             ``exp(-k * age)``, oldest first. None: on with ``k = 0.1`` where it applies
             (diffusion, ``tool`` or ``joint`` actions, not the mobile robot), else off; a
             negative value: off (``n_action_steps`` actions of each chunk, lerobot's way);
             ``k >= 0``: on with this ``k`` (refused where it does not apply).
         ensemble_every: with ensembling, a new chunk every this many frames (1: every frame;
-            m: about m times less inference, the kept chunks still averaged every frame).
+            m: about m times less inference, the kept chunks still averaged every frame;
+            default 2: on one state policy 94.4 % held out against 87.8 % every frame, in
+            43 % of the time, ``benchmarks/results/policy-ensemble-every-cpu2.json``).
     """
 
     policy: str = ""
@@ -651,7 +654,7 @@ class EvalConfig:
     out: str = ""
     executor: str = "cpu"
     ensemble: float | None = None
-    ensemble_every: int = 1
+    ensemble_every: int = 2
 
 
 @dataclass
