@@ -17,20 +17,17 @@ CFG = IKConfig(max_iters=20, pos_tol=5e-4, rot_tol_deg=0.5)  # the policy's trac
 
 def _path(n: int, frames: int) -> tuple[np.ndarray, list, list]:
     """Start joints (n, 7) near home and, per frame, tool targets drifting 4 mm and 0.5 deg a
-    frame with 1 mm of noise (a policy's predicted tool path)."""
-    rng = np.random.default_rng(n)
-    q0 = np.asarray(HOME_QPOS, float) + rng.normal(0, 0.2, (n, 7))
-    pos0, rot0, _ = BatchTracker(CFG).kinematics(q0)
-    dirs = rng.normal(0, 1, (n, 3))
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    axes = rng.normal(0, 1, (n, 3))
-    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    pos = [pos0 + dirs * 0.004 * (f + 1) + rng.normal(0, 0.001, (n, 3)) for f in range(frames)]
-    rot = [
-        Rotation.from_rotvec(axes * np.radians(0.5) * (f + 1)).as_matrix() @ rot0
-        for f in range(frames)
-    ]
-    return q0, pos, rot
+    frame with 1 mm of noise: ``scripts/bench_tool_tracker.py``'s paths (the benchmark's and
+    this test's are the same)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "scripts" / "bench_tool_tracker.py"
+    spec = importlib.util.spec_from_file_location("_bench_tool_tracker", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench.paths(n, frames, far=False)
 
 
 def test_batch_tracker_follows_mink_on_a_tool_path() -> None:
