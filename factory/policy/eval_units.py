@@ -276,8 +276,10 @@ PROGRESS_LOG_EVERY_S = 60.0
 
 
 def progress_path(videos_dir: Path, unit: Unit) -> Path:
-    """``<eval out>/progress/<scene>-<first episode index>.json``: a running unit's file."""
-    first = unit.jobs[0].index if unit.jobs else 0
+    """``<eval out>/progress/<scene>-<first episode>.json``: a running unit's file (its first
+    configuration's index, or a replay's recorded episode id)."""
+    job = unit.jobs[0] if unit.jobs else None
+    first = str((job.episode_id or job.index) if job is not None else 0).replace("/", "_")
     return videos_dir.parent / "progress" / f"{unit.scene}-{first}.json"
 
 

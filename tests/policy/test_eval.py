@@ -254,6 +254,8 @@ def test_unit_progress_file_and_its_log_line(
     unit = Unit("kitchen_x", [Job(scene="kitchen_x", index=30, seed=1)], size=90)
     path = progress_path(tmp_path / "eval" / "mine" / "videos", unit)
     assert path == tmp_path / "eval" / "mine" / "progress" / "kitchen_x-30.json"
+    replay = Unit("kitchen_x", [Job(scene="kitchen_x", seed=1, episode_id="kitchen_x/ep_7")], 4)
+    assert progress_path(tmp_path / "videos", replay).name == "kitchen_x-kitchen_x_ep_7.json"
     report = UnitProgress(path, unit, 90, 12.5, 684, log_as="mine")
     timing = BatchTiming(frames=7, step_s=1.5, act_s=4.25)
     with caplog.at_level(logging.INFO, logger="factory.policy.eval_units"):
