@@ -18,6 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from factory.demos.record.contacts import robot_penetration
 from factory.demos.record.frame_render import CameraStrip, size_offscreen
 from factory.demos.record.payload import STATE_SPEC
 from factory.robots.panda import CAMERAS, RobotIndex
@@ -134,22 +135,6 @@ def robot_signals(
     mujoco.mju_mat2Quat(quat, data.site_xmat[robot.site])
     ee = np.concatenate([data.site_xpos[robot.site], quat])
     return q, width, ee
-
-
-def robot_penetration(
-    model: mujoco.MjModel, data: mujoco.MjData, robot_geom: np.ndarray, allowed: np.ndarray
-) -> float:
-    """Deepest contact between a robot geom and a scene geom not in ``allowed`` (m; 0 where
-    none penetrates), over the contacts' arrays at once."""
-    n = int(data.ncon)
-    if n == 0:
-        return 0.0
-    geom = np.asarray(data.contact.geom)[:n]
-    dist = np.asarray(data.contact.dist)[:n]
-    first = robot_geom[geom[:, 0]]
-    other = np.where(first, geom[:, 1], geom[:, 0])
-    hit = (first != robot_geom[geom[:, 1]]) & ~allowed[other]
-    return max(0.0, float(-dist[hit].min())) if hit.any() else 0.0
 
 
 def new_recordings(n_frames: list[int], cfg: RecordConfig, nstate: int) -> list[Recording]:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
+from factory.demos.record.contacts import robot_penetration
 from factory.demos.record.frame_render import CameraStrip, size_offscreen
 from factory.robots.panda import CAMERAS, RobotIndex
 
@@ -128,19 +129,3 @@ def robot_signals(
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, data.site_xmat[robot.site])
     return q, float(fingers[0] - fingers[1]), np.concatenate([data.site_xpos[robot.site], quat])
-
-
-def robot_penetration(
-    model: mujoco.MjModel, data: mujoco.MjData, robot_geom: np.ndarray, allowed: np.ndarray
-) -> float:
-    """Deepest contact (m) between a robot geom and a scene geom not in ``allowed``."""
-    worst = 0.0
-    for c in data.contact[: data.ncon]:
-        g1, g2 = int(c.geom[0]), int(c.geom[1])
-        if robot_geom[g1] == robot_geom[g2]:
-            continue
-        other = g2 if robot_geom[g1] else g1
-        if allowed[other]:
-            continue
-        worst = max(worst, -float(c.dist))
-    return worst

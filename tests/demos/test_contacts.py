@@ -1,4 +1,4 @@
-"""``factory.demos.execute.cpu``'s contact check (``robot_penetration``)."""
+"""``factory.demos.record.contacts`` (``robot_penetration``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import itertools
 import mujoco
 import numpy as np
 
-from factory.demos.execute.cpu import robot_penetration
+from factory.demos.record.contacts import robot_penetration
 
 XML = """<mujoco><worldbody><geom type='plane' size='2 2 .1'/>
 <body pos='0 0 0.05'><freejoint/><geom type='box' size='.1 .1 .1'/></body>
