@@ -49,6 +49,7 @@ from factory.demos.execute.cpu import (
     finish_recordings,
 )
 from factory.demos.execute.world_schedule import WorldSchedule
+from factory.demos.record.frame_render import NEAR_CLIP_M
 from factory.errors import AppearanceError, RenderError
 from factory.robots.panda import CAMERAS
 from factory.sim.kernel_preload import PreloadReport
@@ -304,7 +305,7 @@ def buffer_sizes(model: mujoco.MjModel, qpos: np.ndarray, headroom: float = 3.0)
     return nconmax, njmax
 
 
-RENDER_CLIP = (0.01, 100.0)
+RENDER_CLIP = (NEAR_CLIP_M, 100.0)
 """Near and far clip distances (m) of the GPU renderer's cameras, the same in every scene.
 MuJoCo Warp's render kernel takes them as compile-time constants (``vis.map.znear`` and
 ``zfar`` times the scene's ``stat.extent``), so clip planes that followed the scene's extent

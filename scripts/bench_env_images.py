@@ -1,0 +1,149 @@
+"""Benchmark of what a camera policy sees on the two evaluation executors: the first
+observation of the same evaluation configurations drawn by the CPU env (OpenGL,
+:class:`~factory.demos.execute.cpu.FrameRenderer`) and by the env on MuJoCo Warp
+(``eval.executor=warp``, its batch ray tracer; on Warp's CPU device where there is no CUDA).
+
+For each scene and camera: the mean absolute RGB difference (0-255), the median absolute depth
+difference (mm) and the fraction of pixels whose depth differs by more than 10 mm; the robot's
+and objects' states must be equal (the same configurations). A policy trained on one renderer's
+images meets the other's at evaluation: these are the differences it has to bear.
+
+    python scripts/bench_env_images.py --run-dir runs/camera --configs 4 --tag cpu2 \
+        --save-images benchmarks/results/env-images
+
+``--seeds-from`` takes the configurations of an evaluation's ``results.json`` (its ``seeds``);
+default: the first ``--configs`` evaluation seeds of each scene (``eval.seed=0``,
+:func:`factory.policy.env.eval_seed`).
+Prints and saves JSON to ``benchmarks/results/env-images-<tag>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import platform
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from factory.policy.env import make_vec_env  # noqa: E402
+from factory.policy.eval import Job, run_batch  # noqa: E402
+from factory.policy.obs_spec import ObsSpec  # noqa: E402
+
+CAMERAS = ("left", "right", "wrist")
+
+
+def first_observation(
+    run: Path, scene: str, seeds: list[int], spec: ObsSpec, executor: str
+) -> dict[str, np.ndarray]:
+    """The env's observation after reset of the configurations ``seeds`` of ``scene``
+    (key -> (n, ...))."""
+    jobs = [Job(scene=scene, seed=s, index=i, max_steps=1) for i, s in enumerate(seeds)]
+    vec, _ = make_vec_env(run, scene, len(jobs), spec, nthread=4, executor=executor)
+    seen: list[dict[str, np.ndarray]] = []
+
+    def hold(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
+        seen.append({k: np.array(v) for k, v in obs.items()})
+        return np.zeros((len(steps), vec.action_dim), np.float32)
+
+    try:
+        run_batch(vec, jobs, hold)
+    finally:
+        vec.close()
+    return seen[0]
+
+
+def compare(cpu: dict[str, np.ndarray], gpu: dict[str, np.ndarray]) -> dict[str, object]:
+    """Per camera: RGB mean absolute difference, depth median absolute difference (mm) and the
+    fraction of depth pixels more than 10 mm apart; and the largest state difference."""
+    row: dict[str, object] = {
+        "state_max_abs": float(
+            max(
+                np.abs(cpu[k].astype(float) - gpu[k]).max()
+                for k in cpu
+                if not k.startswith(("observation.images", "observation.depth"))
+            )
+        )
+    }
+    for c in CAMERAS:
+        a, b = cpu[f"observation.images.{c}"], gpu[f"observation.images.{c}"]
+        da = cpu[f"observation.depth.{c}"].astype(float)
+        db = gpu[f"observation.depth.{c}"].astype(float)
+        row[c] = {
+            "rgb_mean_abs": round(float(np.abs(a.astype(float) - b).mean()), 2),
+            "depth_median_abs_mm": float(np.median(np.abs(da - db))),
+            "depth_frac_over_10mm": round(float((np.abs(da - db) > 10).mean()), 4),
+        }
+    return row
+
+
+def save_strip(path: Path, cpu: dict[str, np.ndarray], gpu: dict[str, np.ndarray]) -> None:
+    """The first configuration's cameras, OpenGL above and MuJoCo Warp below, as a PNG."""
+    from PIL import Image
+
+    top = np.concatenate([cpu[f"observation.images.{c}"][0] for c in CAMERAS], 1)
+    bottom = np.concatenate([gpu[f"observation.images.{c}"][0] for c in CAMERAS], 1)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.concatenate([top, bottom], 0)).save(path)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--run-dir", type=Path, required=True)
+    ap.add_argument("--scenes", nargs="*", default=None, help="default: every scene of the run")
+    ap.add_argument("--configs", type=int, default=4)
+    ap.add_argument("--seeds-from", type=Path, default=None)
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--tag", default="cpu")
+    ap.add_argument("--save-images", type=Path, default=None)
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args()
+    from factory.policy.env import eval_seed
+
+    scenes = args.scenes or sorted(p.name for p in (args.run_dir / "scenes").iterdir())
+    given = json.loads(args.seeds_from.read_text())["seeds"] if args.seeds_from else {}
+    spec = ObsSpec(cameras=CAMERAS, width=args.size, height=args.size, env_state=True)
+    rows = {}
+    for scene in scenes:
+        default = [eval_seed(0, scene, k) for k in range(args.configs)]
+        seeds = [int(s) for s in given.get(scene, default)][: args.configs]
+        cpu = first_observation(args.run_dir, scene, seeds, spec, "cpu")
+        gpu = first_observation(args.run_dir, scene, seeds, spec, "warp")
+        rows[scene] = compare(cpu, gpu)
+        print(scene, json.dumps(rows[scene]), flush=True)
+        if args.save_images is not None:
+            save_strip(args.save_images / f"{scene}.png", cpu, gpu)
+    sha = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT
+    ).stdout.strip()
+    import warp as wp
+
+    out = {
+        "schema_version": 1,
+        "benchmark": "env-images",
+        "date": datetime.date.today().isoformat(),
+        "machine": platform.platform(),
+        "warp_device": str(wp.get_preferred_device()),
+        "git_sha": sha,
+        "command": " ".join(sys.argv),
+        "configs_per_scene": args.configs,
+        "size_px": args.size,
+        "scenes": rows,
+    }
+    path = args.out or ROOT / "benchmarks" / "results" / f"env-images-{args.tag}.json"
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(out, indent=1) + "\n")
+    tmp.replace(path)
+    print(f"saved {path}")
+
+
+if __name__ == "__main__":
+    main()
