@@ -27,6 +27,7 @@ import json
 import logging
 import os
 import shutil
+import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -388,6 +389,13 @@ class ChunkEnsemble:
         return (w[:, None, None] * preds).sum(0) / w.sum()
 
 
+ACT_PARTS = ("convert_s", "perception_s", "policy_s", "ik_s")
+"""Where :meth:`LoadedPolicy.act`'s time goes (s): the observation converted to model inputs
+(with a perception network on a GPU, the images' bytes copied there); the perception network
+(to its positions back on the host); the preprocessor, the diffusion's chunk (or the queued
+action) and the postprocessor, to actions on the host; the tool actions' IK."""
+
+
 class LoadedPolicy:
     """A trained policy ready to act in the env: every conversion the training applied.
 
@@ -434,6 +442,14 @@ class LoadedPolicy:
         )
         if self._ensemble is not None:
             policy.reset()  # the queues of the longer chunks
+        self.act_times: dict[str, float] = dict.fromkeys(ACT_PARTS, 0.0)
+        """Seconds of :meth:`act` by part since :meth:`take_act_times` (see :data:`ACT_PARTS`)."""
+
+    def take_act_times(self) -> dict[str, float]:
+        """:attr:`act_times` (s, rounded to ms), then zeroed."""
+        out = {k: round(v, 3) for k, v in self.act_times.items()}
+        self.act_times = dict.fromkeys(ACT_PARTS, 0.0)
+        return out
 
     @property
     def policy(self) -> Any:
@@ -477,7 +493,13 @@ class LoadedPolicy:
         if not self._checked:
             check_features(self.info, obs, {k: np.shape(v)[1:] for k, v in obs.items()})
             self._checked = True
-        batch = convert_observation(self.spec, obs)
+        clock, times = time.perf_counter, self.act_times
+        t0 = clock()
+        # a perception network reads the images on its device: the raw bytes go there
+        on = self.device if self.perception is not None and self.device != "cpu" else None
+        batch = convert_observation(self.spec, obs, on)
+        t1 = clock()
+        times["convert_s"] += t1 - t0
         if self.perception is not None:  # the object poses read from the cameras
             from factory.policy.perception import camera_stack
 
@@ -501,6 +523,8 @@ class LoadedPolicy:
             if self.spec.mobile:  # the sub-task one-hot follows the predicted values
                 env = torch.cat([env, batch["observation.environment_state"]], -1)
             batch["observation.environment_state"] = env
+        t2 = clock()
+        times["perception_s"] += t2 - t1
         with torch.inference_mode():
             if chunk_starts(self._policy):
                 # this chunk's positions are relative to the tool's position now, its base
@@ -518,6 +542,8 @@ class LoadedPolicy:
             action = self._post(action)
         out = np.asarray(action.detach().to("cpu").numpy(), np.float32)
         out = out.reshape(-1, self.spec.action_dim)
+        t3 = clock()
+        times["policy_s"] += t3 - t2
         if self.spec.mobile:
             assert self._base_origin is not None
             base = base_absolute(out[:, -BASE_DIM:], self._base_origin)
@@ -525,6 +551,7 @@ class LoadedPolicy:
         if self._tracker is not None:
             origin = self._origin if self.spec.action == "tool_rel" else None
             arm = self._tracker.joints(out[:, :10], np.asarray(obs["observation.state"]), origin)
+            times["ik_s"] += clock() - t3
             if self.spec.mobile:  # the base target follows the arm's columns as predicted
                 return np.concatenate([arm, out[:, 10:]], axis=1).astype(np.float32)
             return arm

@@ -240,15 +240,21 @@ class UnitRunner:
             log_as=s.videos_dir.parent.name if self.inline else None,
         )
         report.write(timing)
+        act_parts: dict[str, float] = {}
         if self.policy is not None:
             policy = self.policy
 
             def actor(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
                 return np.asarray(policy.act(obs), np.float32)
 
+            take = getattr(policy, "take_act_times", None)
+            if take is not None:
+                take()
             records, frames = run_batch(
                 env, batch, actor, video, policy.reset, timing, report.maybe_write
             )
+            if take is not None:
+                act_parts = {f"act_{k}": v for k, v in take().items()}
         else:
             records, frames = run_batch(
                 env, batch, scripted_actor(batch), video, timing=timing, progress=report.maybe_write
@@ -261,6 +267,7 @@ class UnitRunner:
         times = {
             "setup_s": round(setup_s, 3),
             **timing.as_dict(),
+            **act_parts,
             "episodes": len(batch),
             "worlds": int(env.num_envs),
         }
@@ -361,10 +368,18 @@ TIMED = ("setup_s", "reset_s", "step_s", "observe_s", "act_s", "video_s")
 """The seconds of :attr:`UnitResult.timing`, in the order they are logged."""
 
 
+ACT_TIMED = ("act_convert_s", "act_perception_s", "act_policy_s", "act_ik_s")
+"""A trained policy's ``act_s`` by part (:data:`factory.policy.checkpoint.ACT_PARTS`)."""
+
+
 def log_unit_timing(name: str, scene: str, timing: dict[str, float]) -> None:
-    """One line per finished unit: its episodes, frames and where its seconds went."""
+    """One line per finished unit: its episodes, frames and where its seconds went (a trained
+    policy's ``act`` by part too)."""
     total = sum(float(timing.get(k, 0.0)) for k in TIMED)
     parts = ", ".join(f"{k[:-2]} {float(timing.get(k, 0.0)):.1f}" for k in TIMED)
+    if any(k in timing for k in ACT_TIMED):
+        split = ", ".join(f"{k[4:-2]} {float(timing.get(k, 0.0)):.1f}" for k in ACT_TIMED)
+        parts += f"; act: {split}"
     log.info(
         "eval %s: scene %s: %d episode(s) on %d world(s), %d frames in %.1f s (%s s)",
         name,
@@ -382,7 +397,8 @@ def sum_timings(timings: list[dict[str, float]]) -> dict[str, float]:
     ``results.json`` keeps as ``timing_this_call`` (empty when no unit ran in this call)."""
     if not timings:
         return {}
-    keys = (*TIMED, "frames", "episodes")
+    split = any(k in t for t in timings for k in ACT_TIMED)
+    keys = (*TIMED, *(ACT_TIMED if split else ()), "frames", "episodes")
     out: dict[str, float] = {k: 0.0 for k in keys}
     for t in timings:
         for k in keys:

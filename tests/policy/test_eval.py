@@ -155,6 +155,10 @@ def test_worker_processes_give_the_same_episodes(policy_run: Path, pcli) -> None
     assert out.returncode == 0, out.stderr[-3000:]
     r = _results(policy_run, "tiny")
     assert r["episodes"] == 2 and list(r["per_scene"]) == ["kitchen_b"]
+    # a trained policy's act by part: the parts are within its act seconds
+    t = r["timing_this_call"]
+    parts = [t[k] for k in ("act_convert_s", "act_perception_s", "act_policy_s", "act_ik_s")]
+    assert t["act_policy_s"] > 0 and sum(parts) <= t["act_s"] + 1e-3, t
     assert all(
         0 < rec["steps"] <= 4
         for rec in read_records(policy_run / "eval" / "tiny" / "episodes.jsonl")

@@ -238,3 +238,45 @@ def test_tool_actions_are_the_joint_targets_tool_pose_and_track_back_to_it() -> 
     tracker.reset()
     first = tracker.joints(tool[:1], state)
     assert np.allclose(first[0, :7], start, atol=0.05)
+
+
+def _raw_observation(rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """An env observation of two worlds: state, tool pose, one camera's RGB and depth (mm,
+    some beyond int16's range)."""
+    mm = rng.integers(0, 65536, size=(2, 32, 48)).astype(np.uint16)
+    mm[0, 0, :4] = [0, 1999, 40000, 65535]
+    return {
+        "observation.state": np.tile(
+            np.array([0.0, -0.35, 0.0, -2.3, 0.0, 1.95, 0.785, 0.08], np.float32), (2, 1)
+        ),
+        "observation.ee_pose": np.tile(np.array([0.4, 0, 0.4, 0, 1, 0, 0], np.float32), (2, 1)),
+        "observation.images.left": rng.integers(0, 256, size=(2, 32, 48, 3)).astype(np.uint8),
+        "observation.depth.left": mm,
+    }
+
+
+def _devices() -> list[str]:
+    import torch
+
+    return ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+
+
+@pytest.mark.parametrize("device", _devices())
+def test_images_converted_on_a_device_are_the_same_values(device: str) -> None:
+    """``convert_observation(..., device)``: the images' and depth's raw bytes are moved to the
+    device and converted there (uint16 millimetres above 32,767 included), to the values the
+    CPU conversion gives; the vectors stay on the CPU. On the GPU machine also on CUDA."""
+    import torch
+
+    from factory.policy.inputs import convert_observation
+
+    spec = InputSpec("rgbd", ("left",), (32, 48))
+    obs = _raw_observation(np.random.default_rng(3))
+    host = convert_observation(spec, obs)
+    moved = convert_observation(spec, obs, torch.device(device))
+    assert set(host) == set(moved)
+    for k in ("observation.images.left", "observation.depth.left"):
+        assert moved[k].device.type == device and moved[k].dtype == torch.float32, k
+        assert torch.equal(moved[k].cpu(), host[k]), k
+    assert moved["observation.state"].device.type == "cpu"
+    assert float(host["observation.depth.left"][0, 0, 0, 2]) == 1.0  # 40 m: beyond the range
