@@ -18,7 +18,8 @@
 # the same time on that GPU: the other input kind (rgb beside rgbd), or a variant of the recipe
 # (SECOND_NAME=rgbd128 SECOND_INPUTS=rgbd SECOND_ARGS='train.options={diffusion: {resize_shape:
 # [128, 128]}}'): two recipes for the device time of one on a machine that counts in full.
-# With EVAL_WARP=1, when the training ends, the recorded episodes of the first REPLAY_SCENES
+# With EVAL_WARP=1 (and WARP_WARM, the default) the held-out kitchens' MuJoCo Warp kernels are
+# compiled during the training; when the training ends, the recorded episodes of the first REPLAY_SCENES
 # training kitchens are replayed and the policy is evaluated on the same held-out
 # configurations with eval.executor=warp (each timed, the policy first: the env preloads its
 # kernels, and results.json's timing_this_call and the log's per-scene lines say where the time
@@ -68,6 +69,12 @@ SECOND_VISION=${SECOND_VISION:-$VISION}  # its train.vision
 EVAL_WARP=${EVAL_WARP:-}  # 1: replays and the policy on MuJoCo Warp too (header)
 REPLAY_SCENES=${REPLAY_SCENES:-3}  # with EVAL_WARP: training kitchens replayed on both executors
 WARP_PLANNER=${WARP_PLANNER:-}  # 1 (with EVAL_WARP): the planner on MuJoCo Warp as well
+WARP_WARM=${WARP_WARM-1}  # with EVAL_WARP: during the training, the held-out kitchens' MuJoCo Warp
+# kernels compiled into the kernel cache by an evaluation of the policy's first checkpoint on
+# MuJoCo Warp, 1 episode of 2 frames per kitchen (its cameras, depth and image size: the final
+# evaluation's kernels; 2 cores, its inference on the CPU; GPU 1 of a two-GPU machine), so that
+# the final Warp evaluation reads them (bare H200, 2026-11-29: its 3 processes spent 97-123 s
+# each compiling them); WARP_WARM= for a cold one
 WARP_WORKERS=${WARP_WORKERS:-3}  # processes driving the GPU for the policy (a scene each at a
 # time: one's host work overlaps another's launches); the replay builds the kernels in one
 ENSEMBLE_AB=${ENSEMBLE_AB:-}  # 1: the final evaluation also without temporal ensembling
@@ -198,6 +205,30 @@ eval "eval_extra=($EVAL_ARGS)"
 gpu_of() {  # the GPU a policy uses: empty (the default) without SECOND_GPU
   if [ -z "$SECOND_GPU" ]; then echo ""; elif [ "$1" = "$INPUTS" ]; then echo 0; else echo "$SECOND_GPU"; fi
 }
+WARM_PID=""
+if [ -n "$EVAL_WARP" ] && [ -n "$WARP_WARM" ]; then  # the Warp kernels, beside the training
+  warm_env=()
+  [ "$curve_device" != cuda:1 ] || warm_env=(env CUDA_VISIBLE_DEVICES=1)
+  warm_pin=0-$(( JOBS - 1 ))
+  [ "$JOBS" -le 6 ] || warm_pin=$(( JOBS - 2 ))-$(( JOBS - 1 ))
+  (
+    first="$RUN/policy/$INPUTS/checkpoints/last/pretrained_model"
+    waited=0  # the first checkpoint (train.save_every), or the training's end
+    while [ ! -e "$first" ] && [ "$waited" -lt $(( ${TRAIN_MINUTES%.*} * 60 + 600 )) ]; do
+      sleep 10; waited=$(( waited + 10 ))
+    done
+    t3=$(date +%s)
+    pin "$warm_pin" "${warm_env[@]}" $PY -m factory stage=eval run_dir="$RUN" $COMMON \
+      eval.policy="$INPUTS" eval.executor=warp eval.device=cpu eval.name=warp-warmup \
+      eval.episodes_per_scene=1 eval.max_steps=2 eval.workers=1 eval.videos=0 \
+      > "$OUT_DIR/eval-warp-warmup.log" 2>&1 \
+      || log "   the Warp kernels' warm-up failed: $OUT_DIR/eval-warp-warmup.log"
+    echo "{\"name\": \"warp-warmup\", \"seconds\": $(( $(date +%s) - t3 )), \"beside\": \"the training\"}" \
+      > "$OUT_DIR/time-warp-warmup.json"
+    log "   the held-out kitchens' Warp kernels compiled in $(( $(date +%s) - t3 )) s"
+  ) &
+  WARM_PID=$!
+fi
 t1=$(date +%s)
 pids=()
 for p in $POLICIES; do
@@ -292,6 +323,7 @@ EOF3
 \"beside\": \"the CPU evaluations\"}" > "$OUT_DIR/time-$2.json"
     log "   $2 on MuJoCo Warp in $(( $(date +%s) - t2 )) s"
   }
+  [ -z "$WARM_PID" ] || wait "$WARM_PID" || true
   log "4a. MuJoCo Warp: $INPUTS on $EVAL_EPISODES per held-out kitchen, then replay of $REPLAY_LIST"
   warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS" "${eval_extra[@]}"
