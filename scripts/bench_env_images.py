@@ -11,6 +11,12 @@ images meets the other's at evaluation: these are the differences it has to bear
     python scripts/bench_env_images.py --run-dir runs/camera --configs 4 --tag cpu2 \
         --save-images benchmarks/results/env-images
 
+With ``--grasp-view N``, also the share of the wrist camera's pixels the pick object covers
+while the hand reaches, approaches and closes on it, in the recordings of the first N planned
+episodes per scene (the CPU executor, states only), drawn with OpenGL's near clip plane at 1 cm
+(:data:`~factory.demos.record.frame_render.NEAR_CLIP_M`) and at MuJoCo's default (1 % of the
+scene's extent): what a near plane hides from the wrist camera during a grasp.
+
 ``--seeds-from`` takes the configurations of an evaluation's ``results.json`` (its ``seeds``);
 default: the first ``--configs`` evaluation seeds of each scene (``eval.seed=0``,
 :func:`factory.policy.env.eval_seed`).
@@ -93,6 +99,62 @@ def save_strip(path: Path, cpu: dict[str, np.ndarray], gpu: dict[str, np.ndarray
     Image.fromarray(np.concatenate([top, bottom], 0)).save(path)
 
 
+def grasp_view(run: Path, scene: str, episodes: int, size: int) -> dict[str, object]:
+    """The pick object's share of the wrist camera's pixels (segmentation) from 10 frames
+    before the approach to the lift, over ``episodes`` planned and executed episodes, with
+    the near plane at 1 cm and at 1 % of the scene's extent."""
+    import mujoco
+
+    from factory.config import DemosConfig
+    from factory.demos.execute.cpu import RecordConfig, execute
+    from factory.demos.record.frame_render import NEAR_CLIP_M
+    from factory.robots.panda import CAMERAS
+    from factory.tasks.pick_place.demos import scene_planner
+    from factory.tasks.pick_place.plan import EpisodePlan
+
+    setup, planner = scene_planner(run, scene, DemosConfig())
+    plans = []
+    for seed in range(4 * episodes):
+        res = planner.plan_episode(seed)
+        if isinstance(res, EpisodePlan):
+            plans.append(res)
+        if len(plans) == episodes:
+            break
+    recs = execute(setup, plans, RecordConfig(render=False))
+    m = setup.model
+    pick = np.nonzero(m.geom_bodyid == m.body(setup.objects.pick.id).id)[0]
+    per_frame = max(1, round(1.0 / (20.0 * m.opt.timestep)))
+    data = mujoco.MjData(m)
+    renderer = mujoco.Renderer(m, size, size)
+    renderer.enable_segmentation_rendering()
+    option = mujoco.MjvOption()
+    option.geomgroup[:] = [1, 1, 1, 0, 0, 0]
+    out: dict[str, object] = {"episodes": len(plans)}
+    extent = float(m.stat.extent)
+    try:
+        for name, near_m in (("near_1cm", NEAR_CLIP_M), ("near_1pct_extent", 0.01 * extent)):
+            m.vis.map.znear = near_m / extent
+            share = []
+            for plan, rec in zip(plans, recs, strict=True):
+                first = max(0, plan.phases["approach"] // per_frame - 10)
+                for f in range(first, min(plan.phases["lift"] // per_frame, len(rec.state))):
+                    mujoco.mj_setState(m, data, rec.state[f], mujoco.mjtState.mjSTATE_INTEGRATION)
+                    mujoco.mj_forward(m, data)
+                    renderer.update_scene(data, camera=CAMERAS["wrist"], scene_option=option)
+                    seg = renderer.render()
+                    geom = seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
+                    share.append(float((geom & np.isin(seg[..., 0], pick)).mean()))
+            out[name] = {
+                "near_m": round(near_m, 3),
+                "frames": len(share),
+                "pick_share_mean": round(float(np.mean(share)), 4),
+                "pick_share_last_20_frames": round(float(np.mean(share[-20:])), 4),
+            }
+    finally:
+        renderer.close()
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -104,6 +166,7 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--tag", default="cpu")
     ap.add_argument("--save-images", type=Path, default=None)
+    ap.add_argument("--grasp-view", type=int, default=0, metavar="N")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     from factory.policy.env import eval_seed
@@ -118,6 +181,8 @@ def main() -> None:
         cpu = first_observation(args.run_dir, scene, seeds, spec, "cpu")
         gpu = first_observation(args.run_dir, scene, seeds, spec, "warp")
         rows[scene] = compare(cpu, gpu)
+        if args.grasp_view > 0:
+            rows[scene]["grasp_view"] = grasp_view(args.run_dir, scene, args.grasp_view, args.size)
         print(scene, json.dumps(rows[scene]), flush=True)
         if args.save_images is not None:
             save_strip(args.save_images / f"{scene}.png", cpu, gpu)

@@ -29,11 +29,13 @@ NEAR_CLIP_M = 0.01
 """Near clip distance (m) of every recording and observation camera, OpenGL's and MuJoCo Warp's
 alike (:data:`factory.demos.execute.warp.RENDER_CLIP`) and the fisheye renderer's: 1 cm from the
 lens, whatever the room. MuJoCo's own near plane is ``vis.map.znear`` times the model's
-``stat.extent``: 1 % of a kitchen's extent is 5-10 cm, which cut the hand's fingers, and the
-object about to be grasped, out of the wrist camera's view on OpenGL only (MuJoCo Warp's ray
+``stat.extent``: 1 % of a kitchen's extent is 5-10 cm, which cut the hand's own fingers and
+palm (4-5 cm from the lens) out of the wrist camera's view on OpenGL only (MuJoCo Warp's ray
 tracer has no near plane: its wrist images showed them, 18 % of the wrist depth pixels differed
 by more than 1 cm, and a camera policy trained on OpenGL's images lost 25 points on MuJoCo
-Warp)."""
+Warp). The object being grasped stays in view either way (more than 10 cm from the lens); the
+fingers now cover part of it, as a real wrist camera's do (``scripts/bench_env_images.py
+--grasp-view``)."""
 
 
 def set_near_clip(model: mujoco.MjModel, near_m: float = NEAR_CLIP_M) -> None:
