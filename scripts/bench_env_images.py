@@ -41,6 +41,7 @@ sys.path.insert(0, str(ROOT))
 from factory.policy.env import make_vec_env  # noqa: E402
 from factory.policy.eval import Job, run_batch  # noqa: E402
 from factory.policy.obs_spec import ObsSpec  # noqa: E402
+from factory.store import atomic_write_json  # noqa: E402
 
 CAMERAS = ("left", "right", "wrist")
 
@@ -204,9 +205,7 @@ def main() -> None:
         "scenes": rows,
     }
     path = args.out or ROOT / "benchmarks" / "results" / f"env-images-{args.tag}.json"
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(out, indent=1) + "\n")
-    tmp.replace(path)
+    atomic_write_json(path, out)
     print(f"saved {path}")
 
 

@@ -34,6 +34,7 @@ from factory.cores import usable_cores  # noqa: E402
 from factory.robots.ik import IKConfig, IKSolver  # noqa: E402
 from factory.robots.ik_batch import BatchTracker  # noqa: E402
 from factory.robots.panda import HOME_QPOS  # noqa: E402
+from factory.store import atomic_write_json  # noqa: E402
 
 CFG = IKConfig(max_iters=20, pos_tol=5e-4, rot_tol_deg=0.5)  # ToolActionTracker's
 
@@ -123,9 +124,7 @@ def main() -> None:
     }
     path = args.out or ROOT / "benchmarks" / "results" / f"tool-tracker-{args.tag}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(out, indent=1) + "\n")
-    tmp.replace(path)
+    atomic_write_json(path, out)
     print(f"saved {path}")
 
 
