@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from factory.errors import StoreError, TaskError
+from factory.policy.checkpoint import ACT_PARTS
 
 log = logging.getLogger(__name__)
 
@@ -368,7 +369,7 @@ TIMED = ("setup_s", "reset_s", "step_s", "observe_s", "act_s", "video_s")
 """The seconds of :attr:`UnitResult.timing`, in the order they are logged."""
 
 
-ACT_TIMED = ("act_convert_s", "act_perception_s", "act_policy_s", "act_ik_s")
+ACT_TIMED = tuple(f"act_{k}" for k in ACT_PARTS)
 """A trained policy's ``act_s`` by part (:data:`factory.policy.checkpoint.ACT_PARTS`)."""
 
 
