@@ -186,7 +186,8 @@ def resolve_shard(index: int | None, count: int | None, env: dict[str, str] | No
 
 
 @functools.cache
-def _git_sha() -> str | None:
+def git_sha() -> str | None:
+    """The factory checkout's commit (full hex), or None outside a git checkout."""
     here = Path(__file__).resolve().parent.parent
     try:
         out = subprocess.run(
@@ -340,7 +341,7 @@ class RunStore:
             data = self.read_manifest()
             data.setdefault("created", time.time())
             data["factory_version"] = __version__
-            data["git_sha"] = _git_sha()
+            data["git_sha"] = git_sha()
             data["config"] = config
             stages = data.setdefault("stages", {})
             entry = stages.setdefault(stage, {"shards": {}})

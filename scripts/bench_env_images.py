@@ -29,7 +29,6 @@ import argparse
 import datetime
 import json
 import platform
-import subprocess
 import sys
 from pathlib import Path
 
@@ -41,7 +40,7 @@ sys.path.insert(0, str(ROOT))
 from factory.policy.env import make_vec_env  # noqa: E402
 from factory.policy.eval import Job, run_batch  # noqa: E402
 from factory.policy.obs_spec import ObsSpec  # noqa: E402
-from factory.store import atomic_write_json  # noqa: E402
+from factory.store import atomic_write_json, git_sha  # noqa: E402
 
 CAMERAS = ("left", "right", "wrist")
 
@@ -187,9 +186,7 @@ def main() -> None:
         print(scene, json.dumps(rows[scene]), flush=True)
         if args.save_images is not None:
             save_strip(args.save_images / f"{scene}.png", cpu, gpu)
-    sha = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT
-    ).stdout.strip()
+    sha = (git_sha() or "")[:7]
     import warp as wp
 
     out = {

@@ -19,7 +19,6 @@ import argparse
 import datetime
 import json
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -34,7 +33,7 @@ from factory.cores import usable_cores  # noqa: E402
 from factory.robots.ik import IKConfig, IKSolver  # noqa: E402
 from factory.robots.ik_batch import BatchTracker  # noqa: E402
 from factory.robots.panda import HOME_QPOS  # noqa: E402
-from factory.store import atomic_write_json  # noqa: E402
+from factory.store import atomic_write_json, git_sha  # noqa: E402
 
 CFG = IKConfig(max_iters=20, pos_tol=5e-4, rot_tol_deg=0.5)  # ToolActionTracker's
 
@@ -105,9 +104,7 @@ def main() -> None:
         for far in (False, True):
             rows.append(run(n, args.frames if not far else max(5, args.frames // 4), far))
             print(json.dumps(rows[-1]), flush=True)
-    sha = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT
-    ).stdout.strip()
+    sha = (git_sha() or "")[:7]
     out = {
         "schema_version": 1,
         "benchmark": "tool-tracker",
