@@ -17,6 +17,13 @@ episodes per scene (the CPU executor, states only), drawn with OpenGL's near cli
 (:data:`~factory.demos.record.frame_render.NEAR_CLIP_M`) and at MuJoCo's default (1 % of the
 scene's extent): what a near plane hides from the wrist camera during a grasp.
 
+With ``--policy PATH`` (a ``train.vision=perception`` policy), also what its perception
+network reads from each renderer's images: the planner's episode of each configuration is played
+on both executors (the same actions: the states agree, as replays do) and, every ``--every``
+frames, the network's pick object and target positions from the OpenGL and from the Warp images
+are compared with the true ones (root-mean-square error, cm, by third of the episode; and how far
+the two readings are apart): whether a policy trained on OpenGL images is misled by Warp's.
+
 ``--seeds-from`` takes the configurations of an evaluation's ``results.json`` (its ``seeds``);
 default: the first ``--configs`` evaluation seeds of each scene (``eval.seed=0``,
 :func:`factory.policy.env.eval_seed`).
@@ -63,6 +70,118 @@ def first_observation(
     finally:
         vec.close()
     return seen[0]
+
+
+def observations_along_plan(
+    run: Path, scene: str, seeds: list[int], spec: ObsSpec, executor: str, every: int
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The observations every ``every`` frames while the planner's episode of each
+    configuration ``seeds`` of ``scene`` plays on ``executor``: key -> (m, ...) over the
+    captured (configuration, frame) pairs, and each pair's share of its episode (m,) (0 start,
+    1 end). A configuration the planner cannot plan is left out (the same on both executors)."""
+    from factory.policy.eval import plan_actions, scripted_actor
+
+    vec, planner = make_vec_env(run, scene, len(seeds), spec, nthread=4, executor=executor)
+    try:
+        jobs = []
+        for i, s in enumerate(seeds):
+            res = planner.plan_episode(s)
+            if hasattr(res, "targets"):
+                actions = plan_actions(res.targets, vec.per_frame)
+                jobs.append(
+                    Job(scene=scene, seed=s, index=i, actions=actions, max_steps=len(actions))
+                )
+        play = scripted_actor(jobs)
+        parts: dict[str, list[np.ndarray]] = {}
+        shares: list[np.ndarray] = []
+
+        def capture(obs: dict[str, np.ndarray], steps: np.ndarray) -> np.ndarray:
+            lengths = np.array([j.max_steps for j in jobs])
+            take = (steps % every == 0) & (steps < lengths)
+            if take.any():
+                for k, v in obs.items():
+                    parts.setdefault(k, []).append(np.array(v)[take])
+                shares.append(steps[take] / lengths[take])
+            return play(obs, steps)
+
+        run_batch(vec, jobs, capture)
+    finally:
+        vec.close()
+    return {k: np.concatenate(v) for k, v in parts.items()}, np.concatenate(shares)
+
+
+def perception_reading(policy: object, obs: dict[str, np.ndarray]) -> np.ndarray:
+    """The perception network's 24 environment values (m, ...) from observations ``obs``
+    (key -> (m, ...)), as the policy computes them when it acts
+    (:meth:`factory.policy.checkpoint.LoadedPolicy.act`), in batches of 64."""
+    import torch
+
+    from factory.policy.inputs import CAMERA_POSES, convert_observation
+    from factory.policy.perception import camera_poses, camera_stack
+
+    net, spec, dev = policy.perception, policy.spec, policy.device  # type: ignore[attr-defined]
+    n = len(obs["observation.state"])
+    out = []
+    for a in range(0, n, 64):
+        part = {k: v[a : a + 64] for k, v in obs.items()}
+        batch = convert_observation(spec, part, dev if dev != "cpu" else None)
+        images = camera_stack(batch, net.cameras, net.depth)
+        poses = None
+        if net.xyz:
+            got = camera_poses(
+                net.point_cameras,
+                part["observation.state"],
+                part.get(CAMERA_POSES),
+                net.pose_cameras,
+            )
+            poses = torch.from_numpy(got).to(dev)
+        with torch.inference_mode():
+            out.append(net.predict(images.to(dev), poses).float().cpu().numpy())
+    return np.concatenate(out)
+
+
+def perception_rows(
+    run: Path, scene: str, seeds: list[int], policy: object, every: int
+) -> dict[str, object]:
+    """The perception's position errors (cm) on the same planned episodes drawn by OpenGL and by
+    MuJoCo Warp (see the module)."""
+    from factory.config import DemosConfig
+    from factory.policy.inputs import env_features
+    from factory.policy.obs_spec import obs_spec_of_demos
+    from factory.policy.perception import POSITIONS
+
+    spec = obs_spec_of_demos(DemosConfig(), env_state=True)  # what the demos record, and truth
+    seen = {}
+    for ex in ("cpu", "warp"):
+        seen[ex] = observations_along_plan(run, scene, seeds, spec, ex, every)
+    (cpu, share), (gpu, share_gpu) = seen["cpu"], seen["warp"]
+    if len(share) != len(share_gpu):
+        raise RuntimeError(f"{scene}: {len(share)} frames on the CPU, {len(share_gpu)} on Warp")
+    truth = env_features(
+        cpu["observation.state"], cpu["observation.ee_pose"], cpu["observation.environment_state"]
+    )
+    read = {"opengl": perception_reading(policy, cpu), "warp": perception_reading(policy, gpu)}
+    third = np.minimum((3 * share).astype(int), 2)
+    row: dict[str, object] = {"frames": len(share)}
+    every_frame = np.ones(len(share), bool)
+
+    def rms(err: np.ndarray, mask: np.ndarray, cols: tuple[int, int]) -> float:
+        sq = err[mask, cols[0] : cols[1]] ** 2
+        return round(100 * float(np.sqrt(sq.sum(-1).mean())), 2)
+
+    for name, cols in zip(("pick", "target"), POSITIONS, strict=True):
+        cell: dict[str, object] = {}
+        for r, pred in read.items():
+            err = pred - truth
+            cell[f"{r}_rms_cm"] = {
+                "all": rms(err, every_frame, cols),
+                **{
+                    f"third_{p}": rms(err, third == p, cols) for p in range(3) if (third == p).any()
+                },
+            }
+        cell["apart_rms_cm"] = rms(read["warp"] - read["opengl"], every_frame, cols)
+        row[name] = cell
+    return row
 
 
 def compare(cpu: dict[str, np.ndarray], gpu: dict[str, np.ndarray]) -> dict[str, object]:
@@ -167,8 +286,17 @@ def main() -> None:
     ap.add_argument("--tag", default="cpu")
     ap.add_argument("--save-images", type=Path, default=None)
     ap.add_argument("--grasp-view", type=int, default=0, metavar="N")
+    ap.add_argument("--policy", default="", help="a perception policy: its readings on both")
+    ap.add_argument("--every", type=int, default=10, help="with --policy: frames apart")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
+    policy = None
+    if args.policy:
+        from factory.policy.checkpoint import load_policy
+
+        policy = load_policy(args.policy, None, "auto")
+        if policy.perception is None:
+            sys.exit(f"--policy {args.policy}: not a train.vision=perception policy")
     from factory.policy.env import eval_seed
 
     scenes = args.scenes or sorted(p.name for p in (args.run_dir / "scenes").iterdir())
@@ -181,6 +309,10 @@ def main() -> None:
         cpu = first_observation(args.run_dir, scene, seeds, spec, "cpu")
         gpu = first_observation(args.run_dir, scene, seeds, spec, "warp")
         rows[scene] = compare(cpu, gpu)
+        if policy is not None:
+            rows[scene]["perception"] = perception_rows(
+                args.run_dir, scene, seeds, policy, args.every
+            )
         if args.grasp_view > 0:
             rows[scene]["grasp_view"] = grasp_view(args.run_dir, scene, args.grasp_view, args.size)
         print(scene, json.dumps(rows[scene]), flush=True)
@@ -198,6 +330,7 @@ def main() -> None:
         "git_sha": sha,
         "command": " ".join(sys.argv),
         "configs_per_scene": args.configs,
+        "policy": args.policy or None,
         "size_px": args.size,
         "scenes": rows,
     }

@@ -269,6 +269,7 @@ class UnitRunner:
             "setup_s": round(setup_s, 3),
             **timing.as_dict(),
             **act_parts,
+            **kernel_timing(env),
             "episodes": len(batch),
             "worlds": int(env.num_envs),
         }
@@ -373,6 +374,26 @@ ACT_TIMED = tuple(f"act_{k}" for k in ACT_PARTS)
 """A trained policy's ``act_s`` by part (:data:`factory.policy.checkpoint.ACT_PARTS`)."""
 
 
+KERNEL_TIMED = ("kernel_modules", "kernels_loaded", "kernel_wait_s", "kernel_load_s")
+"""A MuJoCo Warp unit's set-up kernels (:func:`kernel_timing`), summed over the units."""
+
+
+def kernel_timing(env: Any) -> dict[str, float]:
+    """What the env's MuJoCo Warp kernel preload did, for the unit's timing: modules loaded
+    (compiled, or read from Warp's kernel cache) and its seconds (waited for another process's
+    preload, and loading); empty on the CPU executor. A set-up of minutes with many modules
+    loaded is a compile: the kernel cache did not hold them."""
+    r = getattr(getattr(env, "sim", None), "preload", None)
+    if r is None:
+        return {}
+    return {
+        "kernel_modules": int(r.modules),
+        "kernels_loaded": int(r.compiled),
+        "kernel_wait_s": round(float(r.wait_s), 3),
+        "kernel_load_s": round(float(r.load_s + r.trace_s), 3),
+    }
+
+
 def log_unit_timing(name: str, scene: str, timing: dict[str, float]) -> None:
     """One line per finished unit: its episodes, frames and where its seconds went (a trained
     policy's ``act`` by part too)."""
@@ -381,6 +402,12 @@ def log_unit_timing(name: str, scene: str, timing: dict[str, float]) -> None:
     if any(k in timing for k in ACT_TIMED):
         split = ", ".join(f"{k[4:-2]} {float(timing.get(k, 0.0)):.1f}" for k in ACT_TIMED)
         parts += f"; act: {split}"
+    if "kernels_loaded" in timing:  # MuJoCo Warp: its set-up's kernels
+        parts += (
+            f"; setup's kernels: {int(timing['kernels_loaded'])} of "
+            f"{int(timing['kernel_modules'])} loaded in {float(timing['kernel_load_s']):.1f}, "
+            f"waited {float(timing['kernel_wait_s']):.1f}"
+        )
     log.info(
         "eval %s: scene %s: %d episode(s) on %d world(s), %d frames in %.1f s (%s s)",
         name,
@@ -399,14 +426,22 @@ def sum_timings(timings: list[dict[str, float]]) -> dict[str, float]:
     if not timings:
         return {}
     split = any(k in t for t in timings for k in ACT_TIMED)
-    keys = (*TIMED, *(ACT_TIMED if split else ()), "frames", "episodes")
+    kernels = any("kernels_loaded" in t for t in timings)
+    keys = (
+        *TIMED,
+        *(ACT_TIMED if split else ()),
+        *(KERNEL_TIMED if kernels else ()),
+        "frames",
+        "episodes",
+    )
     out: dict[str, float] = {k: 0.0 for k in keys}
     for t in timings:
         for k in keys:
             out[k] += float(t.get(k, 0.0))
+    counts = ("frames", "episodes", "kernel_modules", "kernels_loaded")
     return {
         "units": len(timings),
-        **{k: (int(v) if k in ("frames", "episodes") else round(v, 3)) for k, v in out.items()},
+        **{k: (int(v) if k in counts else round(v, 3)) for k, v in out.items()},
     }
 
 

@@ -190,6 +190,12 @@ def test_eval_stage_on_warp(policy_run: Path, tmp_path: Path, vision: str) -> No
     assert got["warp"]["episodes"] == got["cpu"]["episodes"] == 2
     lines = (run / "eval" / "warp_tiny_warp" / "episodes.jsonl").read_text().splitlines()
     assert [json.loads(x)["steps"] for x in lines] == [4, 4]
+    # the set-up's kernel preload is in the Warp call's timing (what a slow set-up was), not
+    # in the CPU env's
+    t = got["warp"]["timing_this_call"]
+    assert t["kernels_loaded"] >= 0 and t["kernel_load_s"] > 0 and t["kernel_wait_s"] >= 0
+    assert t["kernel_modules"] >= t["kernels_loaded"] and t["kernel_modules"] > 10
+    assert "kernels_loaded" not in got["cpu"]["timing_this_call"]
 
 
 @pytest.mark.gpu
