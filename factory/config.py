@@ -496,6 +496,10 @@ class TrainConfig:
             for jobs with a time limit.
         augment_images: lerobot's image transforms on RGB (colour jitter, sharpness, small
             affine) and a random 90 % crop where the policy has one (diffusion).
+        augment_shading: strength of the shading augmentation of RGB images
+            (:mod:`factory.policy.shading`: a smooth gain field of ``1 +- strength``, a gain per
+            colour channel, soft highlights; what OpenGL's and MuJoCo Warp's images disagree
+            on), 0 (off) to 0.5; independent of ``augment_images``.
         precision: ``auto`` (bf16 autocast on CUDA, fp32 on a CPU), ``bf16`` or ``fp32``; the
             weights, optimizer and checkpoints stay fp32.
         aux_state: weight of an auxiliary loss for image policies of a dataset that records
@@ -569,6 +573,7 @@ class TrainConfig:
     keep_checkpoints: int = 2
     max_minutes: float = 0.0
     augment_images: bool = True
+    augment_shading: float = 0.0
     precision: str = "auto"
     aux_state: float | None = None
     ema: float | None = None

@@ -41,6 +41,7 @@ from factory.policy.inputs import (
     TOOL_POS,
     depth_image,
 )
+from factory.policy.shading import shade
 
 log = logging.getLogger(__name__)
 
@@ -112,6 +113,9 @@ class DeviceBatches:
         shift: with ``augment``, shift the images too (off where a camera's pixels become
             points through its calibration: a shifted pixel's ray no longer meets what it
             shows).
+        shading: strength of the shading augmentation of the RGB images
+            (``train.augment_shading``, :func:`factory.policy.shading.shade`; 0: off), drawn
+            whether or not ``augment`` is on.
     """
 
     def __init__(
@@ -123,6 +127,7 @@ class DeviceBatches:
         seed: int = 0,
         augment: bool = False,
         shift: bool = True,
+        shading: float = 0.0,
     ) -> None:
         import torch
 
@@ -131,6 +136,7 @@ class DeviceBatches:
         self.batch_size = batch_size
         self.augment = augment
         self.shift = augment and shift
+        self.shading = shading
 
         def put(a: np.ndarray) -> Any:
             return torch.from_numpy(np.ascontiguousarray(a)).to(self.device)
@@ -240,6 +246,8 @@ class DeviceBatches:
                 out[key] = pix.movedim(-1, -3).to(torch.float32) / 255.0
                 if self.augment:
                     out[key] = self._jitter(out[key])
+                if self.shading > 0:
+                    out[key] = shade(out[key], self.shading, self.gen)
             if self.shift:
                 cam = key.rsplit(".", 1)[-1]
                 if cam not in shifts:

@@ -367,10 +367,13 @@ def open_dataset(
     video_cache: str = "off",
     aux: bool = False,
     points: bool = True,
+    shading: float = 0.0,
 ) -> tuple[Any, TrainSet]:
     """The ``LeRobotDataset`` (videos the policy reads only) and its converted view.
 
     Args:
+        shading: strength of the RGB images' shading augmentation (``train.augment_shading``,
+            :class:`~factory.policy.shading.SampleShading`; 0: off).
         aux: the samples hold the auxiliary target (:data:`AUX_TARGET`) where the frames are
             in memory (the trainer drops the auxiliary loss otherwise).
         points: a perception policy's samples hold its point cameras' poses
@@ -404,6 +407,10 @@ def open_dataset(
             tcfg.tfs.pop("affine", None)
             tcfg.max_num_transforms = min(tcfg.max_num_transforms, len(tcfg.tfs))
         transforms = ImageTransforms(tcfg)
+    if shading > 0 and spec.cameras:
+        from factory.policy.shading import SampleShading
+
+        transforms = SampleShading(shading, transforms)
     videos = None
     keys = spec.visual_keys()
     if keys and video_cache != "off":
@@ -720,6 +727,7 @@ class Trainer:
             getattr(tc, "video_cache", "off"),
             self.aux_weight > 0 or spec.perception,
             bool(getattr(tc, "perception_points", True)),
+            float(getattr(tc, "augment_shading", 0.0)),
         )
         if spec.perception and self.trainset.frames is None:
             raise PolicyError(
@@ -948,6 +956,7 @@ class Trainer:
                 self.tc.seed + self.step + 1_000_003 * self.rank,
                 augment,
                 shift=not (self.perception is not None and self.perception.xyz),
+                shading=float(getattr(self.tc, "augment_shading", 0.0)),
             )
         workers = self.tc.num_workers
         loader: Any = torch.utils.data.DataLoader(

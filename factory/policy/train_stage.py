@@ -33,6 +33,7 @@ from factory.policy.checkpoint import (
 from factory.policy.device_batches import LOADERS
 from factory.policy.inputs import INPUTS, VISIONS, InputSpec, input_spec
 from factory.policy.recipe import PRECISIONS
+from factory.policy.shading import MAX_STRENGTH
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +79,11 @@ def check_config(tc: Any) -> None:
         raise ConfigError(f"train.video_cache must be auto, memory or off, got {tc.video_cache!r}")
     if tc.max_minutes < 0:
         raise ConfigError(f"train.max_minutes must be >= 0 (0: no limit), got {tc.max_minutes}")
+    shading = getattr(tc, "augment_shading", 0.0)
+    if not 0 <= shading <= MAX_STRENGTH:
+        raise ConfigError(
+            f"train.augment_shading must be in [0, {MAX_STRENGTH}] (0: off), got {shading}"
+        )
     if tc.precision not in PRECISIONS:
         raise ConfigError(
             f"train.precision must be one of {', '.join(PRECISIONS)}, got {tc.precision!r}"
