@@ -23,6 +23,9 @@ on both executors (the same actions: the states agree, as replays do) and, every
 frames, the network's pick object and target positions from the OpenGL and from the Warp images
 are compared with the true ones (root-mean-square error, cm, by third of the episode; and how far
 the two readings are apart): whether a policy trained on OpenGL images is misled by Warp's.
+``--shading S`` adds how far its readings move when the OpenGL images are shaded at random
+(:func:`factory.policy.shading.shade`, ``train.augment_shading=S``): whether that augmentation
+spans the renderers' difference.
 
 ``--seeds-from`` takes the configurations of an evaluation's ``results.json`` (its ``seeds``);
 default: the first ``--configs`` evaluation seeds of each scene (``eval.seed=0``,
@@ -141,7 +144,7 @@ def perception_reading(policy: object, obs: dict[str, np.ndarray]) -> np.ndarray
 
 
 def perception_rows(
-    run: Path, scene: str, seeds: list[int], policy: object, every: int
+    run: Path, scene: str, seeds: list[int], policy: object, every: int, shading: float = 0.0
 ) -> dict[str, object]:
     """The perception's position errors (cm) on the same planned episodes drawn by OpenGL and by
     MuJoCo Warp (see the module)."""
@@ -161,6 +164,18 @@ def perception_rows(
         cpu["observation.state"], cpu["observation.ee_pose"], cpu["observation.environment_state"]
     )
     read = {"opengl": perception_reading(policy, cpu), "warp": perception_reading(policy, gpu)}
+    if shading > 0:  # the OpenGL images under train.augment_shading's draws
+        import torch
+
+        from factory.policy.shading import shade
+
+        gen = torch.Generator().manual_seed(0)
+        shaded = dict(cpu)
+        for k in [k for k in cpu if k.startswith("observation.images.")]:
+            x = torch.from_numpy(cpu[k]).movedim(-1, -3).float() / 255.0
+            y = shade(x, shading, gen).movedim(-3, -1) * 255.0
+            shaded[k] = y.round().clamp(0, 255).to(torch.uint8).numpy()
+        read["opengl_shaded"] = perception_reading(policy, shaded)
     third = np.minimum((3 * share).astype(int), 2)
     row: dict[str, object] = {"frames": len(share)}
     every_frame = np.ones(len(share), bool)
@@ -180,6 +195,10 @@ def perception_rows(
                 },
             }
         cell["apart_rms_cm"] = rms(read["warp"] - read["opengl"], every_frame, cols)
+        if "opengl_shaded" in read:
+            cell["shaded_apart_rms_cm"] = rms(
+                read["opengl_shaded"] - read["opengl"], every_frame, cols
+            )
         row[name] = cell
     return row
 
@@ -288,6 +307,13 @@ def main() -> None:
     ap.add_argument("--grasp-view", type=int, default=0, metavar="N")
     ap.add_argument("--policy", default="", help="a perception policy: its readings on both")
     ap.add_argument("--every", type=int, default=10, help="with --policy: frames apart")
+    ap.add_argument(
+        "--shading",
+        type=float,
+        default=0.0,
+        help="with --policy: also its readings of the OpenGL images under "
+        "train.augment_shading of this strength (how far they move, beside the renderers')",
+    )
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     policy = None
@@ -311,7 +337,7 @@ def main() -> None:
         rows[scene] = compare(cpu, gpu)
         if policy is not None:
             rows[scene]["perception"] = perception_rows(
-                args.run_dir, scene, seeds, policy, args.every
+                args.run_dir, scene, seeds, policy, args.every, args.shading
             )
         if args.grasp_view > 0:
             rows[scene]["grasp_view"] = grasp_view(args.run_dir, scene, args.grasp_view, args.size)
@@ -331,6 +357,7 @@ def main() -> None:
         "command": " ".join(sys.argv),
         "configs_per_scene": args.configs,
         "policy": args.policy or None,
+        "shading": args.shading or None,
         "size_px": args.size,
         "scenes": rows,
     }

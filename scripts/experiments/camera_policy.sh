@@ -18,6 +18,9 @@
 # the same time on that GPU: the other input kind (rgb beside rgbd), or a variant of the recipe
 # (SECOND_NAME=rgbd128 SECOND_INPUTS=rgbd SECOND_ARGS='train.options={diffusion: {resize_shape:
 # [128, 128]}}'): two recipes for the device time of one on a machine that counts in full.
+# The shading augmentation's A/B on both envs (the renderers' disagreement, docs/POLICY.md):
+#   SECOND_GPU=1 SECOND_NAME=rgbd_shaded SECOND_INPUTS=rgbd SECOND_ARGS='train.augment_shading=0.15'
+#   EVAL_WARP=1 (with SECOND_GPU the second policy is evaluated on MuJoCo Warp too, after the first)
 # With EVAL_WARP=1 (and WARP_WARM, the default) the held-out kitchens' MuJoCo Warp kernels are
 # compiled during the training; when the training ends, the recorded episodes of the first REPLAY_SCENES
 # training kitchens are replayed and the policy is evaluated on the same held-out
@@ -327,6 +330,10 @@ EOF3
   log "4a. MuJoCo Warp: $INPUTS on $EVAL_EPISODES per held-out kitchen, then replay of $REPLAY_LIST"
   warp_one "$INPUTS" "$INPUTS-warp" eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS" "${eval_extra[@]}"
+  if [ -n "$SECOND_GPU" ]; then  # the second policy on the same configurations (A/B on both envs)
+    warp_one "$SECOND_NAME" "$SECOND_NAME-warp" eval.episodes_per_scene="$EVAL_EPISODES" \
+      eval.workers="$WARP_WORKERS" "${eval_extra[@]}"
+  fi
   warp_one replay replay-warp "eval.scenes=$REPLAY_LIST" eval.workers=1
   [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS"
