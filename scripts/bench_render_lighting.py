@@ -1,0 +1,227 @@
+"""Benchmark of the factory's two renderers' lighting on one scene state: MuJoCo's OpenGL
+renderer (the CPU executor and the CPU env) against MuJoCo Warp's ray tracer (the GPU executor
+and the Warp env; on Warp's CPU device where there is no CUDA), with every light of the scene
+on, then each light alone (the headlight included), per camera: the mean absolute RGB
+difference (0-255) and the mean signed one (Warp minus OpenGL).
+
+With ``--subdivide EDGE`` the run is copied to a scratch folder whose visual meshes (never the
+collision pieces) are subdivided until no edge is longer than EDGE metres, and measured there
+too: OpenGL's fixed-function lighting is computed at the vertices and interpolated across each
+triangle, Warp's at every ray's hit, so coarse meshes light differently on the two, and
+subdivision tells by how much (docs/POLICY.md, "Results measured", 2026-11-30).
+
+    python scripts/bench_render_lighting.py --run-dir runs/heldout --scene kitchen_3627575a_2 \\
+        --subdivide 0.04 --tag cpu2
+
+Prints and saves JSON to ``benchmarks/results/render-lighting-<tag>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import platform
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from factory.sim.gl import configure_gl  # noqa: E402
+
+configure_gl("auto")
+
+import mujoco  # noqa: E402
+
+from factory.store import atomic_write_json, git_sha  # noqa: E402
+
+CAMERAS = ("left", "right", "wrist")
+SIZE = 128
+
+
+def reset_state(run: Path, scene: str, seed: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The CPU env's model of ``scene`` and its state after reset to configuration ``seed``."""
+    from factory.policy.env import make_vec_env
+    from factory.policy.eval import Job, run_batch
+    from factory.policy.obs_spec import ObsSpec
+
+    spec = ObsSpec(cameras=CAMERAS, width=SIZE, height=SIZE)
+    vec, _ = make_vec_env(run, scene, 1, spec, nthread=2, executor="cpu")
+    run_batch(
+        vec,
+        [Job(scene=scene, seed=seed, index=0, max_steps=1)],
+        lambda obs, steps: np.zeros((len(steps), vec.action_dim), np.float32),
+    )
+    sim: Any = vec.sim  # the fixed task's batch simulation: its model and scratch data
+    model, data = sim.model, sim.load(0)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def draw_opengl(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> list[np.ndarray]:
+    """Each camera's RGB (H, W, 3) float as the recordings draw it (1 cm near plane, no
+    shadows, reflections or skybox, geom groups 0-2)."""
+    from factory.demos.record.frame_render import NEAR_CLIP_M
+
+    model.vis.map.znear = NEAR_CLIP_M / model.stat.extent
+    r = mujoco.Renderer(model, SIZE, SIZE)
+    flags = r.scene.flags
+    flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+    flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+    flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
+    opt = mujoco.MjvOption()
+    opt.geomgroup[:] = [1, 1, 1, 0, 0, 0]
+    out = []
+    try:
+        for c in names:
+            r.update_scene(data, camera=c, scene_option=opt)
+            out.append(r.render().astype(np.float64))
+    finally:
+        r.close()
+    return out
+
+
+def draw_warp(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> list[np.ndarray]:
+    """Each camera's RGB (H, W, 3) float from MuJoCo Warp with the recordings' render context
+    (:func:`factory.demos.execute.warp.render_context`)."""
+    import mujoco_warp as mjw
+    import warp as wp
+
+    from factory.demos.execute.warp import render_context
+
+    wm = mjw.put_model(model)
+    rc = render_context(model, 1, (SIZE, SIZE), names)
+    wd = mjw.put_data(model, data)
+    mjw.forward(wm, wd)
+    mjw.refit_bvh(wm, wd, rc)
+    mjw.render(wm, wd, rc)
+    out = []
+    for i in range(len(names)):
+        buf = wp.zeros((1, SIZE, SIZE), dtype=wp.vec3)
+        mjw.get_rgb(rc, i, buf)
+        out.append(np.clip(buf.numpy()[0] * 255.0, 0, 255))
+    return out
+
+
+def compare(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
+    """Warp against OpenGL with every light, then with each light alone."""
+    from factory.robots.panda import CAMERAS as CAMERA_NAMES
+
+    names = [CAMERA_NAMES[c] for c in CAMERAS]
+
+    def row() -> dict[str, Any]:
+        a, b = draw_warp(model, data, names), draw_opengl(model, data, names)
+        return {
+            c: {
+                "rgb_mean_abs": round(float(np.abs(x - y).mean()), 2),
+                "rgb_mean_signed": round(float((x - y).mean()), 2),
+            }
+            for c, x, y in zip(CAMERAS, a, b, strict=True)
+        }
+
+    out: dict[str, Any] = {"all_lights": row()}
+    active, head = model.light_active.copy(), int(model.vis.headlight.active)
+    try:
+        for k in range(-1, model.nlight):
+            model.light_active[:] = 0
+            model.vis.headlight.active = 1 if k < 0 else 0
+            if k >= 0:
+                model.light_active[k] = 1
+            kind = "headlight" if k < 0 else ("directional" if model.light_type[k] else "spot")
+            out[f"only_{'headlight' if k < 0 else f'light_{k}'}"] = {"kind": kind, **row()}
+    finally:
+        model.light_active[:] = active
+        model.vis.headlight.active = head
+    return out
+
+
+def subdivided_copy(run: Path, edge: float, into: Path) -> tuple[Path, dict[str, int]]:
+    """A copy of ``run``'s scenes and assets whose visual meshes have no edge longer than
+    ``edge`` (m), their texture coordinates carried along; returns it and the face counts."""
+    import trimesh
+
+    dst = into / run.name
+    shutil.copytree(run / "scenes", dst / "scenes")
+    shutil.copytree(run / "assets", dst / "assets")
+    if (run / "manifest.json").is_file():
+        shutil.copy(run / "manifest.json", dst / "manifest.json")
+    before = after = 0
+    for f in sorted((dst / "assets").rglob("visual*.obj")):
+        mesh: Any = trimesh.load(f, process=False, force="mesh")
+        if not len(getattr(mesh, "faces", [])):
+            continue
+        verts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        uv = getattr(mesh.visual, "uv", None)
+        attrs = {"uv": np.asarray(uv)} if uv is not None and len(uv) == len(verts) else {}
+        before += len(faces)
+        for _ in range(8):
+            tri = verts[faces]
+            longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(1)
+            big = np.nonzero(longest > edge)[0]
+            if not len(big):
+                break
+            if attrs:
+                verts, faces, attrs = trimesh.remesh.subdivide(
+                    verts, faces, face_index=big, vertex_attributes=attrs
+                )
+            else:
+                verts, faces = trimesh.remesh.subdivide(verts, faces, face_index=big)
+        after += len(faces)
+        visual = (
+            trimesh.visual.TextureVisuals(uv=attrs["uv"], material=mesh.visual.material)
+            if attrs
+            else None
+        )
+        trimesh.Trimesh(verts, faces, visual=visual, process=False).export(f)
+    return dst, {"visual_faces_before": before, "visual_faces_after": after}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--run-dir", type=Path, required=True)
+    ap.add_argument("--scene", required=True)
+    ap.add_argument("--seed", type=int, default=None, help="default: its first eval seed")
+    ap.add_argument("--subdivide", type=float, default=0.0, metavar="EDGE")
+    ap.add_argument("--tag", default="cpu")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args()
+    from factory.policy.env import eval_seed
+
+    seed = args.seed if args.seed is not None else eval_seed(0, args.scene, 0)
+    rows: dict[str, Any] = {"as_generated": compare(*reset_state(args.run_dir, args.scene, seed))}
+    print("as generated", rows["as_generated"]["all_lights"], flush=True)
+    if args.subdivide > 0:
+        with tempfile.TemporaryDirectory() as tmp:
+            copy, faces = subdivided_copy(args.run_dir, args.subdivide, Path(tmp))
+            key = f"visual_meshes_subdivided_{args.subdivide:g}m"
+            rows[key] = {**faces, **compare(*reset_state(copy, args.scene, seed))}
+            print(key, rows[key]["all_lights"], flush=True)
+    import warp as wp
+
+    out = {
+        "schema_version": 1,
+        "benchmark": "render-lighting",
+        "date": datetime.date.today().isoformat(),
+        "machine": platform.platform(),
+        "warp_device": str(wp.get_preferred_device()),
+        "git_sha": (git_sha() or "")[:7],
+        "command": " ".join(sys.argv),
+        "scene": args.scene,
+        "seed": seed,
+        "size_px": SIZE,
+        "results": rows,
+    }
+    path = args.out or ROOT / "benchmarks" / "results" / f"render-lighting-{args.tag}.json"
+    atomic_write_json(path, out)
+    print(f"saved {path}")
+
+
+if __name__ == "__main__":
+    main()
