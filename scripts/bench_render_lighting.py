@@ -64,26 +64,18 @@ def reset_state(run: Path, scene: str, seed: int) -> tuple[mujoco.MjModel, mujoc
 
 
 def draw_opengl(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> list[np.ndarray]:
-    """Each camera's RGB (H, W, 3) float as the recordings draw it (1 cm near plane, no
-    shadows, reflections or skybox, geom groups 0-2)."""
-    from factory.demos.record.frame_render import NEAR_CLIP_M
+    """Each camera's RGB (H, W, 3) float as the recordings draw it
+    (:class:`~factory.demos.record.frame_render.CameraStrip`: 1 cm near plane, no shadows,
+    reflections or skybox, geom groups 0-2)."""
+    from factory.demos.record.frame_render import CameraStrip
 
-    model.vis.map.znear = NEAR_CLIP_M / model.stat.extent
-    r = mujoco.Renderer(model, SIZE, SIZE)
-    flags = r.scene.flags
-    flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-    flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-    flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
-    opt = mujoco.MjvOption()
-    opt.geomgroup[:] = [1, 1, 1, 0, 0, 0]
-    out = []
+    cams = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, n) for n in names]
+    strip = CameraStrip(model, cams, SIZE, SIZE, "uint16_mm")
     try:
-        for c in names:
-            r.update_scene(data, camera=c, scene_option=opt)
-            out.append(r.render().astype(np.float64))
+        rgbs, _ = strip.render(data)
     finally:
-        r.close()
-    return out
+        strip.close()
+    return [x.astype(np.float64) for x in rgbs]
 
 
 def draw_warp(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> list[np.ndarray]:

@@ -19,6 +19,11 @@ plus, with probability :data:`HIGHLIGHT_P` per image, one soft highlight (a Gaus
 renderers' specular terms differ. The draws are per sample and the same over its observation
 steps (one camera's frames of one moment look alike); each camera of a sample draws its own.
 Depth images are never touched.
+
+Measured since (docs/POLICY.md, "Results measured", 2026-11-30): the renderers' difference is
+mostly OpenGL's per-vertex lighting of coarse meshes against Warp's per-hit lighting, and these
+draws at 0.15 move a trained perception's readings far less than the switch of renderer does
+(0.27 against 2.4 cm): the option stays, not yet shown to close that gap.
 """
 
 from __future__ import annotations
