@@ -41,6 +41,7 @@ import json
 import platform
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -113,33 +114,18 @@ def observations_along_plan(
     return {k: np.concatenate(v) for k, v in parts.items()}, np.concatenate(shares)
 
 
-def perception_reading(policy: object, obs: dict[str, np.ndarray]) -> np.ndarray:
+def perception_reading(policy: Any, obs: dict[str, np.ndarray]) -> np.ndarray:
     """The perception network's 24 environment values (m, ...) from observations ``obs``
-    (key -> (m, ...)), as the policy computes them when it acts
-    (:meth:`factory.policy.checkpoint.LoadedPolicy.act`), in batches of 64."""
-    import torch
+    (key -> (m, ...)), as the policy reads them when it acts
+    (:meth:`factory.policy.checkpoint.LoadedPolicy.read_objects`), in batches of 64."""
+    from factory.policy.inputs import convert_observation
 
-    from factory.policy.inputs import CAMERA_POSES, convert_observation
-    from factory.policy.perception import camera_poses, camera_stack
-
-    net, spec, dev = policy.perception, policy.spec, policy.device  # type: ignore[attr-defined]
-    n = len(obs["observation.state"])
+    on = policy.device if policy.device != "cpu" else None
     out = []
-    for a in range(0, n, 64):
+    for a in range(0, len(obs["observation.state"]), 64):
         part = {k: v[a : a + 64] for k, v in obs.items()}
-        batch = convert_observation(spec, part, dev if dev != "cpu" else None)
-        images = camera_stack(batch, net.cameras, net.depth)
-        poses = None
-        if net.xyz:
-            got = camera_poses(
-                net.point_cameras,
-                part["observation.state"],
-                part.get(CAMERA_POSES),
-                net.pose_cameras,
-            )
-            poses = torch.from_numpy(got).to(dev)
-        with torch.inference_mode():
-            out.append(net.predict(images.to(dev), poses).float().cpu().numpy())
+        batch = convert_observation(policy.spec, part, on)
+        out.append(policy.read_objects(batch, part).numpy())
     return np.concatenate(out)
 
 

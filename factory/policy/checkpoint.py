@@ -465,6 +465,33 @@ class LoadedPolicy:
             self._tracker.reset()
         self._origin = self._base_origin = None
 
+    def read_objects(self, batch: dict[str, Any], obs: Mapping[str, np.ndarray]) -> Any:
+        """The perception network's environment values (n, 24) float32 on the CPU (the objects'
+        poses in the arm's base frame, :func:`~factory.policy.inputs.env_features`' units),
+        read from the converted observations ``batch``
+        (:func:`~factory.policy.inputs.convert_observation`) of the raw ones ``obs``, whose
+        robot state and camera calibration give the point cameras' poses."""
+        import torch
+
+        from factory.policy.perception import camera_stack
+
+        net = self.perception
+        images = camera_stack(batch, net.cameras, net.depth)
+        poses = None
+        if net.xyz:  # the point cameras' poses: kinematics, calibration
+            from factory.policy.inputs import CAMERA_POSES
+            from factory.policy.perception import camera_poses
+
+            got = camera_poses(
+                net.point_cameras,
+                obs["observation.state"],
+                obs.get(CAMERA_POSES),
+                net.pose_cameras,
+            )
+            poses = torch.from_numpy(got).to(self.device)
+        with torch.inference_mode():
+            return net.predict(images.to(self.device), poses).float().to("cpu")
+
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         """Actions for a batch of observations.
 
@@ -501,25 +528,9 @@ class LoadedPolicy:
         t1 = clock()
         times["convert_s"] += t1 - t0
         if self.perception is not None:  # the object poses read from the cameras
-            from factory.policy.perception import camera_stack
-
-            images = camera_stack(batch, self.perception.cameras, self.perception.depth)
+            env = self.read_objects(batch, obs)
             for k in self.spec.visual_keys():
                 del batch[k]
-            poses = None
-            if self.perception.xyz:  # the point cameras' poses: kinematics, calibration
-                from factory.policy.inputs import CAMERA_POSES
-                from factory.policy.perception import camera_poses
-
-                got = camera_poses(
-                    self.perception.point_cameras,
-                    obs["observation.state"],
-                    obs.get(CAMERA_POSES),
-                    self.perception.pose_cameras,
-                )
-                poses = torch.from_numpy(got).to(self.device)
-            with torch.inference_mode():
-                env = self.perception.predict(images.to(self.device), poses).float().to("cpu")
             if self.spec.mobile:  # the sub-task one-hot follows the predicted values
                 env = torch.cat([env, batch["observation.environment_state"]], -1)
             batch["observation.environment_state"] = env
