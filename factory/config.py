@@ -161,6 +161,9 @@ class CompileConfig:
         texture_size: size (px) of floor, wall and ceiling textures (64, 128, 256 or 512).
         lights: room lighting: ceiling lights per room and a light in every lamp (false: the
             lighting before issue 17, a headlight and a sun).
+        light_mesh_edge: longest edge (m) of the visual meshes drawn; longer ones are split so
+            that the CPU's OpenGL renderer (lighting per vertex) and MuJoCo Warp's (per ray)
+            draw alike (``factory.sim.lit_mesh``); ``0``: the meshes as built.
     """
 
     ceiling: bool = False
@@ -169,6 +172,7 @@ class CompileConfig:
     textures: bool = True
     texture_size: int = 256
     lights: bool = True
+    light_mesh_edge: float = 0.1
 
 
 @dataclass

@@ -4,14 +4,15 @@ and the Warp env; on Warp's CPU device where there is no CUDA), with every light
 on, then each light alone (the headlight included), per camera: the mean absolute RGB
 difference (0-255) and the mean signed one (Warp minus OpenGL).
 
-With ``--subdivide EDGE`` the run is copied to a scratch folder whose visual meshes (never the
-collision pieces) are subdivided until no edge is longer than EDGE metres, and measured there
+With ``--refine MAX_EDGE:MAX_NORMAL_DEG[:MIN_EDGE[:MAX_FACES]]`` (repeatable) the run is copied
+to a scratch folder whose visual meshes (never the collision pieces) are refined by
+:func:`factory.sim.lit_mesh.refine_for_lighting` with those rules, and measured there
 too: OpenGL's fixed-function lighting is computed at the vertices and interpolated across each
 triangle, Warp's at every ray's hit, so coarse meshes light differently on the two, and
-subdivision tells by how much (docs/POLICY.md, "Results measured", 2026-11-30).
+refinement tells by how much (docs/POLICY.md, "Results measured", 2026-11-30).
 
     python scripts/bench_render_lighting.py --run-dir runs/heldout --scene kitchen_3627575a_2 \\
-        --subdivide 0.04 --tag cpu2
+        --refine 0.04:0:0:100000000 --refine 0.15:8 --tag cpu2
 
 Prints and saves JSON to ``benchmarks/results/render-lighting-<tag>.json``.
 """
@@ -100,8 +101,17 @@ def draw_warp(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> l
     return out
 
 
-def compare(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
-    """Warp against OpenGL with every light, then with each light alone."""
+def compare(
+    model: mujoco.MjModel, data: mujoco.MjData, numquads: int = 0, matte: bool = False
+) -> dict[str, Any]:
+    """Warp against OpenGL with every light, then with each light alone; ``numquads`` > 0
+    sets MuJoCo's ``visual/quality numquads`` first, ``matte`` removes specular light."""
+    if numquads > 0:
+        model.vis.quality.numquads = numquads
+    if matte:
+        model.mat_specular[:] = 0
+        model.light_specular[:] = 0
+        model.vis.headlight.specular[:] = 0
     from factory.robots.panda import CAMERAS as CAMERA_NAMES
 
     names = [CAMERA_NAMES[c] for c in CAMERAS]
@@ -132,44 +142,29 @@ def compare(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
     return out
 
 
-def subdivided_copy(run: Path, edge: float, into: Path) -> tuple[Path, dict[str, int]]:
-    """A copy of ``run``'s scenes and assets whose visual meshes have no edge longer than
-    ``edge`` (m), their texture coordinates carried along; returns it and the face counts."""
-    import trimesh
+def refined_copy(run: Path, scene: str, spec: Any, into: Path) -> tuple[Path, dict[str, int]]:
+    """A copy of ``run``'s scenes and assets whose visual meshes used by ``scene`` are refined
+    by :func:`factory.sim.lit_mesh.refine_for_lighting` with ``spec`` (texture coordinates
+    carried along); returns it and the face counts."""
+    import re
+
+    from factory.sim.lit_mesh import obj_lines, read_obj, refine_for_lighting
 
     dst = into / run.name
     shutil.copytree(run / "scenes", dst / "scenes")
     shutil.copytree(run / "assets", dst / "assets")
     if (run / "manifest.json").is_file():
         shutil.copy(run / "manifest.json", dst / "manifest.json")
+    xml = (run / "scenes" / scene / "model.xml").read_text()
+    used = sorted(set(re.findall(r'file="([^"]*visual[^"]*\.obj)"', xml)))
     before = after = 0
-    for f in sorted((dst / "assets").rglob("visual*.obj")):
-        mesh: Any = trimesh.load(f, process=False, force="mesh")
-        if not len(getattr(mesh, "faces", [])):
-            continue
-        verts, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-        uv = getattr(mesh.visual, "uv", None)
-        attrs = {"uv": np.asarray(uv)} if uv is not None and len(uv) == len(verts) else {}
+    for name in used:
+        f = dst / "assets" / name
+        vertices, faces, uv = read_obj(f)
+        v, fa, t = refine_for_lighting(vertices, faces, uv, spec)
         before += len(faces)
-        for _ in range(8):
-            tri = verts[faces]
-            longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(1)
-            big = np.nonzero(longest > edge)[0]
-            if not len(big):
-                break
-            if attrs:
-                verts, faces, attrs = trimesh.remesh.subdivide(
-                    verts, faces, face_index=big, vertex_attributes=attrs
-                )
-            else:
-                verts, faces = trimesh.remesh.subdivide(verts, faces, face_index=big)
-        after += len(faces)
-        visual = (
-            trimesh.visual.TextureVisuals(uv=attrs["uv"], material=mesh.visual.material)
-            if attrs
-            else None
-        )
-        trimesh.Trimesh(verts, faces, visual=visual, process=False).export(f)
+        after += len(fa)
+        f.write_text(obj_lines(v, fa, t))
     return dst, {"visual_faces_before": before, "visual_faces_after": after}
 
 
@@ -180,21 +175,49 @@ def main() -> None:
     ap.add_argument("--run-dir", type=Path, required=True)
     ap.add_argument("--scene", required=True)
     ap.add_argument("--seed", type=int, default=None, help="default: its first eval seed")
-    ap.add_argument("--subdivide", type=float, default=0.0, metavar="EDGE")
+    ap.add_argument(
+        "--refine",
+        action="append",
+        default=[],
+        metavar="MAX_EDGE:MAX_NORMAL_DEG[:MIN_EDGE[:MAX_FACES]]",
+        help="also measure with the scene's visual meshes refined so (repeatable; "
+        "'0.04:0:0:100000000' is a uniform 4 cm subdivision)",
+    )
+    ap.add_argument(
+        "--numquads",
+        type=int,
+        default=0,
+        help="draw box faces in OpenGL with this many quads per side (MuJoCo's "
+        "visual/quality numquads; 0: the scene's own)",
+    )
+    ap.add_argument(
+        "--matte",
+        action="store_true",
+        help="no specular light in either renderer (materials', lights' and the headlight's)",
+    )
     ap.add_argument("--tag", default="cpu")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     from factory.policy.env import eval_seed
 
     seed = args.seed if args.seed is not None else eval_seed(0, args.scene, 0)
-    rows: dict[str, Any] = {"as_generated": compare(*reset_state(args.run_dir, args.scene, seed))}
+    look = (args.numquads, args.matte)
+    rows: dict[str, Any] = {
+        "as_generated": compare(*reset_state(args.run_dir, args.scene, seed), *look)
+    }
     print("as generated", rows["as_generated"]["all_lights"], flush=True)
-    if args.subdivide > 0:
+    from factory.sim.lit_mesh import LightingRefinement
+
+    for text in args.refine:
+        values = [float(x) for x in text.split(":")]
+        spec = LightingRefinement(
+            *values[:3], **({"max_faces": int(values[3])} if len(values) > 3 else {})
+        )
         with tempfile.TemporaryDirectory() as tmp:
-            copy, faces = subdivided_copy(args.run_dir, args.subdivide, Path(tmp))
-            key = f"visual_meshes_subdivided_{args.subdivide:g}m"
-            rows[key] = {**faces, **compare(*reset_state(copy, args.scene, seed))}
-            print(key, rows[key]["all_lights"], flush=True)
+            copy, faces = refined_copy(args.run_dir, args.scene, spec, Path(tmp))
+            key = f"refined_{text}"
+            rows[key] = {**faces, **compare(*reset_state(copy, args.scene, seed), *look)}
+            print(key, faces, rows[key]["all_lights"], flush=True)
     import warp as wp
 
     out = {
@@ -208,6 +231,8 @@ def main() -> None:
         "scene": args.scene,
         "seed": seed,
         "size_px": SIZE,
+        "numquads": args.numquads,
+        "matte": args.matte,
         "results": rows,
     }
     path = args.out or ROOT / "benchmarks" / "results" / f"render-lighting-{args.tag}.json"

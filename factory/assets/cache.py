@@ -23,6 +23,7 @@ import trimesh
 
 from factory.schema import AssetMeta, SchemaError, load_asset_meta
 from factory.schema.asset import asset_meta_to_json
+from factory.sim.lit_mesh import obj_lines
 
 log = logging.getLogger(__name__)
 
@@ -80,19 +81,5 @@ def build(assets_dir: Path, asset_id: str, fill: Callable[[Path], AssetMeta]) ->
 def write_obj(mesh: trimesh.Trimesh, path: Path, uv: np.ndarray | None = None) -> None:
     """A mesh as OBJ (9 significant digits): vertices and faces, and with ``uv`` (F, 3, 2)
     texture coordinates per face corner (``vt`` with their own indices, ``f v/vt``; the
-    vertices stay shared, so the mesh stays watertight)."""
-    v = np.asarray(mesh.vertices)
-    f = np.asarray(mesh.faces) + 1
-    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in v]
-    if uv is None:
-        lines += [f"f {a} {b} {c}" for a, b, c in f]
-    else:
-        flat = np.round(np.asarray(uv, float).reshape(-1, 2), 6)
-        uniq, inv = np.unique(flat, axis=0, return_inverse=True)
-        t = inv.reshape(-1, 3) + 1
-        lines += [f"vt {a:.7g} {b:.7g}" for a, b in uniq]
-        lines += [
-            f"f {a}/{ta} {b}/{tb} {c}/{tc}"
-            for (a, b, c), (ta, tb, tc) in zip(f.tolist(), t.tolist(), strict=True)
-        ]
-    path.write_text("\n".join(lines) + "\n")
+    vertices stay shared, so the mesh stays watertight): :func:`factory.sim.lit_mesh.obj_lines`."""
+    path.write_text(obj_lines(np.asarray(mesh.vertices), np.asarray(mesh.faces), uv))

@@ -21,7 +21,9 @@ import numpy as np
 
 from factory.assets.geometry import MAX_HULL_VERTICES
 from factory.assets.procedural import AssetError
+from factory.errors import CompileError
 from factory.schema import AssetMeta
+from factory.sim.lit_mesh import read_obj
 
 log = logging.getLogger(__name__)
 
@@ -49,45 +51,18 @@ class UVMesh:
 
 def read_obj_uv(path: str | Path) -> UVMesh:
     """Reads an OBJ's ``v``, ``vt`` and ``f`` lines (polygons fanned into triangles; normals
-    and materials ignored).
+    and materials ignored; :func:`factory.sim.lit_mesh.read_obj`).
 
     Raises:
         AssetError: the file is missing, has no faces, or a face lacks texture coordinates.
     """
     try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError as e:
-        raise AssetError(f"cannot read the mesh {path} ({e.strerror})") from None
-    verts: list[list[float]] = []
-    tex: list[list[float]] = []
-    faces: list[tuple[int, int, int]] = []
-    corners: list[tuple[int, int, int]] = []
-    for line in text.splitlines():
-        parts = line.split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            verts.append([float(x) for x in parts[1:4]])
-        elif parts[0] == "vt":
-            tex.append([float(x) for x in parts[1:3]])
-        elif parts[0] == "f":
-            idx = [p.split("/") for p in parts[1:]]
-            if any(len(i) < 2 or not i[1] for i in idx):
-                raise AssetError(f"{path}: a face has no texture coordinates (f v/vt expected)")
-            vi = [_index(int(i[0]), len(verts)) for i in idx]
-            ti = [_index(int(i[1]), len(tex)) for i in idx]
-            for k in range(1, len(vi) - 1):
-                faces.append((vi[0], vi[k], vi[k + 1]))
-                corners.append((ti[0], ti[k], ti[k + 1]))
-    if not faces:
-        raise AssetError(f"{path} has no faces: a mesh asset needs triangles")
-    t = np.asarray(tex, float)
-    return UVMesh(np.asarray(verts, float), np.asarray(faces, np.int64), t[np.asarray(corners)])
-
-
-def _index(i: int, n: int) -> int:
-    """An OBJ index (1-based, or negative from the end) as a 0-based one."""
-    return i - 1 if i > 0 else n + i
+        vertices, faces, uv = read_obj(path)
+    except CompileError as e:
+        raise AssetError(str(e)) from None
+    if uv is None:
+        raise AssetError(f"{path}: a face has no texture coordinates (f v/vt expected)")
+    return UVMesh(vertices, faces, uv)
 
 
 def clean(mesh: UVMesh, tol: float = 1e-7) -> UVMesh:

@@ -90,6 +90,11 @@ class CompileOptions:
         lights: room lighting (:mod:`factory.sim.lights`: ceiling lights per room, a light
             in every lamp, a weak sun and a soft headlight); off: the lighting before issue
             17 (a brighter headlight and sun, no ceiling or lamp lights).
+        light_mesh_edge: longest edge (m, at the object's scale) of the visual meshes the
+            model draws: longer edges are split (:mod:`factory.assets.lighting_mesh`), so
+            that OpenGL, which lights vertices, and MuJoCo Warp, which lights every hit,
+            draw the same picture; the refined copies are kept beside the asset's files
+            (``lit<mm>mm-<file>``). ``0``: the assets' meshes as built.
     """
 
     ceiling: bool = False
@@ -98,6 +103,14 @@ class CompileOptions:
     textures: bool = True
     texture_size: int = 256
     lights: bool = True
+    light_mesh_edge: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not self.light_mesh_edge >= 0:
+            raise CompileError(
+                f"compile.light_mesh_edge must be >= 0 (m; 0 turns the refinement off), "
+                f"got {self.light_mesh_edge}"
+            )
 
 
 @dataclass
@@ -208,6 +221,17 @@ class _Builder:
         self.dynamic_geoms: dict[str, list[mujoco.MjsGeom]] = {}
         self.textures: set[str] = set()
         self.tiles: dict[str, float] = {}  # textured surface material -> its tile (m)
+
+    def lit_mesh(self, aid: str, file: str, scale: list[float]) -> str:
+        """The file (relative to the asset's folder) of visual mesh ``file`` refined for
+        lighting at ``options.light_mesh_edge`` (see :class:`CompileOptions`), written on
+        first use; ``file`` itself when the option is off or the mesh needs no split."""
+        edge = self.options.light_mesh_edge
+        if edge <= 0 or self.assets_root is None:
+            return file
+        from factory.sim.lit_mesh import lit_copy
+
+        return lit_copy(self.assets_root / aid, file, edge, scale)
 
     # ---- global settings
     def setup(self) -> None:
@@ -524,7 +548,10 @@ class _Builder:
                 carrier = self._links(obj, body, meta.articulation, scale)
             visual_mesh = f"{aid}/visual"
             if visual_mesh not in self.mesh_assets and not (meta.collision and meta.visual_parts):
-                spec.add_mesh(name=visual_mesh, file=f"{aid}/{meta.visual}", scale=scale)
+                file = (
+                    self.lit_mesh(aid, meta.visual, scale) if meta.collision else meta.visual
+                )  # a visual mesh without collision pieces is also the collision geometry
+                spec.add_mesh(name=visual_mesh, file=f"{aid}/{file}", scale=scale)
                 self.mesh_assets[visual_mesh] = meta
             if meta.texture:
                 tex_name = f"tex/{aid}"
@@ -549,7 +576,8 @@ class _Builder:
                 for k, vp in enumerate(meta.visual_parts):
                     part_mesh = f"{aid}/visual_{k}"
                     if part_mesh not in self.mesh_assets:
-                        spec.add_mesh(name=part_mesh, file=f"{aid}/{vp['file']}", scale=scale)
+                        file = self.lit_mesh(aid, vp["file"], scale)
+                        spec.add_mesh(name=part_mesh, file=f"{aid}/{file}", scale=scale)
                         self.mesh_assets[part_mesh] = meta
                     rgba_k = tuple(obj.appearance.rgba or vp.get("rgba") or rgba)
                     if vp.get("texture") and self.options.textures and self.assets_root:
