@@ -7,12 +7,14 @@ difference (0-255) and the mean signed one (Warp minus OpenGL).
 With ``--refine MAX_EDGE:MAX_NORMAL_DEG[:MIN_EDGE[:MAX_FACES]]`` (repeatable) the run is copied
 to a scratch folder whose visual meshes (never the collision pieces) are refined by
 :func:`factory.sim.lit_mesh.refine_for_lighting` with those rules, and measured there
-too: OpenGL's fixed-function lighting is computed at the vertices and interpolated across each
+too (on top of the meshes as built: the baseline and the copies are compiled with
+``compile.light_mesh_edge=0``; ``--edge E`` measures the compiler's own refinement at E):
+OpenGL's fixed-function lighting is computed at the vertices and interpolated across each
 triangle, Warp's at every ray's hit, so coarse meshes light differently on the two, and
 refinement tells by how much (docs/POLICY.md, "Results measured", 2026-11-30).
 
     python scripts/bench_render_lighting.py --run-dir runs/heldout --scene kitchen_3627575a_2 \\
-        --refine 0.04:0:0:100000000 --refine 0.15:8 --tag cpu2
+        --edge 0.1 --refine 0.04:0:0:100000000 --refine 0.15:8 --tag cpu2
 
 Prints and saves JSON to ``benchmarks/results/render-lighting-<tag>.json``.
 """
@@ -45,8 +47,30 @@ CAMERAS = ("left", "right", "wrist")
 SIZE = 128
 
 
-def reset_state(run: Path, scene: str, seed: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """The CPU env's model of ``scene`` and its state after reset to configuration ``seed``."""
+def reset_state(
+    run: Path, scene: str, seed: int, edge: float = 0.0
+) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The CPU env's model of ``scene``, compiled with ``compile.light_mesh_edge=edge`` (the
+    env compiles with the default options; ``0``: the meshes as the assets were built), and
+    its state after reset to configuration ``seed``."""
+    import dataclasses
+
+    import factory.sim.compile as compile_module
+
+    plain = compile_module.compile_scene
+
+    def compile_with_edge(scene_: Any, root: Any = None, options: Any = None) -> Any:
+        base = options or compile_module.CompileOptions()
+        return plain(scene_, root, dataclasses.replace(base, light_mesh_edge=edge))
+
+    compile_module.compile_scene = compile_with_edge  # type: ignore[assignment]
+    try:
+        return _reset_state(run, scene, seed)
+    finally:
+        compile_module.compile_scene = plain  # type: ignore[assignment]
+
+
+def _reset_state(run: Path, scene: str, seed: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
     from factory.policy.env import make_vec_env
     from factory.policy.eval import Job, run_batch
     from factory.policy.obs_spec import ObsSpec
@@ -184,6 +208,13 @@ def main() -> None:
         "'0.04:0:0:100000000' is a uniform 4 cm subdivision)",
     )
     ap.add_argument(
+        "--edge",
+        type=float,
+        action="append",
+        default=[],
+        help="also measure the scene compiled with compile.light_mesh_edge=EDGE (m; repeatable)",
+    )
+    ap.add_argument(
         "--numquads",
         type=int,
         default=0,
@@ -203,9 +234,13 @@ def main() -> None:
     seed = args.seed if args.seed is not None else eval_seed(0, args.scene, 0)
     look = (args.numquads, args.matte)
     rows: dict[str, Any] = {
-        "as_generated": compare(*reset_state(args.run_dir, args.scene, seed), *look)
+        "as_built": compare(*reset_state(args.run_dir, args.scene, seed), *look)
     }
-    print("as generated", rows["as_generated"]["all_lights"], flush=True)
+    print("as built", rows["as_built"]["all_lights"], flush=True)
+    for edge in args.edge:
+        key = f"compiled_light_mesh_edge_{edge:g}m"
+        rows[key] = compare(*reset_state(args.run_dir, args.scene, seed, edge), *look)
+        print(key, rows[key]["all_lights"], flush=True)
     from factory.sim.lit_mesh import LightingRefinement
 
     for text in args.refine:

@@ -326,9 +326,11 @@ def _group_by_module(items: list[pytest.Item]) -> None:
                 item.add_marker(pytest.mark.xdist_group(group))
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Groups tests for pytest-xdist; tests marked ``gpu`` run only where a CUDA device is
-    present."""
+    present. First among the hooks: xdist's own reads the groups into the test ids (for
+    ``--dist loadgroup``) in its hook, so they must be there before it runs."""
     _group_by_module(items)
     if os.path.exists("/dev/nvidiactl"):
         return
