@@ -163,7 +163,10 @@ class CompileConfig:
             lighting before issue 17, a headlight and a sun).
         light_mesh_edge: longest edge (m) of the visual meshes drawn; longer ones are split so
             that the CPU's OpenGL renderer (lighting per vertex) and MuJoCo Warp's (per ray)
-            draw alike (``factory.sim.lit_mesh``); ``0``: the meshes as built.
+            draw alike (``factory.sim.lit_mesh``); ``0`` (the default): the meshes as built.
+            Like the other ``compile.*`` keys it applies where the run's compile options are
+            used (``stage=compile``, the generated ``model.xml``, validation); the demos and
+            the envs compile their models with the defaults.
     """
 
     ceiling: bool = False
@@ -172,7 +175,7 @@ class CompileConfig:
     textures: bool = True
     texture_size: int = 256
     lights: bool = True
-    light_mesh_edge: float = 0.1
+    light_mesh_edge: float = 0.0
 
 
 @dataclass
@@ -631,7 +634,10 @@ class EvalConfig:
             ``warp`` (MuJoCo Warp on the GPU, a scene's episodes as the worlds of one model,
             cameras drawn by its batch renderer; one worker process and ``eval.batch`` all
             of a scene's episodes unless set; the task's checks stay the CPU's:
-            :mod:`factory.policy.warp_sim`).
+            :mod:`factory.policy.warp_sim`), or ``warp_opengl`` (a diagnostic: MuJoCo Warp's
+            physics, the cameras drawn by OpenGL from each world's state as the CPU env draws
+            them: beside ``cpu`` and ``warp`` it tells a renderer's share of a disagreement
+            from the physics').
         ensemble: temporal ensembling of a trained diffusion policy's chunks
             (:class:`factory.policy.checkpoint.ChunkEnsemble`): a chunk every
             ``ensemble_every`` frames, each frame's action the mean of every kept chunk's

@@ -45,8 +45,9 @@ RUN_SCHEMA_VERSION = 1
 MAX_BATCH = 16
 """Episodes of a scene stepped together when ``eval.batch`` is 0, on the CPU (with
 ``eval.executor=warp``: all of a scene's, one world each)."""
-EXECUTORS = ("cpu", "warp")
-"""``eval.executor`` settings."""
+EXECUTORS = {"cpu": False, "warp": True, "warp_opengl": True}
+"""``eval.executor`` settings -> whether a scene's episodes are the worlds of one device (one
+worker process unless ``eval.workers`` says otherwise)."""
 DEFAULT_MAX_STEPS = 400
 
 
@@ -447,7 +448,7 @@ def run(ctx: StageContext) -> dict[str, Any]:
         max_steps,
     )
     executor = getattr(ec, "executor", "cpu")
-    if executor == "warp":  # one process drives the device; a scene's episodes are its worlds
+    if EXECUTORS[executor]:  # one process drives the device; a scene's episodes are its worlds
         workers = ec.workers or 1
         batch = ec.batch or max(1, len(jobs))
     else:

@@ -531,7 +531,7 @@ def run_units(
     workers = min(workers, len(units))
     gpus = (
         worker_gpus(settings.device, os.environ.get("CUDA_VISIBLE_DEVICES"))
-        if settings.kind == "trained" or settings.executor == "warp"  # the kinds that use one
+        if settings.kind == "trained" or settings.executor != "cpu"  # the kinds that use one
         else []
     )
     log.info(

@@ -159,8 +159,8 @@ def task_sim(
     """The simulation of ``num_envs`` episodes of a scene of ``task``: the task's own
     (:meth:`~factory.tasks.base.Task.env_sim`), else its worlds stepped together by its rules
     (:meth:`~factory.tasks.base.Task.env_rules`): on one CPU batch (``executor="cpu"``,
-    ``nthread`` simulation threads, 0: one per core) or on MuJoCo Warp (``"warp"``,
-    :class:`~factory.policy.warp_sim.WarpBatchSim`).
+    ``nthread`` simulation threads, 0: one per core) or on MuJoCo Warp (``"warp"``, or
+    ``"warp_opengl"`` with OpenGL's cameras: :class:`~factory.policy.warp_sim.WarpBatchSim`).
 
     Raises:
         ConfigError: ``executor="warp"`` for a task that simulates its episodes itself.
@@ -176,10 +176,17 @@ def task_sim(
             )
         return sim
     rules = task.env_rules(setup, planner, num_envs, spec, interpolate)
-    if executor == "warp":
-        from factory.policy.warp_sim import WarpBatchSim
+    if executor != "cpu":
+        from factory.policy.warp_sim import WARP_EXECUTORS, WarpBatchSim
 
-        return WarpBatchSim(rules, num_envs, spec)
+        if executor not in WARP_EXECUTORS:
+            from factory.errors import ConfigError
+
+            raise ConfigError(
+                f"eval.executor={executor!r} is unknown: use one of cpu, "
+                f"{', '.join(WARP_EXECUTORS)}"
+            )
+        return WarpBatchSim(rules, num_envs, spec, images=WARP_EXECUTORS[executor])
     from factory.policy.batch_sim import BatchSim
 
     return BatchSim(rules, num_envs, spec, nthread)

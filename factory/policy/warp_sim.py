@@ -25,6 +25,12 @@ reset. A world whose contact or constraint buffers overflowed ends its episode a
 MuJoCo Warp computes in float32 and renders by ray tracing (no shadows), so trajectories and
 images are close to, not equal to, the CPU env's (tests/policy/test_warp_sim.py states the
 agreement); the ``video`` renderer of rollout videos stays the CPU's OpenGL one.
+
+``eval.executor=warp_opengl`` (:data:`WARP_EXECUTORS`) is a diagnostic: MuJoCo Warp's physics
+with the observation cameras drawn by OpenGL from each world's host state, as the CPU env draws
+them (slow: the CPU draws every world's cameras every frame). Set beside ``cpu`` and ``warp``
+on the same configurations it tells how much of a disagreement between the two envs is the
+renderer's and how much the physics'.
 """
 
 from __future__ import annotations
@@ -43,6 +49,11 @@ from factory.robots.panda import CAMERAS
 from factory.sim.kernel_preload import PreloadReport
 
 log = logging.getLogger(__name__)
+
+WARP_EXECUTORS = {"warp": "warp", "warp_opengl": "opengl"}
+"""``eval.executor`` values stepped on MuJoCo Warp -> who draws their observation cameras
+(``warp``: MuJoCo Warp's batch renderer; ``opengl``: the CPU env's OpenGL renderer, drawing
+each world's host state)."""
 
 HEADROOM = 3.0
 """Contacts per world the buffers hold, as a multiple of the most an initial configuration has
@@ -83,6 +94,11 @@ class WarpBatchSim(BatchSim):
         device: Warp device; default ``cuda:0`` when CUDA is present, else ``cpu`` (slow:
             tests).
         graph: capture a frame's launches into a CUDA graph (CUDA only).
+        images: who draws the observation cameras: ``warp`` (the device's batch renderer) or
+            ``opengl`` (the CPU env's renderer, from each world's host state; a diagnostic).
+
+    Raises:
+        ConfigError: an unknown ``images``.
     """
 
     def __init__(
@@ -92,6 +108,7 @@ class WarpBatchSim(BatchSim):
         spec: Any,
         device: str | None = None,
         graph: bool = True,
+        images: str = "warp",
     ) -> None:
         from factory.demos.execute.cpu import RecordConfig
         from factory.demos.execute.warp import buffer_sizes, render_context, state_layout
@@ -99,6 +116,8 @@ class WarpBatchSim(BatchSim):
         from factory.sim.backend import cuda_available, init_warp
         from factory.tasks.pick_place.objects import Outcome
 
+        if images not in ("warp", "opengl"):
+            raise ConfigError(f"WarpBatchSim images={images!r} is unknown: use warp or opengl")
         wp, mjw = _warp()
         init_warp()
         t0 = time.perf_counter()
@@ -114,7 +133,7 @@ class WarpBatchSim(BatchSim):
         self._overflow = np.zeros(n, np.int64)
         self.nconmax, self.njmax = buffer_sizes(m, self._sample_states(), HEADROOM)
         self._cams = tuple(spec.cameras)
-        ncam = len(self._cams)
+        ncam = len(self._cams) if images == "warp" else 0  # drawn on the device
         with wp.ScopedDevice(self.device):
             self.m = mjw.put_model(m)
             mujoco.mj_resetData(m, self._data)
@@ -157,11 +176,12 @@ class WarpBatchSim(BatchSim):
         self._host: dict[str, np.ndarray] = {}
         self.images_cfg = RecordConfig(spec.fps, spec.width, spec.height, self._cams, "uint16_mm")
         log.info(
-            "eval: MuJoCo Warp on %s: %d worlds, %d cameras, buffers of %d contacts and %d "
+            "eval: MuJoCo Warp on %s: %d worlds, %d cameras (%s), buffers of %d contacts and %d "
             "constraint rows a world, set up in %.1f s",
             self.device,
             n,
-            ncam,
+            len(self._cams),
+            "drawn on the device" if ncam else "drawn by OpenGL on the host",
             self.nconmax,
             self.njmax,
             time.perf_counter() - t0,
@@ -184,7 +204,7 @@ class WarpBatchSim(BatchSim):
         def trace() -> None:
             wp.launch(frame_ctrl, dim=1)
             rc = None
-            if self._cams:
+            if self.rc is not None:
                 wp.launch(k.to_images, dim=1)
                 names = [CAMERAS[c] for c in self._cams]
                 rc = render_context(model, 1, (spec.width, spec.height), names)

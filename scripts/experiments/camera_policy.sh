@@ -72,6 +72,10 @@ SECOND_VISION=${SECOND_VISION:-$VISION}  # its train.vision
 EVAL_WARP=${EVAL_WARP:-}  # 1: replays and the policy on MuJoCo Warp too (header)
 REPLAY_SCENES=${REPLAY_SCENES:-3}  # with EVAL_WARP: training kitchens replayed on both executors
 WARP_PLANNER=${WARP_PLANNER:-}  # 1 (with EVAL_WARP): the planner on MuJoCo Warp as well
+WARP_OPENGL=${WARP_OPENGL:-}  # N (with EVAL_WARP): the policy on the first N configurations per
+# held-out kitchen with eval.executor=warp_opengl (Warp's physics, OpenGL's cameras), after the
+# Warp evaluation: paired with the cpu and warp verdicts it splits their disagreement into the
+# renderer's share and the physics' (docs/POLICY.md)
 WARP_WARM=${WARP_WARM-1}  # with EVAL_WARP: during the training, the held-out kitchens' MuJoCo Warp
 # kernels compiled into the kernel cache by an evaluation of the policy's first checkpoint on
 # MuJoCo Warp, 1 episode of 2 frames per kitchen (its cameras, depth and image size: the final
@@ -317,9 +321,10 @@ EOF3
     > "$OUT_DIR/eval-replay-cpu.log" 2>&1 &
   pids+=($!)
   warp_one() {  # warp_one <policy> <name> <more overrides...>: timed, on MuJoCo Warp
+    # (EXECUTOR=warp_opengl: Warp's physics with OpenGL's cameras)
     local t2
     t2=$(date +%s)
-    $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" eval.executor=warp \
+    $PY -m factory stage=eval run_dir="$RUN" $COMMON eval.policy="$1" eval.executor="${EXECUTOR:-warp}" \
       eval.name="$2" eval.device="$DEVICE" eval.videos=0 "${@:3}" > "$OUT_DIR/eval-$2.log" 2>&1 \
       || log "   $2 on warp failed: $OUT_DIR/eval-$2.log"
     echo "{\"policy\": \"$1\", \"name\": \"$2\", \"seconds\": $(( $(date +%s) - t2 )), \
@@ -335,6 +340,8 @@ EOF3
       eval.workers="$WARP_WORKERS" "${eval_extra[@]}"
   fi
   warp_one replay replay-warp "eval.scenes=$REPLAY_LIST" eval.workers=1
+  [ -z "$WARP_OPENGL" ] || EXECUTOR=warp_opengl warp_one "$INPUTS" "$INPUTS-warp-opengl" \
+    eval.episodes_per_scene="$WARP_OPENGL" eval.workers="$WARP_WORKERS" "${eval_extra[@]}"
   [ -z "$WARP_PLANNER" ] || warp_one planner planner-warp eval.episodes_per_scene="$EVAL_EPISODES" \
     eval.workers="$WARP_WORKERS"
 fi

@@ -111,6 +111,24 @@ def test_warp_env_tracks_the_cpu_env(policy_run: Path) -> None:
         assert close.mean() > 0.8, (cam, close.mean())
 
 
+def test_warp_physics_with_opengl_images(policy_run: Path) -> None:
+    """``eval.executor=warp_opengl`` (the diagnostic): MuJoCo Warp steps the worlds (no render
+    context on the device) and OpenGL draws the cameras from each world's state, so the first
+    frame's images are the CPU env's exactly and the joints track the recording as on Warp."""
+    _, cpu_seen, joints, _ = _replay(policy_run, "cpu", 1, frames=1)
+    mixed, mixed_seen, _, device = _replay(policy_run, "warp_opengl", 1, frames=10)
+    assert device == "cpu" and mixed[0]["steps"] == 10
+    assert _joint_error(mixed_seen, joints, mixed) < 0.01
+    for cam in SPEC.cameras:
+        for kind in ("images", "depth"):
+            key = f"observation.{kind}.{cam}"
+            np.testing.assert_array_equal(mixed_seen[0][key], cpu_seen[0][key], err_msg=key)
+    with pytest.raises(ConfigError, match="use warp or opengl"):
+        from factory.policy.warp_sim import WarpBatchSim
+
+        WarpBatchSim(None, 1, SPEC, images="vulkan")  # type: ignore[arg-type]
+
+
 def test_warp_env_preloads_its_kernels(policy_run: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The env's MuJoCo Warp kernels (physics, renderer, the image and control kernels) are
     loaded on every core before the first frame, from a dry trace of one frame on one world:
@@ -134,7 +152,9 @@ def test_eval_executor_settings() -> None:
     from factory.policy.eval_stage import check_config
     from factory.policy.vector_env import task_sim
 
-    with pytest.raises(ConfigError, match=r"eval\.executor='gpu' is unknown: use one of cpu, warp"):
+    with pytest.raises(
+        ConfigError, match=r"eval\.executor='gpu' is unknown: use one of cpu, warp, warp_opengl"
+    ):
         check_config(EvalConfig(executor="gpu"))
 
     class _OwnSim:

@@ -121,16 +121,18 @@ def test_read_obj_rejects_broken_files(tmp_path: Path) -> None:
 def test_the_compiler_draws_refined_visual_meshes_and_keeps_the_physics(
     tmp_path: Path, make_kitchen: Any
 ) -> None:
-    """A procedural kitchen compiled with the default edge draws refined copies of its long
-    visual meshes; its collision meshes, masses and contacts are those of the unrefined one."""
+    """A procedural kitchen compiled with ``light_mesh_edge=0.1`` draws refined copies of its
+    long visual meshes; its collision meshes, masses and contacts are those of the unrefined
+    one. The default (0) refines nothing."""
     import mujoco
 
     from factory.sim.compile import compile_scene
 
     assets = tmp_path / "assets"
     scene = make_kitchen(assets)
-    plain = compile_scene(scene, assets, CompileOptions(light_mesh_edge=0)).model
-    lit = compile_scene(scene, assets, CompileOptions()).model
+    plain = compile_scene(scene, assets, CompileOptions()).model
+    assert not list(assets.rglob("lit*.obj"))
+    lit = compile_scene(scene, assets, CompileOptions(light_mesh_edge=0.1)).model
     written = sorted(assets.rglob("lit100mm-*.obj"))
     assert written, "no visual mesh was refined"
     assert not any("collision" in p.name for p in written)
