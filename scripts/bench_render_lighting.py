@@ -125,6 +125,30 @@ def draw_warp(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> l
     return out
 
 
+def draw_time(model: mujoco.MjModel, data: mujoco.MjData, repeats: int = 20) -> dict[str, Any]:
+    """OpenGL's time (ms) to draw the three policy cameras of this state as the recordings do
+    (after one warm-up draw), and the model's visual faces."""
+    import time
+
+    from factory.demos.record.frame_render import CameraStrip
+    from factory.robots.panda import CAMERAS as CAMERA_NAMES
+
+    cams = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAMES[c]) for c in CAMERAS]
+    strip = CameraStrip(model, cams, SIZE, SIZE, "uint16_mm")
+    try:
+        strip.render(data)
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            strip.render(data)
+        ms = (time.perf_counter() - t0) / repeats * 1000
+    finally:
+        strip.close()
+    faces = sum(
+        int(model.mesh_facenum[i]) for i in range(model.nmesh) if "visual" in model.mesh(i).name
+    )
+    return {"opengl_ms_per_frame_3_cameras": round(ms, 1), "visual_faces": faces}
+
+
 def compare(
     model: mujoco.MjModel, data: mujoco.MjData, numquads: int = 0, matte: bool = False
 ) -> dict[str, Any]:
@@ -215,6 +239,12 @@ def main() -> None:
         help="also measure the scene compiled with compile.light_mesh_edge=EDGE (m; repeatable)",
     )
     ap.add_argument(
+        "--draw-time",
+        action="store_true",
+        help="only time OpenGL's drawing of the three cameras, as built and at each --edge "
+        "(run it on an idle machine)",
+    )
+    ap.add_argument(
         "--numquads",
         type=int,
         default=0,
@@ -233,6 +263,15 @@ def main() -> None:
 
     seed = args.seed if args.seed is not None else eval_seed(0, args.scene, 0)
     look = (args.numquads, args.matte)
+    if args.draw_time:
+        rows_t = {
+            f"light_mesh_edge_{e:g}m": draw_time(*reset_state(args.run_dir, args.scene, seed, e))
+            for e in [0.0, *args.edge]
+        }
+        for k, v in rows_t.items():
+            print(k, v, flush=True)
+        _save(args, seed, {"draw_time": rows_t})
+        return
     rows: dict[str, Any] = {
         "as_built": compare(*reset_state(args.run_dir, args.scene, seed), *look)
     }
@@ -253,6 +292,11 @@ def main() -> None:
             key = f"refined_{text}"
             rows[key] = {**faces, **compare(*reset_state(copy, args.scene, seed), *look)}
             print(key, faces, rows[key]["all_lights"], flush=True)
+    _save(args, seed, rows)
+
+
+def _save(args: argparse.Namespace, seed: int, rows: dict[str, Any]) -> None:
+    """Writes the JSON of a run."""
     import warp as wp
 
     out = {

@@ -308,6 +308,29 @@ def cli():
 SHARED_RUNS = ("small_run", "policy_run")
 
 
+HEAVY_FIRST = (
+    "warp",
+    "policy_run",
+    "tests/scenes/test_generate.py",
+    "small_run",
+    "tests/dataset/test_dataset.py",
+    "tests/tasks/test_open_close.py",
+    "tests/tasks/test_smoke.py",
+)
+"""The costliest groups, most first (their shares of a 2-core run's work, 2026-11-30: the Warp
+modules about a quarter, the policy run's a sixth, scene generation and the small run's a
+tenth each, ...): handed out first, so that no worker starts a long group when the other is
+nearly done. xdist's own reordering (by number of tests, ``--loadscope-reorder``) is turned off in
+:func:`pytest_configure` so that this order holds."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Keeps the collection's order of test groups for pytest-xdist's scheduler (see
+    :data:`HEAVY_FIRST`)."""
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
+
+
 def _group_by_module(items: list[pytest.Item]) -> None:
     """Gives each module one ``xdist_group`` so that ``--dist loadgroup`` keeps a module (and
     its module- and session-scoped fixtures) in one worker: a module's own ``xdist_group`` mark
@@ -324,6 +347,12 @@ def _group_by_module(items: list[pytest.Item]) -> None:
         for item in module_items:
             if not any(True for _ in item.iter_markers("xdist_group")):
                 item.add_marker(pytest.mark.xdist_group(group))
+
+    def rank(item: pytest.Item) -> int:
+        group = next((m.args[0] for m in item.iter_markers("xdist_group") if m.args), "")
+        return HEAVY_FIRST.index(group) if group in HEAVY_FIRST else len(HEAVY_FIRST)
+
+    items.sort(key=rank)  # stable: each group's own order is kept
 
 
 @pytest.hookimpl(tryfirst=True)
