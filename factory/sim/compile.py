@@ -96,7 +96,7 @@ class CompileOptions:
             draw the same picture; the refined copies are kept beside the asset's files
             (``lit<mm>mm-<file>``). ``0`` (the default): the assets' meshes as built. Measured
             (docs/POLICY.md, 2026-11-30): 0.1 m halves the renderers' image difference at 8
-            times the visual faces and 4.3 times the CPU (llvmpipe) drawing time, and did not
+            times the visual faces and 4 times the CPU (llvmpipe) drawing time, and did not
             bring a camera policy's verdicts on the two envs together.
     """
 
