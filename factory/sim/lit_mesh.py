@@ -108,6 +108,23 @@ def _edges_to_split(
     return split_edge[inv.ravel()].reshape(faces.shape)
 
 
+_TEMPLATES = {
+    1: (("c0", "m0", "c2"), ("m0", "c1", "c2")),
+    2: (("m0", "c1", "m1"), ("c0", "m0", "m1"), ("c0", "m1", "c2")),
+    3: (("c0", "m0", "m2"), ("m0", "c1", "m1"), ("m2", "m1", "c2"), ("m0", "m1", "m2")),
+}
+"""A face's new triangles by how many of its edges are split (rotated so that edge 0 is split
+for one, edge 2 kept for two): ``c<k>`` its corner k, ``m<k>`` the midpoint of its edge k
+(corner k to k+1); counter-clockwise as the face."""
+
+
+def _triangles(split: int, corners: np.ndarray, mids: np.ndarray) -> list[np.ndarray]:
+    """The new triangles of :data:`_TEMPLATES` from per-face corner and midpoint values
+    (``corners``, ``mids``: (n, 3, ...) vertex indices or texture coordinates), each (n, 3, ...)."""
+    pick = {"c": corners, "m": mids}
+    return [np.stack([pick[k[0]][:, int(k[1])] for k in tri], axis=1) for tri in _TEMPLATES[split]]
+
+
 def _split_round(
     vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None, split: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -140,41 +157,11 @@ def _split_round(
         order = (np.arange(3)[None, :] + r[:, None]) % 3
         c = np.take_along_axis(faces[idx], order, axis=1)  # corners a, b, c
         m = np.take_along_axis(mid_index[idx], order, axis=1)  # m_ab, m_bc, m_ca
-        if s == 1:
-            tris = [(c[:, 0], m[:, 0], c[:, 2]), (m[:, 0], c[:, 1], c[:, 2])]
-        elif s == 2:
-            tris = [
-                (m[:, 0], c[:, 1], m[:, 1]),
-                (c[:, 0], m[:, 0], m[:, 1]),
-                (c[:, 0], m[:, 1], c[:, 2]),
-            ]
-        else:
-            tris = [
-                (c[:, 0], m[:, 0], m[:, 2]),
-                (m[:, 0], c[:, 1], m[:, 1]),
-                (m[:, 2], m[:, 1], c[:, 2]),
-                (m[:, 0], m[:, 1], m[:, 2]),
-            ]
-        out_f += [np.stack(t, axis=1) for t in tris]
+        out_f += _triangles(s, c, m)
         if uv is not None and uv_mid is not None:
             cu = np.take_along_axis(uv[idx], order[..., None], axis=1)
             mu = np.take_along_axis(uv_mid[idx], order[..., None], axis=1)
-            if s == 1:
-                tu = [(cu[:, 0], mu[:, 0], cu[:, 2]), (mu[:, 0], cu[:, 1], cu[:, 2])]
-            elif s == 2:
-                tu = [
-                    (mu[:, 0], cu[:, 1], mu[:, 1]),
-                    (cu[:, 0], mu[:, 0], mu[:, 1]),
-                    (cu[:, 0], mu[:, 1], cu[:, 2]),
-                ]
-            else:
-                tu = [
-                    (cu[:, 0], mu[:, 0], mu[:, 2]),
-                    (mu[:, 0], cu[:, 1], mu[:, 1]),
-                    (mu[:, 2], mu[:, 1], cu[:, 2]),
-                    (mu[:, 0], mu[:, 1], mu[:, 2]),
-                ]
-            out_uv += [np.stack(t, axis=1) for t in tu]
+            out_uv += _triangles(s, cu, mu)
     new_uv = None if uv is None else np.concatenate(out_uv)
     return new_vertices, np.concatenate(out_f), new_uv
 
