@@ -462,12 +462,15 @@ def test_overflowing_worlds_run_again_with_more_room_then_fail_cleanly(
     assert not any(r.outcome.success for r in failed if r.outcome)
 
 
-def test_image_store_rows_past_two_gib_of_a_camera() -> None:
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.gpu)])
+def test_image_store_rows_past_two_gib_of_a_camera(device: str) -> None:
     """Regression of the H100 crash at production size (CUDA error 700): the image store was one
     camera-major ``(ncam, rows, 3 H W)`` array, whose first stride (a camera's block, 2 GiB at
     43,691 rows of 128 x 128) overflowed Warp's 32-bit strides. Now each camera has its own
-    ``(rows, 3 H W)`` store: ``to_images`` on Warp's CPU device files a world's frame into row
-    43,999 of camera 1's 2.2 GB store, and :func:`check_strides` refuses the old layout."""
+    ``(rows, 3 H W)`` store: ``to_images`` files a world's frame into row 43,999 of camera 1's
+    2.2 GB store, and :func:`check_strides` refuses the old layout. On Warp's CPU device in CI;
+    on CUDA (``gpu``) at the size class of the crashed call (44,000 rows, about the rows of one
+    of the 761-episode calls that died), where a wrong stride is an illegal memory access."""
     wp = pytest.importorskip("warp")
     from factory.demos.execute.warp import check_strides
     from factory.demos.execute.warp_kernels import to_images
@@ -476,7 +479,7 @@ def test_image_store_rows_past_two_gib_of_a_camera() -> None:
 
     init_warp()
     npix, rows, ncam = 128 * 128, 44_000, 2
-    with wp.ScopedDevice("cpu"):
+    with wp.ScopedDevice(device):
         packed = np.zeros((2, ncam * npix), np.uint32)
         packed[0, npix:] = 0x00102030  # world 0, camera 1: RGB (16, 32, 48)
         depth = np.full((2, ncam * npix), 1.234, np.float32)
