@@ -115,6 +115,11 @@ class PlaceInsideScene(ArticulatedScene):
             "instruction": self.instruction,
         }
 
+    def states_recorder(self) -> Any:
+        """None: the GPU pipeline's planner processes simulate this task's episodes on the CPU
+        (its recording from GPU-simulated states is not written yet)."""
+        return None
+
     def execute(self, plan: Any, rec_cfg: Any, renderer: Any | None) -> Any:
         """:func:`~factory.tasks.place_inside.execute.execute_episode`."""
         from factory.tasks.place_inside.execute import execute_episode
