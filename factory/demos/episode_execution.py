@@ -435,6 +435,7 @@ class EpisodeGpu(GpuRecorder):
             "setup": t.setup,
             "periods": t.periods,
             "host": t.host,
+            "record": t.record,
             "calls": t.calls,
             "worlds": t.worlds,
             "frames": t.frames,

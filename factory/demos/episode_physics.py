@@ -23,6 +23,7 @@ main process make the same one (:func:`states_recorder`).
 from __future__ import annotations
 
 import logging
+import time
 from typing import Any
 
 from factory.demos.execution import SlotResult, cached_scene
@@ -93,17 +94,24 @@ def simulate_plans(runner: Any, hook: StatesRecorder, plans: list[Any], rec_cfg:
         runner: the scene's :class:`~factory.demos.execute.plan_worlds.WarpPlanWorlds`.
         hook: the scene's :class:`StatesRecorder`.
         rec_cfg: the recording settings (``fps``).
+
+    The host's seconds rebuilding the recordings are added to the runner's
+    ``times.record``; each recording's ``sim_seconds`` is its share of the device's.
     """
     from factory.demos.execute.plan_worlds import WorldPlan
     from factory.demos.execute.warp import OVERFLOW
     from factory.tasks.pick_place.objects import Outcome
 
+    periods = runner.times.periods
     worlds = [WorldPlan(p.qpos0, p.ctrl, hook.probes(p)) for p in plans]
     runs = runner.run(worlds)
     recs = []
+    t0 = time.perf_counter()
     for plan, run in zip(plans, runs, strict=True):
         rec = hook.recording(plan, run, rec_cfg)
         if run.overflow:
             rec.outcome = Outcome(False, OVERFLOW, {"overflow_bits": float(run.overflow)})
+        rec.sim_seconds = (runner.times.periods - periods) / len(plans)
         recs.append(rec)
+    runner.times.record += time.perf_counter() - t0
     return recs

@@ -99,12 +99,15 @@ class PlanWorldTimes:
         setup: templates, device buffers and kernel loading.
         periods: the device's periods and the copies back (host waiting included).
         host: filing the states and the contacts on the host.
+        record: the tasks' recordings rebuilt from the states on the host (added by the
+            caller: :func:`~factory.demos.episode_physics.simulate_plans`).
         calls, worlds, frames: calls made, worlds over them, frames recorded.
     """
 
     setup: float = 0.0
     periods: float = 0.0
     host: float = 0.0
+    record: float = 0.0
     calls: int = 0
     worlds: int = 0
     frames: int = 0

@@ -1,0 +1,150 @@
+"""The ``episode`` execution's GPU physics (``demos.episode_physics``,
+:mod:`factory.demos.episode_physics`) on Warp's CPU device: ``task=close`` and ``task=open``
+plans stepped as MuJoCo Warp worlds and recorded from their states on the host get the CPU
+executor's verdicts on the same seeds (a plan stopped at its grasp included: its failure and
+reason too), and the GPU pipeline stores episodes that pass the CPU path's checks.
+
+Island sleeping is off (``demos.sleep=false``): on Warp's CPU device MuJoCo Warp's sleeping
+steps cost about 6 times as much (57 against 10 ms a step for the bundled cabinet), and an
+articulated episode runs about 4,000 steps; the CPU executor is run with the same model.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+import pytest
+from robot_models import require_robot_models
+
+require_robot_models()
+pytest.importorskip("ompl")
+pytest.importorskip("mujoco_warp")
+
+pytestmark = pytest.mark.xdist_group("warp")
+
+
+def _scene(task: str, run: Path, **demos: Any) -> Any:
+    """Task ``task``'s bundled example scene copied into ``run`` and set up for ``stage=demos``
+    with its planner (island sleeping off)."""
+    from factory.config import DemosConfig
+    from factory.demos.record.slots import StageEnv
+    from factory.tasks import get_task
+
+    src = get_task(task).example_scene_path()
+    assert src is not None
+    sid = json.loads(src.read_text())["id"]
+    (run / "scenes" / sid).mkdir(parents=True)
+    (run / "scenes" / sid / "scene.json").write_text(src.read_text())
+    dc = DemosConfig(sleep=False, **demos)
+    env = StageEnv(str(run), str(run / "episodes" / "shard-0.zarr"), dc, task, 0, 1)
+    return get_task(task).demo_scene(env, sid)
+
+
+def _stopped(plan: Any) -> Any:
+    """``plan`` with its arm and hand held where the pull starts (the handle grasped): the part
+    never moves, the hand never lets go."""
+    ctrl = plan.ctrl.copy()
+    k = plan.phases["pull"]
+    ctrl[k:] = ctrl[k]
+    return replace(plan, ctrl=ctrl)
+
+
+@pytest.mark.parametrize("task", ["open", "close"])
+def test_verdicts_agree_with_the_cpu_executor(task: str, tmp_path: Path) -> None:
+    """A planned episode and the same plan stopped at the grasp, simulated on
+    the CPU (``execute_episode``) and as two MuJoCo Warp worlds (recorded from their states):
+    the same verdicts and reasons, the part's final joint within 1 mm, the recorded signals
+    and ``env_state`` alike frame by frame, the same actions."""
+    from factory.demos.episode_physics import simulate_plans, states_recorder
+    from factory.demos.execute.plan_worlds import WarpPlanWorlds
+
+    scene = _scene(task, tmp_path, fps=5.0, render=False)
+    cfg = scene.record_config(render=False)
+    plan = next(
+        p for p in (scene.plan(seed) for seed in range(4)) if isinstance(p, scene.plan_type)
+    )
+    plans = [plan, _stopped(plan)]
+    cpu = [scene.simulate(p, cfg) for p in plans]
+    short = {"open": "not_open", "close": "not_closed"}[task]  # the part never moved
+    assert [r.outcome.reason for r in cpu] == ["", short]
+    hook = states_recorder(scene, "auto")
+    assert hook is not None and hook.probes(plan) == (plan.phases["release"] - 1,)
+    runner = WarpPlanWorlds(scene.setup.model, hook.robot_geom, hook.allowed, cfg.fps, "cpu")
+    gpu = simulate_plans(runner, hook, plans, cfg)
+    assert runner.times.calls == 1 and runner.times.worlds == 2
+    for c, g in zip(cpu, gpu, strict=True):
+        assert (g.outcome.success, g.outcome.reason) == (c.outcome.success, c.outcome.reason)
+        assert g.outcome.details["joint"] == pytest.approx(c.outcome.details["joint"], abs=1e-3)
+        assert g.outcome.details["slip"] == pytest.approx(c.outcome.details["slip"], abs=3e-3)
+        assert g.state.shape == c.state.shape and len(g.time) == len(c.time)
+        np.testing.assert_array_equal(g.action, c.action)
+        np.testing.assert_allclose(g.joint_pos, c.joint_pos, atol=1e-3)
+        np.testing.assert_allclose(g.ee_pose[:, :3], c.ee_pose[:, :3], atol=1e-3)
+        np.testing.assert_allclose(g.env_state, c.env_state, atol=2e-3)
+    # the probe read the pull's end, where the hand holds the handle, not the final state,
+    # where it has let go
+    assert gpu[0].outcome.details["slip"] < 0.01 < gpu[0].outcome.details["released"]
+
+
+def test_open_through_the_gpu_pipeline_stores_checked_episodes(tmp_path: Path) -> None:
+    """``task=open`` through the GPU pipeline on Warp's CPU device (``demos.episode_physics``
+    auto: the planner process only plans; the main process simulates both slots as MuJoCo
+    Warp worlds and draws the successes, 32 px): both stored, recorded by ``warp``, passing
+    the CPU path's checks (the success rule, the hand reaching the handle, the joint as
+    stored), their stored states giving their stored ``env_state`` again, and their recorded
+    actions replayed in the evaluation env ending in success (``eval.policy=replay``). (A
+    seed planned again need not give the same plan: the free motions' smoothing is
+    time-bounded; the verdicts on the same plans are the test above.)"""
+    from factory.demos.episode_execution import episode_slot
+    from factory.demos.gpu_pipeline import run_gpu
+    from factory.demos.record.episodes import EpisodeStore
+    from factory.demos.record.payload import STATE_SPEC
+    from factory.demos.record.slots import WorkItem
+    from factory.policy.obs_spec import ObsSpec
+    from factory.policy.vector_env import PickPlaceVecEnv, task_sim
+    from factory.tasks import get_task
+    from factory.tasks.articulated.execute import env_state
+    from factory.tasks.articulated.plan import OPEN_AT
+
+    scene = _scene("open", tmp_path, fps=5.0, width=32, height=32)
+    env, sid = scene.env, scene.scene_id
+    assert episode_slot(env, sid, 0).rec is None  # planned only: the GPU simulates
+    (out,) = run_gpu(env, [WorkItem(sid, (0, 1))], 1, device="cpu")
+    assert out["error"] is None and out["new"] == 2, dict(out["failures"])
+    physics = out["physics_seconds"]
+    assert physics["calls"] == 1 and physics["worlds"] == 2 and physics["record"] > 0
+    store = EpisodeStore(Path(env.store_path))
+    setup, data = scene.setup, mujoco.MjData(scene.setup.model)
+    task = get_task("open")
+    spec = ObsSpec(fps=5.0, cameras=(), env_state=True, task="open")
+    vec = PickPlaceVecEnv(task_sim(task, setup, scene.planner, 1, spec, nthread=1), 400)
+    for eid in store.episode_ids():
+        info, g = store.info(eid), store.arrays(eid)
+        n = info.n_frames
+        assert info.success and info.recorder == "warp" and info.target_id == "drawer"
+        assert g["rgb/wrist"].shape == (n, 32, 32, 3) and np.asarray(g["rgb/left"]).std() > 5
+        stored = np.asarray(g["env_state"][:])
+        assert stored[-1, 1] >= OPEN_AT and info.outcome["opened"] >= OPEN_AT
+        assert stored[-1, 0] == pytest.approx(info.outcome["joint"], abs=1e-4)
+        reach = np.linalg.norm(stored[:, 8:11], axis=1)
+        assert reach[0] > 0.1 and reach.min() < 0.03
+        states = np.asarray(g["state"][:])
+        for f in (0, n // 2, n - 1):
+            mujoco.mj_setState(setup.model, data, states[f], STATE_SPEC)
+            mujoco.mj_kinematics(setup.model, data)
+            np.testing.assert_allclose(env_state(setup, data), stored[f], atol=1e-5)
+        # the stored actions replayed in the evaluation env (eval.policy=replay)
+        vec.reset(seeds=[info.seed])
+        actions = np.asarray(g["action"][:])
+        done = False
+        for a in [*actions, *[actions[-1]] * 20]:
+            _, _, terminated, truncated, step_info = vec.step(a[None])
+            if terminated[0] or truncated[0]:
+                done = True
+                break
+        assert done and step_info["success"][0], step_info
