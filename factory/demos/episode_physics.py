@@ -13,8 +13,10 @@ MuJoCo Warp simulates them.
   sends the slots that failed back to the planners with their next seed, as the ``batch``
   execution's ``gpu`` retries go.
 * ``auto`` (the default): ``warp`` where the task's scene has the hook
-  (:meth:`~factory.demos.record.scene.SimulatingScene.states_recorder`: ``open``, ``close``),
-  else ``cpu`` (``place_inside``, ``mobile_pick_place``).
+  (:meth:`~factory.demos.record.scene.SimulatingScene.states_recorder`) and takes it by default
+  (:attr:`~factory.demos.record.scene.SimulatingScene.gpu_physics_by_default`): ``open``,
+  ``close``; else ``cpu``: ``place_inside`` (its hook written, its agreement with the CPU
+  executor measured on two plans only: ``warp`` takes it) and ``mobile_pick_place`` (no hook).
 
 The choice depends on the scene's class and ``demos.*`` only, so the planner processes and the
 main process make the same one (:func:`states_recorder`).
@@ -52,7 +54,7 @@ def states_recorder(scene: SimulatingScene, physics: str) -> StatesRecorder | No
             f"demos.episode_physics={physics!r} is unknown: choose one of "
             f"{', '.join(EPISODE_PHYSICS)}"
         )
-    if physics == "cpu":
+    if physics == "cpu" or (physics == "auto" and not scene.gpu_physics_by_default):
         return None
     hook = scene.states_recorder()
     if hook is None and physics == "warp":

@@ -1,8 +1,9 @@
 """The ``episode`` execution's GPU physics (``demos.episode_physics``,
-:mod:`factory.demos.episode_physics`) on Warp's CPU device: ``task=close`` and ``task=open``
-plans stepped as MuJoCo Warp worlds and recorded from their states on the host get the CPU
-executor's verdicts on the same seeds (a plan stopped at its grasp included: its failure and
-reason too), and the GPU pipeline stores episodes that pass the CPU path's checks.
+:mod:`factory.demos.episode_physics`) on Warp's CPU device: ``task=open``, ``close`` and
+``place_inside`` plans stepped as MuJoCo Warp worlds and recorded from their states on the
+host get the CPU executor's verdicts on the same plans (a plan stopped part way included: its
+failure and reason too), and the GPU pipeline stores episodes that pass the CPU path's
+checks.
 
 Island sleeping is off (``demos.sleep=false``): on Warp's CPU device MuJoCo Warp's sleeping
 steps cost about 6 times as much (57 against 10 ms a step for the bundled cabinet), and an
@@ -45,50 +46,85 @@ def _scene(task: str, run: Path, **demos: Any) -> Any:
     return get_task(task).demo_scene(env, sid)
 
 
-def _stopped(plan: Any) -> Any:
-    """``plan`` with its arm and hand held where the pull starts (the handle grasped): the part
-    never moves, the hand never lets go."""
+def _stopped(plan: Any, phase: str) -> Any:
+    """``plan`` with its arm and hand held where ``phase`` starts."""
     ctrl = plan.ctrl.copy()
-    k = plan.phases["pull"]
+    k = plan.phases[phase]
     ctrl[k:] = ctrl[k]
     return replace(plan, ctrl=ctrl)
 
 
-@pytest.mark.parametrize("task", ["open", "close"])
+STOPPED = {
+    "open": ("pull", "not_open"),
+    "close": ("pull", "not_closed"),
+    "place_inside": ("transport", "dropped"),
+}
+"""Per task, the phase a plan is stopped at and the CPU executor's verdict on it: the part never
+moves with the handle held (``open``, ``close``); the object, lifted, never reaches its place
+(``place_inside``)."""
+
+SIGNALS_ATOL = {"open": (1e-3, 1e-3), "close": (1e-3, 1e-3), "place_inside": (0.05, 0.02)}
+"""Per task, the largest difference of the recorded arm joints (rad) and of the tool position
+and ``env_state`` (m, rad) between the CPU executor's recording and the one from MuJoCo Warp's
+states, over all frames. Measured on Warp's CPU device at 5 fps: ``open`` and ``close`` about
+1e-5; ``place_inside`` 0.032 rad at two frames of the drawer example's episode, the object in
+the hand (the float32 physics of the hand's hold on it; the verdicts agreed)."""
+
+
+@pytest.mark.parametrize(
+    "task",
+    [
+        "open",
+        "close",
+        # about 4.5 minutes on Warp's CPU device (its own kernels, more steps): on the GPU
+        pytest.param("place_inside", marks=pytest.mark.gpu),
+    ],
+)
 def test_verdicts_agree_with_the_cpu_executor(task: str, tmp_path: Path) -> None:
-    """A planned episode and the same plan stopped at the grasp, simulated on
-    the CPU (``execute_episode``) and as two MuJoCo Warp worlds (recorded from their states):
-    the same verdicts and reasons, the part's final joint within 1 mm, the recorded signals
-    and ``env_state`` alike frame by frame, the same actions."""
+    """A planned episode and the same plan stopped part way (:data:`STOPPED`), simulated on
+    the CPU (the task's ``execute_episode``) and as two MuJoCo Warp worlds (recorded from their
+    states): the same verdicts and reasons, the part's final joint within 1 mm, the recorded
+    signals and ``env_state`` alike frame by frame (:data:`SIGNALS_ATOL`), the same actions.
+    MuJoCo Warp runs on CUDA where present, else on Warp's CPU device."""
     from factory.demos.episode_physics import simulate_plans, states_recorder
     from factory.demos.execute.plan_worlds import WarpPlanWorlds
 
     scene = _scene(task, tmp_path, fps=5.0, render=False)
     cfg = scene.record_config(render=False)
-    plan = next(
-        p for p in (scene.plan(seed) for seed in range(4)) if isinstance(p, scene.plan_type)
-    )
-    plans = [plan, _stopped(plan)]
+    phase, reason = STOPPED[task]
+    for seed in range(4):  # the first seed that plans and succeeds on the CPU
+        plan = scene.plan(seed)
+        if isinstance(plan, scene.plan_type) and scene.simulate(plan, cfg).outcome.success:
+            break
+    else:
+        pytest.fail(f"no {task} seed of 4 planned and succeeded on the CPU")
+    plans = [plan, _stopped(plan, phase)]
     cpu = [scene.simulate(p, cfg) for p in plans]
-    short = {"open": "not_open", "close": "not_closed"}[task]  # the part never moved
-    assert [r.outcome.reason for r in cpu] == ["", short]
+    assert [r.outcome.reason for r in cpu] == ["", reason]
     hook = states_recorder(scene, "auto")
-    assert hook is not None and hook.probes(plan) == (plan.phases["release"] - 1,)
-    runner = WarpPlanWorlds(scene.setup.model, hook.robot_geom, hook.allowed, cfg.fps, "cpu")
+    assert hook is not None and len(hook.probes(plan)) == {"place_inside": 2}.get(task, 1)
+    runner = WarpPlanWorlds(scene.setup.model, hook.robot_geom, hook.allowed, cfg.fps)
     gpu = simulate_plans(runner, hook, plans, cfg)
     assert runner.times.calls == 1 and runner.times.worlds == 2
-    for c, g in zip(cpu, gpu, strict=True):
+    pairs = list(zip(cpu, gpu, strict=True))
+    for c, g in pairs:
         assert (g.outcome.success, g.outcome.reason) == (c.outcome.success, c.outcome.reason)
         assert g.outcome.details["joint"] == pytest.approx(c.outcome.details["joint"], abs=1e-3)
-        assert g.outcome.details["slip"] == pytest.approx(c.outcome.details["slip"], abs=3e-3)
         assert g.state.shape == c.state.shape and len(g.time) == len(c.time)
         np.testing.assert_array_equal(g.action, c.action)
-        np.testing.assert_allclose(g.joint_pos, c.joint_pos, atol=1e-3)
-        np.testing.assert_allclose(g.ee_pose[:, :3], c.ee_pose[:, :3], atol=1e-3)
-        np.testing.assert_allclose(g.env_state, c.env_state, atol=2e-3)
-    # the probe read the pull's end, where the hand holds the handle, not the final state,
-    # where it has let go
-    assert gpu[0].outcome.details["slip"] < 0.01 < gpu[0].outcome.details["released"]
+    rad, m = SIGNALS_ATOL[task]
+    diffs = {
+        "joint_pos": max(float(np.abs(g.joint_pos - c.joint_pos).max()) for c, g in pairs),
+        "ee_pos": max(float(np.abs(g.ee_pose[:, :3] - c.ee_pose[:, :3]).max()) for c, g in pairs),
+        "env_state": max(float(np.abs(g.env_state - c.env_state).max()) for c, g in pairs),
+    }
+    assert diffs["joint_pos"] <= rad and max(diffs["ee_pos"], diffs["env_state"]) <= m, diffs
+    for key in ("slip", "lifted", "off_place"):  # the readings between frames (probes)
+        if key in cpu[0].outcome.details:
+            for c, g in zip(cpu, gpu, strict=True):
+                assert g.outcome.details[key] == pytest.approx(c.outcome.details[key], abs=3e-3)
+    if task != "place_inside":  # the probe read the pull's end (the handle held), not the end
+        assert gpu[0].outcome.details["slip"] < 0.01 < gpu[0].outcome.details["released"]
 
 
 def test_open_through_the_gpu_pipeline_stores_checked_episodes(tmp_path: Path) -> None:

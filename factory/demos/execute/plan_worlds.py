@@ -246,7 +246,7 @@ class WarpPlanWorlds:
             probe[w, : len(p.probes)] = p.probes
         nconmax, njmax = buffer_sizes(model, q0, headroom)
         template = self._templates(plans)
-        states = [np.empty((f, self.nstate)) for f in n_frames]
+        states = np.empty((nb, n, self.nstate))  # frame-major, as the device gives them
         worst = np.zeros(n)
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
@@ -316,7 +316,7 @@ class WarpPlanWorlds:
                     else:
                         period()
                 t2 = time.perf_counter()
-                self._file(b, sched.row[b] >= 0, host, template, states, worst)
+                self._file(host, template, states[b], sched.row[b] >= 0, worst)
                 t3 = time.perf_counter()
                 if b + 1 < nb:
                     host = grab()
@@ -340,30 +340,33 @@ class WarpPlanWorlds:
         )
         over = np.broadcast_to(np.asarray(overflow, np.int64).reshape(-1), (n,))
         return [
-            PlanRun(states[w], kept[w, : len(p.probes)], float(worst[w]), int(over[w]))
+            PlanRun(
+                np.ascontiguousarray(states[: n_frames[w], w]),
+                kept[w, : len(p.probes)],
+                float(worst[w]),
+                int(over[w]),
+            )
             for w, p in enumerate(plans)
         ]
 
     def _file(
         self,
-        b: int,
-        live: np.ndarray,
         host: dict[str, np.ndarray],
         template: np.ndarray,
-        states: list[np.ndarray],
+        frame: np.ndarray,
+        live: np.ndarray,
         worst: np.ndarray,
     ) -> None:
-        """Files frame ``b`` of the worlds ``live`` (n,) bool: their integration states (the
-        template with the dynamic parts from ``host``) and their robots' deepest penetration
-        (``worst``, (n,) m, updated)."""
+        """Files one recorded frame of every world: its integration state into ``frame``
+        ((n, nstate): the template with the dynamic parts from ``host``) and, for the worlds
+        ``live`` ((n,) bool: still within their plan), the robot's deepest penetration into
+        ``worst`` ((n,) m, updated)."""
         lay = self.layout
-        n = len(states)
-        frame = template.copy()
+        n = len(frame)
+        frame[:] = template
         for name in DYNAMIC:
             if name in host and lay[name].stop > lay[name].start:
                 frame[:, lay[name]] = host[name].reshape(n, -1)
-        for w in np.flatnonzero(live):
-            states[w][b] = frame[w]
         nacon = min(int(host["nacon"][0]), len(host.get("contact_dist", ())))
         if not nacon:
             return

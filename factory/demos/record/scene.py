@@ -100,6 +100,11 @@ class SimulatingScene(DemoScene):
         success check), ``time`` (F,) s, ``sim_seconds`` and ``render_seconds``; images drawn
         by ``renderer`` for a successful episode when ``rec_cfg.render``."""
 
+    gpu_physics_by_default: ClassVar[bool] = True
+    """Whether ``demos.episode_physics=auto`` simulates the task's episodes on MuJoCo Warp when
+    :meth:`states_recorder` gives a hook (false: only ``demos.episode_physics=warp`` does,
+    until the task's agreement with the CPU executor is measured)."""
+
     def states_recorder(self) -> StatesRecorder | None:
         """How an episode's recording and verdict follow from its simulated states, so that
         the GPU pipeline may simulate the task's episodes on MuJoCo Warp
