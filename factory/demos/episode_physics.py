@@ -100,8 +100,8 @@ def simulate_plans(runner: Any, hook: StatesRecorder, plans: list[Any], rec_cfg:
     The host's seconds rebuilding the recordings are added to the runner's
     ``times.record``; each recording's ``sim_seconds`` is its share of the device's.
     """
-    from factory.demos.execute.plan_worlds import WorldPlan
     from factory.demos.execute.warp import OVERFLOW
+    from factory.demos.record.from_states import WorldPlan
     from factory.tasks.pick_place.objects import Outcome
 
     periods = runner.times.periods

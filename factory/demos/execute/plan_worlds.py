@@ -42,6 +42,7 @@ from factory.demos.execute.warp import (
     state_layout,
     trace_sim,
 )
+from factory.demos.record.from_states import PlanRun, WorldPlan
 from factory.demos.record.payload import STATE_SPEC
 from factory.sim.kernel_preload import PreloadReport
 
@@ -52,43 +53,6 @@ log = logging.getLogger(__name__)
 HEADROOMS = (3.0, 6.0, 12.0)
 """Contact buffer sizes tried (times the initial states' contacts, :func:`~factory.demos.
 execute.warp.buffer_sizes`): worlds that overflowed run again with the next."""
-
-
-@dataclass(frozen=True)
-class WorldPlan:
-    """What a world runs: an open-loop plan.
-
-    Attributes:
-        qpos0: (nq,) the initial configuration.
-        ctrl: (T, nu) the controls, one row per physics step.
-        probes: physics steps (0-based, each < T) after which the configuration is kept.
-    """
-
-    qpos0: np.ndarray
-    ctrl: np.ndarray
-    probes: tuple[int, ...] = ()
-
-
-@dataclass
-class PlanRun:
-    """A plan's run on the device.
-
-    Attributes:
-        state: (F, nstate) the MuJoCo integration state (``mj_getState`` layout, the CPU
-            executor's ``STATE_SPEC``) at each recorded frame: frame 0 the initial state, frame
-            ``f`` after ``min(f * per_frame, T)`` steps rounded up to whole periods, F =
-            ``ceil(T / per_frame) + 1``.
-        probe_qpos: (P, nq) the configuration after each probe step, in the plan's order.
-        worst: deepest penetration (m, >= 0) of a robot geom into a geom it may not touch,
-            over the recorded frames.
-        overflow: MuJoCo Warp's overflow bits of the world (0: its buffers held; otherwise the
-            run is not to be trusted).
-    """
-
-    state: np.ndarray
-    probe_qpos: np.ndarray
-    worst: float = 0.0
-    overflow: int = 0
 
 
 @dataclass

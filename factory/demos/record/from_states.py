@@ -7,20 +7,56 @@ returns a :class:`StatesRecorder` (:meth:`~factory.demos.record.scene.Simulating
 states_recorder`): which geoms its robot may touch, which physics steps of a plan its success
 check reads between frames (*probes*), and how its recording (per-frame signals, actions,
 ``env_state``) and verdict follow from the recorded states, on the host, with the same
-functions as its CPU simulation.
+functions as its CPU simulation. :class:`WorldPlan` (what a world runs) and :class:`PlanRun`
+(what comes back) are the types between the two.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from factory.demos.execute.plan_worlds import PlanRun
+__all__ = ["PlanRun", "StatesRecorder", "WorldPlan"]
 
-__all__ = ["StatesRecorder"]
+
+@dataclass(frozen=True)
+class WorldPlan:
+    """What a world runs: an open-loop plan.
+
+    Attributes:
+        qpos0: (nq,) the initial configuration.
+        ctrl: (T, nu) the controls, one row per physics step.
+        probes: physics steps (0-based, each < T) after which the configuration is kept.
+    """
+
+    qpos0: np.ndarray
+    ctrl: np.ndarray
+    probes: tuple[int, ...] = ()
+
+
+@dataclass
+class PlanRun:
+    """A plan's run on the device.
+
+    Attributes:
+        state: (F, nstate) the MuJoCo integration state (``mj_getState`` layout, the CPU
+            executor's ``STATE_SPEC``) at each recorded frame: frame 0 the initial state, frame
+            ``f`` after ``min(f * per_frame, T)`` steps rounded up to whole periods, F =
+            ``ceil(T / per_frame) + 1``.
+        probe_qpos: (P, nq) the configuration after each probe step, in the plan's order.
+        worst: deepest penetration (m, >= 0) of a robot geom into a geom it may not touch,
+            over the recorded frames.
+        overflow: MuJoCo Warp's overflow bits of the world (0: its buffers held; otherwise the
+            run is not to be trusted).
+    """
+
+    state: np.ndarray
+    probe_qpos: np.ndarray
+    worst: float = 0.0
+    overflow: int = 0
 
 
 class StatesRecorder(ABC):
@@ -43,6 +79,6 @@ class StatesRecorder(ABC):
     @abstractmethod
     def recording(self, plan: Any, run: PlanRun, rec_cfg: Any) -> Any:
         """The task's recording of ``plan`` (no images; ``state`` the run's) and its outcome,
-        rebuilt from ``run`` (:class:`~factory.demos.execute.plan_worlds.PlanRun`: the states
+        rebuilt from ``run`` (:class:`PlanRun`: the states
         per frame, the probes' configurations, the deepest penetration) with the settings
         ``rec_cfg``."""

@@ -19,8 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.demos.execute.plan_worlds import PlanRun
-from factory.demos.record.from_states import StatesRecorder
+from factory.demos.record.from_states import PlanRun, StatesRecorder
 from factory.demos.record.payload import STATE_SPEC
 from factory.robots.panda import RobotIndex
 from factory.tasks.articulated.execute import (

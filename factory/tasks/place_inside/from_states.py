@@ -19,8 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from factory.demos.execute.plan_worlds import PlanRun
-from factory.demos.record.from_states import StatesRecorder
+from factory.demos.record.from_states import PlanRun, StatesRecorder
 from factory.tasks.articulated.from_states import frames_from_states
 from factory.tasks.articulated.record import Recording
 from factory.tasks.place_inside.execute import (
