@@ -63,12 +63,23 @@ STOPPED = {
 moves with the handle held (``open``, ``close``); the object, lifted, never reaches its place
 (``place_inside``)."""
 
-SIGNALS_ATOL = {"open": (1e-3, 1e-3), "close": (1e-3, 1e-3), "place_inside": (0.05, 0.02)}
-"""Per task, the largest difference of the recorded arm joints (rad) and of the tool position
-and ``env_state`` (m, rad) between the CPU executor's recording and the one from MuJoCo Warp's
-states, over all frames. Measured on Warp's CPU device at 5 fps: ``open`` and ``close`` about
-1e-5; ``place_inside`` 0.032 rad at two frames of the drawer example's episode, the object in
-the hand (the float32 physics of the hand's hold on it; the verdicts agreed)."""
+SIGNALS_ATOL = {
+    "open": (1e-3, 1e-3, slice(None), 3e-3),
+    "close": (1e-3, 1e-3, slice(None), 3e-3),
+    "place_inside": (0.05, 0.06, [0, 2, 3, 4], 0.03),
+}
+"""Per task, the largest difference over all frames between the CPU executor's recording and
+the one from MuJoCo Warp's states: of the arm joints (rad), of the tool position and of the
+compared values of ``env_state`` (m or rad), then of the readings between frames (the probes':
+``slip``, ``lifted``, ``off_place``; m). Measured on Warp's CPU device at 5 fps: ``open`` and
+``close`` about 1e-5 throughout. ``place_inside`` (the drawer example, seed 0, the can carried
+into the drawer, and the plan stopped at the lift): the arm joints up to 0.032 rad on 10 of
+161 frames, the tool 0.017 m, the drawer's joint 0.046 m and the can's position 0.048 m apart
+mid-motion (the same motion a few milliseconds earlier or later), the final states within
+0.013 m, the can's place reading 0.018 against 0.031 m (both under ``DROPPED``, 0.05 m), the
+verdicts the same; its ``env_state`` compared on the drawer's joint and the can's position
+(not the share of the range, the joint's scaled, nor the can's quaternion, whose spin about
+its own axis is free)."""
 
 
 @pytest.mark.parametrize(
@@ -112,17 +123,19 @@ def test_verdicts_agree_with_the_cpu_executor(task: str, tmp_path: Path) -> None
         assert g.outcome.details["joint"] == pytest.approx(c.outcome.details["joint"], abs=1e-3)
         assert g.state.shape == c.state.shape and len(g.time) == len(c.time)
         np.testing.assert_array_equal(g.action, c.action)
-    rad, m = SIGNALS_ATOL[task]
+    rad, m, cols, probe_m = SIGNALS_ATOL[task]
     diffs = {
         "joint_pos": max(float(np.abs(g.joint_pos - c.joint_pos).max()) for c, g in pairs),
         "ee_pos": max(float(np.abs(g.ee_pose[:, :3] - c.ee_pose[:, :3]).max()) for c, g in pairs),
-        "env_state": max(float(np.abs(g.env_state - c.env_state).max()) for c, g in pairs),
+        "env_state": max(
+            float(np.abs(g.env_state[:, cols] - c.env_state[:, cols]).max()) for c, g in pairs
+        ),
     }
     assert diffs["joint_pos"] <= rad and max(diffs["ee_pos"], diffs["env_state"]) <= m, diffs
     for key in ("slip", "lifted", "off_place"):  # the readings between frames (probes)
         if key in cpu[0].outcome.details:
             for c, g in zip(cpu, gpu, strict=True):
-                assert g.outcome.details[key] == pytest.approx(c.outcome.details[key], abs=3e-3)
+                assert g.outcome.details[key] == pytest.approx(c.outcome.details[key], abs=probe_m)
     if task != "place_inside":  # the probe read the pull's end (the handle held), not the end
         assert gpu[0].outcome.details["slip"] < 0.01 < gpu[0].outcome.details["released"]
 
