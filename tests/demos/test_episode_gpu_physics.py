@@ -197,3 +197,13 @@ def test_open_through_the_gpu_pipeline_stores_checked_episodes(tmp_path: Path) -
                 done = True
                 break
         assert done and step_info["success"][0], step_info
+
+
+def test_an_unknown_episode_physics_names_the_choices() -> None:
+    from factory.config import DemosConfig
+    from factory.demos.stage import check_config
+    from factory.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="episode_physics='gpu' is unknown: choose one of auto"):
+        check_config(DemosConfig(episode_physics="gpu"), "open")
+    check_config(DemosConfig(episode_physics="cpu"), "open")
