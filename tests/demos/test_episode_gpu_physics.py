@@ -112,7 +112,7 @@ def test_verdicts_agree_with_the_cpu_executor(task: str, tmp_path: Path) -> None
     plans = [plan, _stopped(plan, phase)]
     cpu = [scene.simulate(p, cfg) for p in plans]
     assert [r.outcome.reason for r in cpu] == ["", reason]
-    hook = states_recorder(scene, "auto")
+    hook = states_recorder(scene, "warp")  # place_inside: not taken under auto
     assert hook is not None and len(hook.probes(plan)) == {"place_inside": 2}.get(task, 1)
     runner = WarpPlanWorlds(scene.setup.model, hook.robot_geom, hook.allowed, cfg.fps)
     gpu = simulate_plans(runner, hook, plans, cfg)
