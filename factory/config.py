@@ -373,6 +373,12 @@ class DemosConfig:
             copies them to host memory at the end of the call (one call's recordings in host
             memory at a time, so calls of ~1,000 worlds fit); false copies every frame to the
             host as it is drawn (docs/DEMOS.md has both modes' measured rates).
+        episode_physics: where the ``warp`` executor simulates the episodes of the tasks that
+            simulate their own (``demo_execution = "episode"``): ``auto`` (MuJoCo Warp in the
+            main process where the task's scene can record an episode from simulated states:
+            ``open``, ``close``; else the CPU), ``warp`` (MuJoCo Warp; an error for a task
+            that cannot) or ``cpu`` (the planner processes simulate each episode on the CPU and
+            the GPU only draws it; :mod:`factory.demos.episode_physics`).
         plan_timeout: seconds per RRTConnect query.
         speed: share of the Panda's velocity limit for free motions (acceleration and jerk
             use 0.6 and 0.4 of it).
@@ -416,6 +422,7 @@ class DemosConfig:
     gpu_retries: str = "cpu"
     gpu_tail: float = 0.01
     gpu_images_on_device: bool = True
+    episode_physics: str = "auto"
     plan_timeout: float = 5.0
     speed: float = 0.5
     max_grasps: int = 12

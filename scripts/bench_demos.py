@@ -23,11 +23,19 @@ episode (from the command's start, kernel compilation included).
 
 The tasks that simulate their episodes themselves (``mobile_pick_place``, ``open``, ``close``,
 ``place_inside``: ``demo_execution = "episode"``) run on the GPU as
-:mod:`factory.demos.episode_execution` says: ``--workers`` processes plan and simulate each
-episode on the CPU without images and the GPU draws the recorded states with the task's own
-cameras (the mobile robot's five; the fixed-base Panda's left, right and wrist), so their demos
-per GPU-node hour are bounded by the node's CPU cores, not by the GPU; the JSON's ``task`` names
-the task, its ``per_scene`` rows the GPU and plan-waiting seconds of each scene.
+:mod:`factory.demos.episode_execution` and ``demos.episode_physics`` say. ``open`` and
+``close`` (``episode_physics=auto``, the default): ``--workers`` processes only plan, the main
+process steps each scene's plans as MuJoCo Warp worlds, rebuilds the recordings and verdicts
+from their states on the host and draws the successes with the task's cameras
+(:mod:`factory.demos.episode_physics`); ``--set demos.episode_physics=cpu`` gives the earlier
+path, and ``place_inside`` and ``mobile_pick_place`` take it: the processes plan and simulate
+each episode on the CPU without images and the GPU only draws the recorded states (the mobile
+robot's five cameras; the fixed-base Panda's left, right and wrist), so their demos per
+GPU-node hour are bounded by the node's CPU cores. The JSON's ``task`` names the task, its
+``per_scene`` rows the GPU and plan-waiting seconds of each scene, each run's
+``episode_physics`` where the episodes were simulated and ``cpu_s_per_demo`` the CPU seconds a
+stored demo cost outside drawing (planning, and the CPU physics or the host's work around the
+GPU's: ``cpu_physics_s_per_demo``).
 
 Scenes are generated first (kitchens with a pick-and-place task, or living rooms with a mobile
 "move the can from the coffee table to the desk" task, or for ``--task open`` / ``close`` /
@@ -200,9 +208,10 @@ def main() -> None:
         help=(
             "mobile_pick_place: living rooms; open, close, place_inside: kitchens with "
             "articulated furniture; these four on the CPU executor: one episode at a time per "
-            "worker; --executor warp: --workers processes plan and simulate, the GPU renders "
-            "with the task's cameras (factory.demos.gpu_pipeline, "
-            "factory.demos.episode_execution)"
+            "worker; --executor warp: --workers processes plan (open, close: the GPU simulates "
+            "and renders) or plan and simulate (the GPU renders) with the task's cameras "
+            "(factory.demos.gpu_pipeline, factory.demos.episode_execution, "
+            "factory.demos.episode_physics)"
         ),
     )
     p.add_argument(
@@ -320,6 +329,24 @@ def main() -> None:
             "per_scene": _per_scene(run),
             "kernels_ready_s": _kernels_ready(run),
         }
+        # The CPU seconds a successful demo costs outside drawing: planning, and its physics
+        # where the CPU simulates it (the CPU executor, or demos.episode_physics=cpu in the
+        # planner processes), else the main process's host work around MuJoCo Warp's physics
+        # (filing the states, rebuilding the recordings and verdicts).
+        plans = sec["plan_per_episode"]
+        plan_s = plans.get("mean", 0.0) * plans.get("n", 0)
+        physics = sec.get("gpu_physics")
+        host_s = physics["host"] + physics["record"] if physics else 0.0
+        cpu_sim_s = 0.0 if physics else sec["simulate"]
+        results[label].update(
+            episode_physics="warp" if physics else "cpu",
+            gpu_physics_s=physics,
+            cpu_plan_s=plan_s,
+            cpu_simulate_s=cpu_sim_s,
+            cpu_host_physics_s=host_s,
+            cpu_s_per_demo=(plan_s + cpu_sim_s + host_s) / max(ok, 1),
+            cpu_physics_s_per_demo=(cpu_sim_s + host_s) / max(ok, 1),
+        )
         r = results[label]
         print(
             f"{label}: {ok} successful demos in {wall:.1f} s on {args.cores} core(s): "
@@ -327,7 +354,9 @@ def main() -> None:
             f"{r['success_rate']:.2f}, failures {r['failures'] or 'none'}; planning per segment "
             f"median {sec['plan_per_segment'].get('median', 0):.3f} s, p95 "
             f"{sec['plan_per_segment'].get('p95', 0):.3f} s; rendering "
-            f"{r['render_frames_per_s'] or 0:.1f} frames/s ({cams} cameras, RGB + depth)"
+            f"{r['render_frames_per_s'] or 0:.1f} frames/s ({cams} cameras, RGB + depth); "
+            f"CPU per demo {r['cpu_s_per_demo']:.2f} s (physics on the {r['episode_physics']}: "
+            f"{r['cpu_physics_s_per_demo']:.3f} s of it)"
         )
     out = {
         "benchmark": "demos",

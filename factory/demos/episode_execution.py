@@ -27,6 +27,7 @@ task, whose base drives between supports; the articulated tasks ``open``, ``clos
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, wait
@@ -51,7 +52,14 @@ from factory.errors import ConfigError, FactoryError
 if TYPE_CHECKING:
     from factory.sim.kernel_preload import PreloadReport
 
-__all__ = ["EPISODE", "EpisodeCpu", "EpisodeGpu", "plan_and_simulate", "warm_up_scene"]
+__all__ = [
+    "EPISODE",
+    "EpisodeCpu",
+    "EpisodeGpu",
+    "episode_slot",
+    "plan_and_simulate",
+    "warm_up_scene",
+]
 
 log = logging.getLogger(__name__)
 
@@ -137,6 +145,82 @@ def plan_and_simulate(env: StageEnv, scene_id: str, slot: int, attempt: int = 0)
     return out
 
 
+class _Drawer:
+    """A scene's successful recordings drawn on MuJoCo Warp with the scene's cameras (the
+    renderer made at the first one) and handed to the writers (:class:`EpisodeGpu`); without
+    ``demos.render`` written as they are."""
+
+    def __init__(self, gpu: EpisodeGpu, sim: SimulatingScene, device: str | None) -> None:
+        self.gpu, self.sim, self.device = gpu, sim, device
+        self.cfg = sim.record_config()
+        self.renderer: Any = None
+        self.stream: Any = None
+        self.slots: dict[int, tuple[int, int, Any]] = {}
+
+    def add(
+        self,
+        slot: int,
+        seed: int,
+        plan: Any,
+        rec: Any,
+        out: dict[str, Any],
+        waited: dict[str, float],
+    ) -> None:
+        """Queues a successful recording (of ``slot``, planned from ``seed``) for drawing and
+        writes the recordings whose images are complete."""
+        from factory.demos.execute.recording_render_warp import (
+            RecordingStream,
+            WarpRecordingRenderer,
+        )
+
+        out["new"] += 1
+        out["frames"] += len(rec.time)
+        self.slots[id(rec)] = (slot, seed, plan)
+        sim, cfg = self.sim, self.cfg
+        if not cfg.render:
+            waited["writes"] += self.gpu._write(sim, rec, self.slots, cfg)
+            return
+        if self.renderer is None:
+            self.renderer = WarpRecordingRenderer(
+                sim.setup.model, sim.camera_rig(cfg), device=self.device
+            )
+            self.stream = RecordingStream(self.renderer)
+        for done in self.stream.push(rec, self.gpu._alloc_for(rec, self.stream)):
+            waited["writes"] += self.gpu._write(sim, done, self.slots, cfg)
+
+    def finish(self, out: dict[str, Any], waited: dict[str, float]) -> None:
+        """Draws and writes what is queued; files the renderer's seconds (``render``,
+        ``warp_seconds``) into ``out`` and frees it."""
+        if self.stream is not None:
+            for rec in self.stream.flush():
+                waited["writes"] += self.gpu._write(self.sim, rec, self.slots, self.cfg)
+        if self.renderer is not None:
+            t = self.renderer.times
+            out["render"] = t.upload + t.draw + t.copy
+            out["warp_seconds"] = vars(t).copy()
+            self.renderer.close()
+            self.renderer = self.stream = None
+
+
+def episode_slot(env: StageEnv, scene_id: str, slot: int, attempt: int = 0) -> SlotResult:
+    """A planner process's work on one slot: planned only where MuJoCo Warp simulates the
+    scene's episodes (:func:`~factory.demos.episode_physics.plan_slot`), else planned and
+    simulated (:func:`plan_and_simulate`); ``demos.episode_physics`` and the scene decide
+    (:func:`~factory.demos.episode_physics.states_recorder`)."""
+    from factory.demos.episode_physics import plan_slot, states_recorder
+
+    try:
+        scene = simulating(cached_scene(env, scene_id))
+        on_gpu = states_recorder(scene, env.demos.episode_physics) is not None
+    except FactoryError as e:
+        out = SlotResult(slot, attempt=attempt)
+        out.error = str(e)
+        return out
+    if on_gpu:
+        return plan_slot(env, scene_id, slot, attempt)
+    return plan_and_simulate(env, scene_id, slot, attempt)
+
+
 class EpisodeGpu(GpuRecorder):
     """The main process of the GPU pipeline for the ``episode`` execution (one per run): each
     scene's recordings rendered as they come in, written with at most two writes per writer
@@ -160,7 +244,49 @@ class EpisodeGpu(GpuRecorder):
             capacity = memory_budget(HOST_MEMORY_SHARE) or 0
             self.arenas = shared_frames.ArenaPool(capacity, self._reclaim)
         self._arena_of: dict[int, Any] = {}  # id(recording) -> its arena
+        self._prepared: dict[str, Any] = {}  # scene id -> its physics, readied ahead
+        self._lock = threading.Lock()
         self.shared = 0  # recordings handed to the writers in shared memory
+
+    def prepare(self, scene: DemoScene) -> None:
+        """Where MuJoCo Warp simulates the scene's episodes: makes its physics
+        (:class:`~factory.demos.execute.plan_worlds.WarpPlanWorlds`) and compiles its kernels in
+        the set-up thread, while the scene before records (MuJoCo Warp specialises some kernels
+        to the model). A failure is logged; :meth:`record_scene` then makes it again and shows
+        the error."""
+        from factory.demos.episode_physics import states_recorder
+
+        try:
+            sim = simulating(scene)
+            hook = states_recorder(sim, self.run.env.demos.episode_physics)
+            if hook is None:
+                return
+            physics = self._physics(sim, hook)
+            physics.warm_up()
+        except Exception as e:
+            log.warning(
+                "demos %s: readying the GPU physics ahead failed (%s: %s); it is made when the "
+                "scene's turn comes",
+                scene.scene_id,
+                type(e).__name__,
+                e,
+            )
+            return
+        with self._lock:
+            self._prepared[scene.scene_id] = physics
+
+    def _physics(self, sim: SimulatingScene, hook: Any) -> Any:
+        """The scene's :class:`~factory.demos.execute.plan_worlds.WarpPlanWorlds`."""
+        from factory.demos.execute.plan_worlds import WarpPlanWorlds
+
+        return WarpPlanWorlds(
+            sim.setup.model,
+            hook.robot_geom,
+            hook.allowed,
+            sim.record_config(render=False).fps,
+            device=self.run.device,
+            max_worlds=self.run.env.demos.gpu_batch,
+        )
 
     def _settle_done(self) -> None:
         """Collects finished writes (a failed one raises) and gives their arenas back."""
@@ -217,56 +343,104 @@ class EpisodeGpu(GpuRecorder):
         out: dict[str, Any],
         waited: dict[str, float],
     ) -> float:
-        """Renders the scene's successful recordings as the planner processes return them;
-        returns the GPU seconds (``render``)."""
-        from factory.demos.execute.recording_render_warp import (
-            RecordingStream,
-            WarpRecordingRenderer,
-        )
+        """Records the scene's slots: the planner processes' recordings drawn as they come in
+        (``demos.episode_physics=cpu``), or the scene's plans simulated on MuJoCo Warp first
+        (``warp``: :meth:`_simulate_scene`); returns the GPU seconds (``render``, and the
+        physics' with ``warp``)."""
+        from factory.demos.episode_physics import states_recorder
 
         sim = simulating(scene)
-        cfg = sim.record_config()
-        bar = self.run.bar
-        renderer: WarpRecordingRenderer | None = None
-        stream: RecordingStream | None = None
-        slots: dict[int, tuple[int, int, Any]] = {}
-        left = set(futures)
-        while left:
+        draw = _Drawer(self, sim, self.run.device)
+        hook = states_recorder(sim, self.run.env.demos.episode_physics)
+        if hook is not None:
+            physics = self._simulate_scene(sim, hook, draw, futures, attempt, out, waited)
+        else:
+            physics = 0.0
+            left = set(futures)
+            while left:
+                t_wait = time.perf_counter()
+                done, _ = wait(left, return_when=FIRST_COMPLETED)
+                waited["plans"] += time.perf_counter() - t_wait
+                for fut in done:
+                    left.discard(fut)
+                    res = fut.result()
+                    tally(out, res)
+                    if self.run.bar is not None:
+                        self.run.bar.update(1)
+                    if res.error or res.rec is None:
+                        continue
+                    draw.add(res.slot, res.seed, res.plan, res.rec, out, waited)
+        draw.finish(out, waited)
+        return float(out["render"]) + physics
+
+    def _simulate_scene(
+        self,
+        sim: SimulatingScene,
+        hook: Any,
+        draw: _Drawer,
+        futures: list[Future[SlotResult]],
+        attempt: dict[int, int],
+        out: dict[str, Any],
+        waited: dict[str, float],
+    ) -> float:
+        """``demos.episode_physics=warp``: rounds of the scene's plans (as the planner
+        processes return them, all of a round's together) stepped on MuJoCo Warp, recorded from
+        their states with the task's hook, the successes drawn and written, the failures
+        planned again from their next seed in the next round; returns the physics' seconds."""
+        from factory.demos.episode_physics import simulate_plans
+
+        dc = self.run.env.demos
+        cfg = sim.record_config(render=False)
+        with self._lock:
+            runner = self._prepared.pop(sim.scene_id, None)
+        if runner is None:  # not prepared, or its preparation failed
+            runner = self._physics(sim, hook)
+        t_physics = 0.0
+        while futures:
             t_wait = time.perf_counter()
-            done, _ = wait(left, return_when=FIRST_COMPLETED)
+            results = [f.result() for f in futures]
             waited["plans"] += time.perf_counter() - t_wait
-            for fut in done:
-                left.discard(fut)
-                res = fut.result()
+            planned: list[tuple[int, int, Any]] = []
+            for res in results:
+                attempt[res.slot] = res.attempt
                 tally(out, res)
-                if bar is not None:
-                    bar.update(1)
-                if res.error or res.rec is None:
+                if res.plan is not None:
+                    planned.append((res.slot, res.seed, res.plan))
+            t0 = time.perf_counter()
+            recs = simulate_plans(runner, hook, [p for _, _, p in planned], cfg) if planned else []
+            t_physics += time.perf_counter() - t0
+            retry = []
+            for (k, seed, plan), rec in zip(planned, recs, strict=True):
+                assert rec.outcome is not None
+                if rec.outcome.success:
+                    draw.add(k, seed, plan, rec, out, waited)
                     continue
-                out["new"] += 1
-                out["frames"] += len(res.rec.time)
-                slots[id(res.rec)] = (res.slot, res.seed, res.plan)
-                if not cfg.render:
-                    waited["writes"] += self._write(sim, res.rec, slots, cfg)
-                    continue
-                if renderer is None:
-                    renderer = WarpRecordingRenderer(
-                        sim.setup.model, sim.camera_rig(cfg), device=self.run.device
-                    )
-                    stream = RecordingStream(renderer)
-                assert stream is not None
-                for rec in stream.push(res.rec, self._alloc_for(res.rec, stream)):
-                    waited["writes"] += self._write(sim, rec, slots, cfg)
-        if stream is not None:
-            for rec in stream.flush():
-                waited["writes"] += self._write(sim, rec, slots, cfg)
-        if renderer is not None:
-            t = renderer.times
-            out["render"] = t.upload + t.draw + t.copy
-            out["warp_seconds"] = vars(t).copy()
-            renderer.close()
-            del renderer, stream
-        return float(out["render"])
+                out["failures"][rec.outcome.reason] += 1
+                log.info(
+                    "scene %s slot %d: %s: %s",
+                    out["scene_id"],
+                    k,
+                    rec.outcome.reason,
+                    str(rec.outcome.details)[:200],
+                )
+                attempt[k] += 1
+                if attempt[k] < dc.attempts:
+                    retry.append(k)
+            if self.run.bar is not None:
+                self.run.bar.update(len(futures) - len(retry))
+            futures = self.run.submit(sim.scene_id, retry, attempt) if retry else []
+        out["simulate"] += t_physics
+        t = runner.times
+        out["physics_seconds"] = {
+            "setup": t.setup,
+            "periods": t.periods,
+            "host": t.host,
+            "record": t.record,
+            "calls": t.calls,
+            "worlds": t.worlds,
+            "frames": t.frames,
+        }
+        return t_physics
 
     def close(self) -> None:
         for w, _ in self.writes:
@@ -280,29 +454,57 @@ class EpisodeGpu(GpuRecorder):
 
 def warm_up_scene(scene: DemoScene, env: StageEnv, device: str) -> PreloadReport:
     """Compiles the kernels :class:`EpisodeGpu` launches in ``scene`` (set up without its
-    planner) on Warp device ``device`` (``stage=warmup``): a renderer of one world with the
-    scene's camera rig and the run's recording settings, warmed up
-    (:meth:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer.warm_up`), then
-    dropped; the kernels stay loaded in this process and compiled in Warp's kernel cache. With
-    ``demos.render=false`` the pipeline draws nothing and nothing is compiled."""
+    planner) on Warp device ``device`` (``stage=warmup``): where MuJoCo Warp simulates the
+    scene's episodes (``demos.episode_physics``), the physics of one world
+    (:meth:`~factory.demos.execute.plan_worlds.WarpPlanWorlds.warm_up`); with ``demos.render``,
+    a renderer of one world with the scene's camera rig and the run's recording settings
+    (:meth:`~factory.demos.execute.recording_render_warp.WarpRecordingRenderer.warm_up`); both
+    then dropped; the kernels stay loaded in this process and compiled in Warp's kernel
+    cache. Nothing to simulate or draw: nothing is compiled."""
+    from factory.demos.episode_physics import states_recorder
     from factory.demos.execute.recording_render_warp import WarpRecordingRenderer
-    from factory.sim.kernel_preload import PreloadReport
 
     sim = simulating(scene)
     cfg = sim.record_config()
-    if not cfg.render:
+    reports = []
+    hook = states_recorder(sim, env.demos.episode_physics)
+    if hook is not None:
+        from factory.demos.execute.plan_worlds import WarpPlanWorlds
+
+        physics = WarpPlanWorlds(
+            sim.setup.model, hook.robot_geom, hook.allowed, cfg.fps, device=device, max_worlds=1
+        )
+        reports.append(physics.warm_up())
+    if cfg.render:
+        renderer = WarpRecordingRenderer(sim.setup.model, sim.camera_rig(cfg), device, max_worlds=1)
+        try:
+            reports.append(renderer.warm_up())
+        finally:
+            renderer.close()
+    return _joined(reports)
+
+
+def _joined(reports: list[PreloadReport]) -> PreloadReport:
+    """One report of several preloads (counts and seconds added; the first error)."""
+    from factory.sim.kernel_preload import PreloadReport
+
+    if not reports:
         return PreloadReport(0, 0, 0.0, 0.0, 0, "")
-    renderer = WarpRecordingRenderer(sim.setup.model, sim.camera_rig(cfg), device, max_worlds=1)
-    try:
-        return renderer.warm_up()
-    finally:
-        renderer.close()
+    return PreloadReport(
+        sum(r.modules for r in reports),
+        sum(r.compiled for r in reports),
+        sum(r.trace_s for r in reports),
+        sum(r.load_s for r in reports),
+        max(r.workers for r in reports),
+        next((r.error for r in reports if r.error), ""),
+        sum(r.wait_s for r in reports),
+    )
 
 
 EPISODE = Execution(
     round_slots=1,
     queue_per_worker=2,
-    slot_worker=plan_and_simulate,
+    slot_worker=episode_slot,
     cpu_recorder=EpisodeCpu,
     gpu_recorder=EpisodeGpu,
     warm_up=warm_up_scene,

@@ -78,6 +78,13 @@ def check_config(dc: DemosConfig, task: str) -> None:
         raise ConfigError("demos.gpu_batch must be >= 1")
     if dc.gpu_retries not in ("cpu", "gpu"):
         raise ConfigError(f"demos.gpu_retries={dc.gpu_retries!r} is unknown: choose cpu or gpu")
+    from factory.demos.episode_physics import EPISODE_PHYSICS
+
+    if dc.episode_physics not in EPISODE_PHYSICS:
+        raise ConfigError(
+            f"demos.episode_physics={dc.episode_physics!r} is unknown: choose one of "
+            f"{', '.join(EPISODE_PHYSICS)}"
+        )
     if not 0.0 <= dc.gpu_tail < 0.5:
         raise ConfigError(
             f"demos.gpu_tail={dc.gpu_tail} is out of range: give the share of a scene's longest "
@@ -237,6 +244,9 @@ def run(ctx: StageContext) -> dict[str, Any]:
     gpu = [r["warp_seconds"] for r in results if "warp_seconds" in r]
     if gpu:
         summary["seconds"]["gpu"] = {k: sum(g[k] for g in gpu) for k in gpu[0]}
+    physics = [r["physics_seconds"] for r in results if "physics_seconds" in r]
+    if physics:  # the episode execution's plans simulated on MuJoCo Warp
+        summary["seconds"]["gpu_physics"] = {k: sum(g[k] for g in physics) for k in physics[0]}
     atomic_write_json(store.root / "episodes" / f"summary-{ctx.shard.name}.json", summary)
     log.info(
         "demos: %d new successful episodes, failures %s, %.1f s",

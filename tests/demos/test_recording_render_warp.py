@@ -503,11 +503,12 @@ def test_a_pinhole_ray_that_hits_nothing_reads_the_cpu_far_value(device: str, fm
 
 
 def test_open_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
-    """``stage=demos task=open demos.executor=warp`` on the bundled one-cabinet kitchen: planned
-    and simulated in a worker process, the main process setting the scene up without its
-    planner and drawing the recorded states on MuJoCo Warp (CUDA where present, else Warp's
-    CPU device) with the fixed-base Panda's cameras; stored as the CPU path stores it (the
-    task's arrays, the scene cameras' calibration), the recorder ``warp``."""
+    """``stage=demos task=open demos.executor=warp demos.episode_physics=cpu`` on the bundled
+    one-cabinet kitchen: planned and simulated in a worker process, the main process setting
+    the scene up without its planner and drawing the recorded states on MuJoCo Warp (CUDA
+    where present, else Warp's CPU device) with the fixed-base Panda's cameras; stored as the
+    CPU path stores it (the task's arrays, the scene cameras' calibration), the recorder
+    ``warp``."""
     from factory.demos.record.episodes import EpisodeStore
     from factory.tasks.articulated.record import ArticulatedRenderer
 
@@ -523,6 +524,7 @@ def test_open_stage_cli_with_the_warp_executor(cli, tmp_path: Path) -> None:
         "demos.height=32",
         "demos.fps=5",
         "demos.workers=1",
+        "demos.episode_physics=cpu",  # the GPU's physics: tests/demos/test_episode_gpu_physics.py
         env={"OMP_NUM_THREADS": "1"},
     )
     assert out.returncode == 0, out.stderr[-3000:]

@@ -125,7 +125,7 @@ def test_warmup_compiles_the_episode_renderers_kernels(tmp_path: Path) -> None:
     root = tmp_path / "run"
     (root / "scenes" / src.parent.name).mkdir(parents=True)
     shutil.copy(src, root / "scenes" / src.parent.name / "scene.json")
-    ctx = _ctx(root, task="open", width=32, height=32)
+    ctx = _ctx(root, task="open", width=32, height=32, episode_physics="cpu")
     first = run(ctx)
     assert first["scenes_warmed"] == 1 and first["scenes_failed"] == 0, first
     (one,) = json.loads((root / "warmup.json").read_text())["scenes"]

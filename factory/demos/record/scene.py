@@ -21,6 +21,7 @@ from factory.demos.record.slots import StageEnv
 from factory.schema.episode import EpisodeInfo
 
 if TYPE_CHECKING:
+    from factory.demos.record.from_states import StatesRecorder
     from factory.demos.record.rig import CameraRig
 
 __all__ = ["DemoScene", "SimulatingScene"]
@@ -98,3 +99,15 @@ class SimulatingScene(DemoScene):
         """Executes ``plan`` on the CPU and records it: a recording with ``outcome`` (its
         success check), ``time`` (F,) s, ``sim_seconds`` and ``render_seconds``; images drawn
         by ``renderer`` for a successful episode when ``rec_cfg.render``."""
+
+    gpu_physics_by_default: ClassVar[bool] = True
+    """Whether ``demos.episode_physics=auto`` simulates the task's episodes on MuJoCo Warp when
+    :meth:`states_recorder` gives a hook (false: only ``demos.episode_physics=warp`` does,
+    until the task's agreement with the CPU executor is measured)."""
+
+    def states_recorder(self) -> StatesRecorder | None:
+        """How an episode's recording and verdict follow from its simulated states, so that
+        the GPU pipeline may simulate the task's episodes on MuJoCo Warp
+        (:mod:`factory.demos.record.from_states`, ``demos.episode_physics``); None (the
+        default): the planner processes simulate them on the CPU."""
+        return None

@@ -219,6 +219,13 @@ class ArticulatedScene(SimulatingScene):
             rec_cfg = replace(rec_cfg, render=False)
         return self.execute(plan, rec_cfg, renderer)
 
+    def states_recorder(self) -> Any:
+        """The episode from its GPU-simulated states
+        (:class:`~factory.tasks.articulated.from_states.ArticulatedFromStates`)."""
+        from factory.tasks.articulated.from_states import ArticulatedFromStates
+
+        return ArticulatedFromStates(self.setup)
+
     def execute(self, plan: Any, rec_cfg: Any, renderer: Any | None) -> Any:
         """Runs and records one planned episode:
         :func:`~factory.tasks.articulated.execute.execute_episode` (a task sharing this class

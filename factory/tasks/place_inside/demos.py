@@ -95,6 +95,7 @@ class PlaceInsideScene(ArticulatedScene):
     settings) with this task's episode execution, summary and payload."""
 
     plan_type: ClassVar[type[Any]] = PlaceInsidePlan
+    gpu_physics_by_default: ClassVar[bool] = False  # demos.episode_physics=warp takes it
     setup: PlaceInsideSetup  # type: ignore[assignment]  # the articulated set-up inside it
 
     def __init__(
@@ -114,6 +115,13 @@ class PlaceInsideScene(ArticulatedScene):
             "object": self.setup.pick.id,
             "instruction": self.instruction,
         }
+
+    def states_recorder(self) -> Any:
+        """The episode from its GPU-simulated states
+        (:class:`~factory.tasks.place_inside.from_states.PlaceInsideFromStates`)."""
+        from factory.tasks.place_inside.from_states import PlaceInsideFromStates
+
+        return PlaceInsideFromStates(self.setup)
 
     def execute(self, plan: Any, rec_cfg: Any, renderer: Any | None) -> Any:
         """:func:`~factory.tasks.place_inside.execute.execute_episode`."""
