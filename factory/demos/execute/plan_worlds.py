@@ -39,6 +39,7 @@ from factory.demos.execute.warp import (
     DEVICE_LOCK,
     DYNAMIC,
     buffer_sizes,
+    host_reader,
     state_layout,
     trace_sim,
 )
@@ -251,17 +252,7 @@ class WarpPlanWorlds:
             )
             sources = {k: a for k, a in sources.items() if a.size}
             pinned = self.device.startswith("cuda")
-            mirrors = {
-                k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
-                for k, a in sources.items()
-            }
-
-            def grab() -> dict[str, np.ndarray]:
-                for k, a in sources.items():
-                    wp.copy(mirrors[k], a)
-                wp.synchronize()
-                return {k: a.numpy() for k, a in mirrors.items()}
-
+            grab = host_reader(wp, sources, pinned)
             self.times.setup += time.perf_counter() - t0
             captured = None
             periods_s = host_s = 0.0

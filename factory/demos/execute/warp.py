@@ -277,6 +277,23 @@ def staged_copy(wp: Any, device: str) -> Any:
         return copy
 
 
+def host_reader(wp: Any, sources: dict[str, Any], pinned: bool) -> Any:
+    """A function that copies the device arrays ``sources`` into host mirrors made once here
+    (page-locked when ``pinned``), waits for the device, and returns them as numpy arrays by
+    name (views of the mirrors: the next read overwrites them)."""
+    mirrors = {
+        k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned) for k, a in sources.items()
+    }
+
+    def grab() -> dict[str, np.ndarray]:
+        for k, a in sources.items():
+            wp.copy(mirrors[k], a)
+        wp.synchronize()
+        return {k: a.numpy() for k, a in mirrors.items()}
+
+    return grab
+
+
 def size_class(n: int) -> int:
     """The smallest of 1, 2, 3, 4, 6, 8, 12, 16, 24, ... (``2^k`` and ``3 * 2^k``) that is at
     least ``n``: less than half as much again as asked, and few distinct sizes."""
@@ -765,17 +782,7 @@ class WarpExecutor:
                     cached_modules(cache),
                 )
             t_part = time.perf_counter()
-            mirrors = {
-                k: wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
-                for k, a in sources.items()
-            }
-
-            def grab() -> dict[str, np.ndarray]:
-                for k, a in sources.items():
-                    wp.copy(mirrors[k], a)
-                wp.synchronize()
-                return {k: a.numpy() for k, a in mirrors.items()}
-
+            grab = host_reader(wp, sources, pinned)
             parts["mirrors"] = time.perf_counter() - t_part
             setup_s = time.perf_counter() - t0
             self.times.setup += setup_s
