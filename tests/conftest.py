@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import shutil
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -388,6 +389,37 @@ def _make_kitchen(assets: Path, seed: int = 3, scene_id: str | None = None) -> A
     if scene_id is not None:
         scene.id = scene_id
     return scene
+
+
+@pytest.fixture(scope="session")
+def _robosuite_imports(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("robosuite-imports")
+
+
+@pytest.fixture(autouse=True)
+def _import_robosuite_once(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch):
+    """Each new assets folder imports robosuite's textured meshes (about 10 s, mostly CoACD's
+    convex decompositions): in this process the import runs once and later assets folders get
+    a copy of its files (the same files: the import is deterministic, which
+    tests/assets/test_real_meshes.py checks with the real import, left alone there).
+    Subprocesses (the command line) import for themselves."""
+    if request.node.path.name == "test_real_meshes.py":
+        return
+    from factory.assets import packaged
+
+    imports = request.getfixturevalue("_robosuite_imports")
+    write = packaged._write_robosuite
+
+    def write_once(folder: Path, src: Any, key: str) -> None:
+        done = imports / f"{src.version}-{key}"
+        if (done / "metadata.json").is_file():
+            shutil.copytree(done, folder, dirs_exist_ok=True)
+            return
+        write(folder, src, key)
+        shutil.copytree(folder, imports / f".{done.name}")
+        os.rename(imports / f".{done.name}", done)
+
+    monkeypatch.setattr(packaged, "_write_robosuite", write_once)
 
 
 @pytest.fixture(scope="session")

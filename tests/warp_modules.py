@@ -47,3 +47,19 @@ def modules_compiled_after_preload(monkeypatch: pytest.MonkeyPatch) -> list[str]
     monkeypatch.setattr(kp, "preload", preload)
     monkeypatch.setattr(ctx.Module, "load", load)
     return late
+
+
+def without_sleep(setup):  # type: ignore[no-untyped-def]
+    """A copy of a scene set-up (a dataclass with a ``model``) whose model has MuJoCo's island
+    sleeping off: what Warp's CPU device runs. The demos stage turns sleeping off there
+    (``demos.sleep=false``: the GPU pipeline's test), since MuJoCo Warp's sleeping path is
+    for CUDA; on the CPU device it takes about 6x longer a step (60 ms against 10 ms for the
+    test kitchen: launch overhead). The ``gpu`` twins keep the model's sleeping."""
+    import copy
+    import dataclasses
+
+    import mujoco
+
+    model = copy.deepcopy(setup.model)
+    model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    return dataclasses.replace(setup, model=model)

@@ -14,6 +14,7 @@ import os
 import numpy as np
 import pytest
 from robot_models import require_robot_models
+from warp_modules import without_sleep
 
 if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
     require_robot_models()
@@ -155,6 +156,8 @@ def test_gpu_looks_match_cpu_looks(setup, device: str) -> None:
     from factory.demos.execute.warp import WarpExecutor
     from factory.errors import AppearanceError
 
+    if device == "cpu":
+        setup = without_sleep(setup)
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
     assert len(plans) >= 3

@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 import pytest
 from robot_models import require_robot_models
-from warp_modules import modules_compiled_after_preload
+from warp_modules import modules_compiled_after_preload, without_sleep
 
 if not os.environ.get("FACTORY_ROBOT_CACHE"):  # the GPU machine reads the exported robot
     require_robot_models()
@@ -366,7 +366,8 @@ def test_packed_worlds_record_what_padded_worlds_record(
     from factory.demos.execute.warp import WarpExecutor
 
     late = modules_compiled_after_preload(monkeypatch)
-
+    if device == "cpu":
+        setup = without_sleep(setup)
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(8)) if isinstance(p, EpisodePlan)]
     assert len(plans) >= 3
@@ -403,6 +404,7 @@ def test_images_kept_on_device_equal_frame_by_frame_copies(setup) -> None:
 
     if not supported():
         pytest.skip("shared arenas are Linux only")
+    setup = without_sleep(setup)  # Warp's CPU device
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(6)) if isinstance(p, EpisodePlan)]
     plans = sorted(plans, key=lambda p: len(p.ctrl))[:2]
@@ -438,6 +440,7 @@ def test_overflowing_worlds_run_again_with_more_room_then_fail_cleanly(
 
     from factory.demos.execute import warp as wx
 
+    setup = without_sleep(setup)  # Warp's CPU device
     planner = EpisodePlanner(setup)
     plans = [p for p in (planner.plan_episode(s) for s in range(3)) if isinstance(p, EpisodePlan)]
     plans = [dataclasses.replace(p, ctrl=p.ctrl[:30], targets=p.targets[:30]) for p in plans[:1]]

@@ -114,12 +114,13 @@ def test_parse_task() -> None:
     assert parse_task("a cozy bedroom") is None
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_from_a_to_b_places_two_supports_apart(tmp_path: Path, seed: int) -> None:
     """ "Move X from A to B": X stands on A, and B is another floor support, marked
     place_support, at least 1.5 m from A, and the route check passes (the robot's base can
     work at both and drive between them). Seed 3's room is full: the generator takes a light
-    object out to make room for B."""
+    object out to make room for B. (Seed 0's room, the one the route and mobile tests
+    generate, ran no line of factory/ that these three do not run.)"""
     from factory.nav.route import MIN_SUPPORT_SEPARATION, check_route
 
     lib = AssetLibrary(tmp_path / "assets")

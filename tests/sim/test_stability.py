@@ -267,7 +267,7 @@ def test_warp_reuses_device_data_with_the_same_results() -> None:
     model = compile_scene(_table_and_mug()).model
     q = _mixed_batch(model, 4, seed=3)
     engine = WarpBackend("cpu")
-    protocol = StabilityProtocol(resettle=False)
+    protocol = StabilityProtocol(resettle=False, duration=0.5)  # falling mugs still moving
     first = check_stability(model, q, backend=engine, protocol=protocol)
     assert len(engine._data) == 1
     again = check_stability(model, q, backend=engine, protocol=protocol)
@@ -344,10 +344,14 @@ def test_warp_overflow_is_rerun_then_invalid(monkeypatch: pytest.MonkeyPatch) ->
 
     model = compile_scene(_table_and_mug()).model
     q = np.stack([model.qpos0] * 2)
+    # 0.5 s (each of the 7 runs of the grown buffers simulates it whole): the contacts are
+    # there from the first step, and a mug simulated without them falls 1.2 m in that time
+    protocol = StabilityProtocol(duration=0.5)
     monkeypatch.setattr(WarpBackend, "initial_sizes", staticmethod(lambda m, qpos: (1, 4)))
-    never = check_stability(model, q, backend=WarpBackend(max_grow=0))
+    never = check_stability(model, q, backend=WarpBackend(max_grow=0), protocol=protocol)
     assert never.invalid.all() and "overflowed" in never.reasons[0]
-    grown = check_stability(model, q, backend=WarpBackend(max_grow=6))  # 1 -> 64 contacts
+    # 1 -> 64 contacts
+    grown = check_stability(model, q, backend=WarpBackend(max_grow=6), protocol=protocol)
     assert not grown.invalid.any() and grown.stable.all()
 
 
