@@ -18,7 +18,7 @@
 #
 # Use (from anywhere; paths are relative to the repository root):
 #   bash scripts/gpu_bundle.sh                 # gpu_bundle.tar
-#   bash scripts/gpu_bundle.sh --split 37M     # gpu_bundle.tar.part00, ... + gpu_bundle.tar.md5
+#   bash scripts/gpu_bundle.sh --split 35M     # gpu_bundle.tar.part00, ... + gpu_bundle.tar.md5
 #   bash scripts/gpu_bundle.sh --out /tmp/b.tar
 #   bash scripts/gpu_bundle.sh --list          # the pinned wheels, no network
 # Downloads are kept in .gpu_bundle_cache/ (wheels, gl, robots): a re-run fetches only what is
