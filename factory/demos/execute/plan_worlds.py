@@ -40,6 +40,7 @@ from factory.demos.execute.warp import (
     DYNAMIC,
     buffer_sizes,
     host_reader,
+    run_period,
     state_layout,
     trace_sim,
 )
@@ -262,14 +263,7 @@ class WarpPlanWorlds:
             for b in range(nb):
                 t1 = time.perf_counter()
                 if b + 1 < nb:  # the next period runs on the device while this one is filed
-                    if self.graph and captured is None:
-                        with DEVICE_LOCK, wp.ScopedCapture() as cap:
-                            period()
-                        captured = cap.graph
-                    if captured is not None:
-                        wp.capture_launch(captured)
-                    else:
-                        period()
+                    captured = run_period(wp, period, captured, self.graph)
                 t2 = time.perf_counter()
                 self._file(host, template, states[b], sched.row[b] >= 0, worst)
                 t3 = time.perf_counter()

@@ -294,6 +294,22 @@ def host_reader(wp: Any, sources: dict[str, Any], pinned: bool) -> Any:
     return grab
 
 
+def run_period(wp: Any, period: Any, captured: Any, graph: bool) -> Any:
+    """Runs one recording period: ``period()`` itself, or with ``graph`` its CUDA graph,
+    captured at the first call (under :data:`DEVICE_LOCK`: another thread's copies must not
+    be recorded into it) and replayed after; returns the graph to pass to the next call (None
+    without ``graph``)."""
+    if graph and captured is None:
+        with DEVICE_LOCK, wp.ScopedCapture() as cap:
+            period()
+        captured = cap.graph
+    if captured is not None:
+        wp.capture_launch(captured)
+    else:
+        period()
+    return captured
+
+
 def size_class(n: int) -> int:
     """The smallest of 1, 2, 3, 4, 6, 8, 12, 16, 24, ... (``2^k`` and ``3 * 2^k``) that is at
     least ``n``: less than half as much again as asked, and few distinct sizes."""
@@ -796,14 +812,7 @@ class WarpExecutor:
             for b in range(nb):
                 t1 = time.perf_counter()
                 if b + 1 < nb:  # boundary b + 1 runs on the GPU while boundary b is filed
-                    if self.graph and captured is None:
-                        with DEVICE_LOCK, wp.ScopedCapture() as cap:
-                            period()
-                        captured = cap.graph
-                    if captured is not None:
-                        wp.capture_launch(captured)
-                    else:
-                        period()
+                    captured = run_period(wp, period, captured, self.graph)
                 t2 = time.perf_counter()
                 self._record(
                     b,
